@@ -1,0 +1,175 @@
+"""Typed settings: defaults, TOML presets and ``key=value`` overrides.
+
+Settings are frozen dataclasses, one per stage, each field with its unit and
+the reason for its default. They are resolved in this order, later wins:
+defaults, the quality preset (``configs/quality/<name>.toml``), a user
+``--config FILE.toml``, then ``--set section.key=value`` overrides. Unknown
+sections or keys are rejected by name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import InputError
+
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
+QUALITIES = ("draft", "default", "final")
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+
+
+@dataclass(frozen=True)
+class ImportSettings:
+    """How a hairstyle file becomes strands in metres."""
+
+    units: str = "auto"
+    """File unit: m, cm, mm, in, or auto (guessed from the size of the body or the hair, and reported)."""
+    scale: float = 0.0
+    """Metres per file unit; overrides ``units`` when > 0 (for odd units such as 0.1 inch = 0.00254)."""
+    up: str = "auto"
+    """World up axis of the file: x, y, z, or auto (the format's own convention, reported). Gravity is along -up."""
+    flip: str = ""
+    """Axes negated on import, e.g. "z" for a left-handed (DirectX) export; applied before scaling."""
+    merge_tolerance: float = 1e-7
+    """m. Consecutive points closer than this are merged: repeated points carry no shape."""
+    min_length: float = 1e-3
+    """m. Strands shorter than this are dropped: they cannot carry a super-helix."""
+    guides: int = 0
+    """Keep only this many strands, a seeded random subset evenly spread over the scalp (0 keeps all)."""
+    seed: int = 0
+    """Seed of the guide selection, so the same command picks the same strands."""
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """Curves to G1 piecewise super-helices."""
+
+    tolerance: float = 2e-4
+    """m. Target for the largest distance between an input vertex and the fitted curve at its arc length.
+    0.2 mm is twice a hair's diameter; elements are added until it is met or max_elements is reached."""
+    elements: int = 0
+    """Fixed number of elements per strand; 0 chooses it adaptively from the tolerance."""
+    min_elements: int = 4
+    """Smallest element count tried by the adaptive fit (the paper uses 6 to 40)."""
+    max_elements: int = 40
+    """Largest element count (the paper's maximum); never more than the strand's segment count."""
+    max_iterations: int = 40
+    """Levenberg-Marquardt iterations per element count; near-zero-residual fits converge in under 10."""
+
+
+@dataclass(frozen=True)
+class Settings:
+    """All settings of a run, one section per stage."""
+
+    import_: ImportSettings = field(default_factory=ImportSettings)
+    fit: FitSettings = field(default_factory=FitSettings)
+
+    def to_dict(self) -> dict:
+        return {_section_name(f.name): dataclasses.asdict(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+
+def _section_name(attr: str) -> str:
+    return attr.rstrip("_")
+
+
+_SECTIONS = {_section_name(f.name): f.name for f in dataclasses.fields(Settings)}
+
+
+def _coerce(value, typ, where: str):
+    try:
+        if typ is bool:
+            if isinstance(value, str):
+                if value.lower() in ("1", "true", "yes", "on"):
+                    return True
+                if value.lower() in ("0", "false", "no", "off"):
+                    return False
+                raise ValueError(value)
+            return bool(value)
+        if typ is int:
+            if isinstance(value, float) and not value.is_integer():
+                raise ValueError(value)
+            return int(value)
+        if typ is float:
+            return float(value)
+        if typ is str:
+            return str(value)
+    except (TypeError, ValueError):
+        raise InputError(f"setting {where} expects a {typ.__name__}, got {value!r}") from None
+    raise InputError(f"setting {where} has an unsupported type")
+
+
+def apply(settings: Settings, overrides: dict, source: str = "overrides") -> Settings:
+    """Return ``settings`` with a nested ``{section: {key: value}}`` mapping applied.
+
+    Raises
+    ------
+    InputError
+        For an unknown section or key (named), or a value of the wrong type.
+    """
+    changes = {}
+    for section, values in overrides.items():
+        if section not in _SECTIONS:
+            raise InputError(f"{source}: unknown settings section [{section}]; known: {', '.join(_SECTIONS)}")
+        if not isinstance(values, dict):
+            raise InputError(f"{source}: [{section}] must be a table of key = value")
+        attr = _SECTIONS[section]
+        current = getattr(settings, attr)
+        hints = typing.get_type_hints(type(current))
+        known = {f.name for f in dataclasses.fields(current)}
+        updates = {}
+        for key, value in values.items():
+            if key not in known:
+                raise InputError(
+                    f"{source}: unknown setting {section}.{key}; known in [{section}]: {', '.join(sorted(known))}"
+                )
+            updates[key] = _coerce(value, hints[key], f"{section}.{key}")
+        changes[attr] = dataclasses.replace(current, **updates)
+    return dataclasses.replace(settings, **changes)
+
+
+def load_toml(path) -> dict:
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise InputError("no such settings file", path) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"is not valid TOML ({exc})", path) from None
+
+
+def parse_set(items) -> dict:
+    """Turn ``["fit.tolerance=1e-4", ...]`` into ``{"fit": {"tolerance": "1e-4"}}``."""
+    out: dict = {}
+    for item in items:
+        if "=" not in item or "." not in item.split("=", 1)[0]:
+            raise InputError(f"--set expects section.key=value, got {item!r}")
+        key, value = item.split("=", 1)
+        section, name = key.strip().split(".", 1)
+        out.setdefault(section, {})[name] = value.strip()
+    return out
+
+
+def resolve(quality: str = "default", config_file=None, sets=(), extra: dict | None = None) -> Settings:
+    """Settings from defaults, a quality preset, a TOML file, ``--set`` items and CLI options.
+
+    ``extra`` holds values given as dedicated command-line options
+    (``--units``, ``--tolerance`` ...); they win over everything else.
+    """
+    if quality not in QUALITIES:
+        raise InputError(f"unknown quality {quality!r}; choose one of {', '.join(QUALITIES)}")
+    settings = Settings()
+    preset = CONFIG_DIR / "quality" / f"{quality}.toml"
+    if preset.exists():
+        settings = apply(settings, load_toml(preset), str(preset))
+    if config_file is not None:
+        settings = apply(settings, load_toml(config_file), str(config_file))
+    if sets:
+        settings = apply(settings, parse_set(sets), "--set")
+    if extra:
+        settings = apply(settings, {k: v for k, v in extra.items() if v}, "command line")
+    return settings

@@ -1,0 +1,1 @@
+"""Planned stage: see the issues; nothing here yet."""

@@ -1,0 +1,157 @@
+"""Curves to G1 piecewise super-helices (paper, section 4.2).
+
+The numerics live in :mod:`hairinv.rod.fitting`; this module owns the
+arrays, runs the strands in chunks (so a caller can show progress), and
+builds the ``/helices`` stage group.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import stages
+from .config import FitSettings
+from .errors import InputError
+from .groom import Groom
+from .rod.fitting import FIT_TOLERANCE_NOT_MET, closest_distances, fit_batch
+
+__all__ = ["Helices", "FitReport", "fit_groom"]
+
+
+@dataclass
+class Helices:
+    """Fitted super-helices of a groom (the ``/helices`` group).
+
+    Attributes
+    ----------
+    root : (S, 3) float64, m
+    frame0 : (S, 3, 3) float64, rows (t, n1, n2)
+    offsets : (S + 1,) int64, CSR offsets into the element arrays
+    length : (E,) float64, m
+    omega : (E, 3) float64, (kappa1, kappa2, tau), 1/m
+    fit_error : (S, 2) float64, m, mean and max vertex distance
+    """
+
+    root: np.ndarray
+    frame0: np.ndarray
+    offsets: np.ndarray
+    length: np.ndarray
+    omega: np.ndarray
+    fit_error: np.ndarray
+
+    @property
+    def n_strands(self) -> int:
+        return int(len(self.offsets) - 1)
+
+    @property
+    def n_elements(self) -> int:
+        return int(self.offsets[-1])
+
+    def group(self, settings: FitSettings, inputs: list[dict], extra_attrs: dict | None = None) -> stages.Group:
+        import dataclasses
+
+        return stages.Group(
+            stages.HELICES,
+            {
+                "root": self.root,
+                "frame0": self.frame0,
+                "offsets": self.offsets,
+                "length": self.length,
+                "omega": self.omega,
+                "fit_error": self.fit_error,
+            },
+            attrs=dict(extra_attrs or {}),
+            config={"fit": dataclasses.asdict(settings)},
+            inputs=inputs,
+        )
+
+    @classmethod
+    def from_group(cls, group: stages.Group) -> "Helices":
+        return cls(*(np.ascontiguousarray(group[k]) for k in ("root", "frame0", "offsets", "length", "omega", "fit_error")))
+
+
+@dataclass
+class FitReport:
+    """Counts and figures of a fit, for the user."""
+
+    strands: int
+    elements: np.ndarray
+    fit_error: np.ndarray
+    tolerance_missed: int
+    seconds: float
+
+    def lines(self) -> list[str]:
+        mean_mm = 1e3 * self.fit_error[:, 0]
+        max_mm = 1e3 * self.fit_error[:, 1]
+        lines = [
+            f"fitted {self.strands} strands with {int(self.elements.sum())} elements "
+            f"(per strand min {self.elements.min()}, median {int(np.median(self.elements))}, max {self.elements.max()}) "
+            f"in {self.seconds:.2f} s",
+            f"fit error, mm: mean {mean_mm.mean():.4f}, median of strand means {np.median(mean_mm):.4f}, "
+            f"95th percentile of strand maxima {np.percentile(max_mm, 95):.4f}, max {max_mm.max():.4f}",
+        ]
+        if self.tolerance_missed:
+            lines.append(
+                f"{self.tolerance_missed} strands did not reach the tolerance with the maximum element count "
+                "(raise fit.max_elements or the tolerance)"
+            )
+        return lines
+
+
+def _validate(settings: FitSettings) -> None:
+    if not settings.tolerance > 0:
+        raise InputError(f"fit.tolerance must be > 0 m, got {settings.tolerance}")
+    if settings.elements < 0 or settings.min_elements < 1 or settings.max_elements < settings.min_elements:
+        raise InputError("fit element counts must satisfy 1 <= min_elements <= max_elements and elements >= 0")
+    if settings.max_iterations < 1:
+        raise InputError("fit.max_iterations must be >= 1")
+
+
+def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 256) -> tuple[Helices, FitReport]:
+    """Fit super-helices to every strand of ``groom``.
+
+    Parameters
+    ----------
+    groom : Groom
+        Clean strands in metres (see :func:`hairinv.groom.load_groom`).
+    settings : FitSettings
+    progress : callable, optional
+        Called with the number of strands finished after each chunk.
+    """
+    _validate(settings)
+    start = time.perf_counter()
+    points = np.ascontiguousarray(groom.points, dtype=np.float64)
+    offsets = np.ascontiguousarray(groom.offsets, dtype=np.int64)
+    up = np.ascontiguousarray(groom.up, dtype=np.float64)
+    count = groom.n_strands
+    n_max = max(settings.max_elements, settings.elements)
+    out_n = np.zeros(count, np.int64)
+    out_frame = np.zeros((count, 3, 3))
+    out_omega = np.zeros((count, n_max, 3))
+    out_length = np.zeros((count, n_max))
+    out_worst = np.zeros(count)
+    out_status = np.zeros(count, np.int64)
+    for lo in range(0, count, chunk):
+        hi = min(count, lo + chunk)
+        sub = offsets[lo:hi + 1] - offsets[lo]
+        pts = points[offsets[lo]:offsets[hi]]
+        fit_batch(pts, sub, up, float(settings.tolerance), int(settings.elements), int(settings.min_elements),
+                  int(n_max), int(settings.max_iterations), out_n[lo:hi], out_frame[lo:hi],
+                  out_omega[lo:hi], out_length[lo:hi], out_worst[lo:hi], out_status[lo:hi])
+        if progress is not None:
+            progress(hi - lo)
+    helix_offsets = np.concatenate([[0], np.cumsum(out_n)]).astype(np.int64)
+    omega = np.concatenate([out_omega[i, :out_n[i]] for i in range(count)])
+    length = np.concatenate([out_length[i, :out_n[i]] for i in range(count)])
+    roots = np.ascontiguousarray(points[offsets[:-1]])
+    err_mean = np.zeros(count)
+    err_max = np.zeros(count)
+    closest_distances(points, offsets, roots, out_frame, helix_offsets, omega, length, err_mean, err_max)
+    fit_error = np.stack([err_mean, err_max], axis=1)
+    helices = Helices(roots, out_frame, helix_offsets, length, omega, fit_error)
+    missed = int((out_status == FIT_TOLERANCE_NOT_MET).sum()) if settings.elements == 0 else 0
+    report = FitReport(count, out_n, fit_error, missed, time.perf_counter() - start)
+    return helices, report

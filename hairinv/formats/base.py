@@ -1,0 +1,149 @@
+"""Containers and registries shared by every format module.
+
+A reader turns one file into a :class:`RawCurves` (strand polylines in the
+file's own units and axes) or a :class:`trimesh.Trimesh` body, and raises
+:class:`hairinv.errors.InputError` naming the file, and the strand where it
+applies, for anything it cannot read. Readers never rescale or reorient:
+units and axes are applied afterwards by :mod:`hairinv.groom`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = [
+    "RawCurves",
+    "register_curves_reader",
+    "register_mesh_reader",
+    "register_curves_writer",
+    "curves_reader_for",
+    "mesh_reader_for",
+    "curves_writer_for",
+    "check_strands",
+    "CURVE_READERS",
+    "MESH_READERS",
+    "CURVE_WRITERS",
+]
+
+
+@dataclass
+class RawCurves:
+    """Strand polylines as stored in a file.
+
+    Attributes
+    ----------
+    points : (P, 3) float64
+        Vertices, strand after strand, root first, in the file's units.
+    offsets : (S + 1,) int64
+        CSR offsets: strand ``s`` owns ``points[offsets[s]:offsets[s+1]]``.
+    format : str
+        Short name of the format, e.g. ``"tressfx-v4"``.
+    up : str or None
+        The file's own up axis (``"y"`` or ``"z"``) when the format or file
+        states one, else None (the importer decides and says so).
+    scale_to_m : float or None
+        Metres per file unit when the file states it (USD ``metersPerUnit``,
+        hairinv HDF5), else None.
+    extras : dict
+        Optional per-strand or per-point arrays the format carries
+        (``thickness``, ``color``, ``pinned_tip`` ...), kept for export.
+    """
+
+    points: np.ndarray
+    offsets: np.ndarray
+    format: str
+    up: str | None = None
+    scale_to_m: float | None = None
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def n_strands(self) -> int:
+        return int(len(self.offsets) - 1)
+
+
+CurvesReader = Callable[[Path], RawCurves]
+MeshReader = Callable[[Path], "object"]
+CurvesWriter = Callable[..., None]
+
+CURVE_READERS: dict[str, CurvesReader] = {}
+MESH_READERS: dict[str, MeshReader] = {}
+CURVE_WRITERS: dict[str, CurvesWriter] = {}
+
+
+def _register(table: dict, suffixes: tuple[str, ...]):
+    def decorate(fn):
+        for suffix in suffixes:
+            table[suffix.lower()] = fn
+        return fn
+
+    return decorate
+
+
+def register_curves_reader(*suffixes: str):
+    """Register ``fn(path) -> RawCurves`` for file suffixes such as ``".hair"``."""
+    return _register(CURVE_READERS, suffixes)
+
+
+def register_mesh_reader(*suffixes: str):
+    """Register ``fn(path) -> trimesh.Trimesh`` for body-mesh file suffixes."""
+    return _register(MESH_READERS, suffixes)
+
+
+def register_curves_writer(*suffixes: str):
+    """Register ``fn(path, points, offsets, **options)`` writing strands to a file."""
+    return _register(CURVE_WRITERS, suffixes)
+
+
+def _suffix(path: Path) -> str:
+    return path.suffix.lower()
+
+
+def _lookup(table: dict, path: Path, what: str):
+    path = Path(path)
+    fn = table.get(_suffix(path))
+    if fn is None:
+        known = ", ".join(sorted(table))
+        raise InputError(
+            f"unknown {what} file type {path.suffix or '(no suffix)'!r}; known types are {known}", path
+        )
+    return fn
+
+
+def curves_reader_for(path: Path) -> CurvesReader:
+    return _lookup(CURVE_READERS, path, "hairstyle")
+
+
+def mesh_reader_for(path: Path) -> MeshReader:
+    return _lookup(MESH_READERS, path, "body mesh")
+
+
+def curves_writer_for(path: Path) -> CurvesWriter:
+    return _lookup(CURVE_WRITERS, path, "hairstyle output")
+
+
+def check_strands(points: np.ndarray, offsets: np.ndarray, path: Path, fmt: str) -> RawCurves:
+    """Validate decoded strands and wrap them in a :class:`RawCurves`.
+
+    Checks shapes, CSR offsets and that every coordinate is finite; a NaN or
+    Inf names the first strand that has one.
+    """
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    offsets = np.ascontiguousarray(offsets, dtype=np.int64)
+    if offsets.ndim != 1 or len(offsets) < 1 or offsets[0] != 0:
+        raise InputError("strand offsets are malformed", path)
+    if len(offsets) == 1:
+        raise InputError("the file holds no strands", path)
+    if np.any(np.diff(offsets) < 0) or offsets[-1] != len(points):
+        raise InputError("strand vertex counts do not add up to the number of points", path)
+    bad = ~np.isfinite(points).all(axis=1)
+    if bad.any():
+        first = int(np.argmax(bad))
+        strand = int(np.searchsorted(offsets, first, side="right") - 1)
+        raise InputError("vertex coordinates contain NaN or Inf", path, strand=strand)
+    return RawCurves(points=points, offsets=offsets, format=fmt)

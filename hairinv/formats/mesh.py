@@ -1,0 +1,79 @@
+"""Body meshes: OBJ, PLY, STL, OFF and GLB, returned as unprocessed triangle meshes.
+
+OBJ files are parsed here (with :func:`hairinv.formats.obj.parse_obj`) rather
+than by trimesh, because trimesh splits OBJ vertices along UV and normal
+seams (ruby_head.obj would grow from 17892 to 23220 vertices); parsing
+ourselves keeps one vertex per ``v`` line, in file order, so vertex indices
+match the file. Every ``f`` of every group/object goes into the one mesh;
+n-gons are fan-triangulated (n - 2 triangles). The other formats go through
+``trimesh.load(path, force="mesh", process=False)``, which concatenates all
+the geometry of a scene. Nothing is merged or removed in either case.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .base import register_mesh_reader
+from .obj import parse_obj
+
+
+def _checked(vertices, faces, path: Path):
+    import trimesh
+
+    vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if len(faces) == 0:
+        raise InputError("has no faces; a body mesh needs triangles", path)
+    if not np.isfinite(vertices).all():
+        raise InputError("has vertex coordinates that are NaN or Inf", path)
+    return trimesh.Trimesh(vertices, faces, process=False)
+
+
+@register_mesh_reader(".obj")
+def read_obj_mesh(path: Path):
+    """Read an OBJ body mesh.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        ``vertices`` (V, 3) float64, one per ``v`` line in the file's units;
+        ``faces`` (T, 3) int64, every ``f`` fan-triangulated.
+    """
+    path = Path(path)
+    vertices, polygons = parse_obj(path, "f")
+    faces = []
+    for number, idx in polygons:
+        if len(idx) < 3:
+            raise InputError(f"line {number} has a face with fewer than 3 vertices", path)
+        faces.extend((idx[0], idx[k], idx[k + 1]) for k in range(1, len(idx) - 1))
+    if not faces:
+        hint = "; is it a hairstyle?" if parse_obj(path, "l")[1] else ""
+        raise InputError(f"has no faces{hint}", path)
+    return _checked(vertices, faces, path)
+
+
+@register_mesh_reader(".ply", ".stl", ".off", ".glb")
+def read_trimesh(path: Path):
+    """Read a PLY, STL, OFF or GLB body mesh with trimesh (all parts concatenated).
+
+    Returns
+    -------
+    trimesh.Trimesh
+        ``vertices`` (V, 3) float64 in the file's units, ``faces`` (T, 3)
+        int64, unprocessed.
+    """
+    import trimesh
+
+    path = Path(path)
+    try:
+        mesh = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for corrupt files
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"could not be read as a {path.suffix.lower()} mesh ({reason})", path) from None
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise InputError(f"holds no triangle mesh (trimesh read a {type(mesh).__name__})", path)
+    return _checked(mesh.vertices, mesh.faces, path)

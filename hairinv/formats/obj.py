@@ -1,0 +1,126 @@
+"""Wavefront OBJ polylines as hairstyles: ``v`` vertices and ``l`` elements.
+
+Each ``l`` element is one strand, in file order, even when it continues the
+previous one (its first index equals the previous element's last). Indices
+are 1-based, negative ones count back from the last ``v`` defined so far, and
+``l 1/1 2/2`` texture forms are accepted (the texture index is ignored).
+Numbers after x y z on a ``v`` line (RGB colours, w) are ignored. The body
+mesh reader for ``.obj`` lives in :mod:`hairinv.formats.mesh` and shares
+:func:`parse_obj`.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .base import check_strands, register_curves_reader, register_curves_writer
+
+
+def parse_obj(path: Path, element: str) -> tuple[np.ndarray, list[tuple[int, list[int]]]]:
+    """Read the ``v`` lines and the ``element`` lines (``"l"`` or ``"f"``) of an OBJ file.
+
+    Returns
+    -------
+    vertices : (V, 3) float64
+        Positions of every ``v`` line, in file order.
+    elements : list of (line number, 0-based vertex indices)
+        One entry per ``element`` line; indices are checked to be in range.
+    """
+    path = Path(path)
+    text = path.read_bytes().decode("utf-8", errors="replace").replace("\\\r\n", " ").replace("\\\n", " ")
+    coords: list[list[str]] = []
+    elements: list[tuple[int, list[int]]] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        words = line.split()
+        if not words:
+            continue
+        if words[0] == "v":
+            if len(words) < 4:
+                raise InputError(f"line {number} has a 'v' with fewer than three coordinates", path)
+            coords.append(words[1:4])
+        elif words[0] == element:
+            n_defined = len(coords)
+            indices = []
+            for token in words[1:]:
+                head = token.split("/", 1)[0]
+                try:
+                    k = int(head)
+                except ValueError:
+                    raise InputError(f"line {number} has a malformed index {token!r}", path) from None
+                k = k - 1 if k > 0 else n_defined + k
+                if not 0 <= k < n_defined:
+                    raise InputError(f"line {number} refers to vertex {head}, which is not defined before it", path)
+                indices.append(k)
+            elements.append((number, indices))
+    try:
+        vertices = np.array(coords, dtype=np.float64).reshape(-1, 3)
+    except ValueError:
+        bad = next(i for i, xyz in enumerate(coords) if not _numeric(xyz))
+        raise InputError(f"vertex {bad + 1} has coordinates that are not numbers", path) from None
+    return vertices, elements
+
+
+def _numeric(words) -> bool:
+    try:
+        [float(w) for w in words]
+    except ValueError:
+        return False
+    return True
+
+
+@register_curves_reader(".obj")
+def read_obj_curves(path: Path):
+    """Read OBJ polylines, one strand per ``l`` element.
+
+    Returns
+    -------
+    RawCurves
+        ``points`` (P, 3) float64 in the file's units (vertices shared by
+        several elements are repeated), ``offsets`` (S + 1,) int64,
+        ``up="y"``.
+    """
+    path = Path(path)
+    vertices, lines = parse_obj(path, "l")
+    if not lines:
+        raise InputError("has no polyline ('l') elements; is it a mesh?", path)
+    counts = np.array([len(idx) for _, idx in lines], dtype=np.int64)
+    offsets = np.zeros(len(lines) + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    index = np.fromiter((k for _, idx in lines for k in idx), dtype=np.int64, count=int(offsets[-1]))
+    raw = check_strands(vertices[index], offsets, path, "obj-lines")
+    raw.up = "y"
+    return raw
+
+
+@register_curves_writer(".obj")
+def write_obj_curves(path: Path, points, offsets) -> None:
+    """Write strands as OBJ ``v`` lines and one ``l`` element per strand.
+
+    Parameters
+    ----------
+    points : (P, 3) float
+        Vertices, strand after strand (written with full float64 precision).
+    offsets : (S + 1,) int
+        CSR offsets; every strand needs at least 2 points.
+    """
+    path = Path(path)
+    raw = check_strands(points, offsets, path, "obj-lines")
+    counts = np.diff(raw.offsets)
+    if np.any(counts < 2):
+        s = int(np.argmax(counts < 2))
+        raise InputError(f"has {int(counts[s])} points but an OBJ polyline needs at least 2", path, strand=s)
+    out = ["# hairstyle written by hairinv: one 'l' element per strand, root first\n"]
+    out += [f"v {x!r} {y!r} {z!r}\n" for x, y, z in raw.points.tolist()]
+    for a, b in zip(raw.offsets[:-1].tolist(), raw.offsets[1:].tolist()):
+        out.append("l " + " ".join(map(str, range(a + 1, b + 1))) + "\n")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text("".join(out))
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise InputError(f"cannot be written ({exc.strerror or exc})", path) from None

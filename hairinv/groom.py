@@ -1,0 +1,280 @@
+"""From a hairstyle file to clean strands in metres, and the body beside it.
+
+Readers return strands in the file's own units and axes. This module applies
+what the user said (or what was guessed, always reported): axis flips, the
+unit, the up axis; then cleans the strands (merging repeated points, dropping
+strands too short to carry a rod) and optionally keeps a seeded subset of
+guide strands spread evenly over the scalp.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import formats, stages
+from .config import UNITS, ImportSettings
+from .errors import InputError
+
+AXES = {"x": 0, "y": 1, "z": 2}
+# Typical diagonal of the bounding box, m: a head of hair, and a bust.
+_TYPICAL_HAIR_SIZE = 0.45
+_TYPICAL_BODY_SIZE = 0.6
+
+
+@dataclass
+class Groom:
+    """Clean strands in metres.
+
+    Attributes
+    ----------
+    points : (P, 3) float64, m
+    offsets : (S + 1,) int64
+    up : (3,) float64, unit vector; gravity is along ``-up``
+    scale_to_m : float, the factor applied on import
+    source : str, original file name and format
+    index : (S,) int64, each strand's index in the original file
+    """
+
+    points: np.ndarray
+    offsets: np.ndarray
+    up: np.ndarray
+    scale_to_m: float
+    source: str
+    index: np.ndarray
+
+    @property
+    def n_strands(self) -> int:
+        return int(len(self.offsets) - 1)
+
+    def curves_group(self, settings: ImportSettings, inputs: list[dict]) -> stages.Group:
+        return stages.Group(
+            stages.CURVES,
+            {"points": self.points, "offsets": self.offsets},
+            attrs={"source": self.source, "scale_to_m": self.scale_to_m, "up": self.up},
+            config={"import": dataclasses.asdict(settings)},
+            inputs=inputs,
+        )
+
+
+@dataclass
+class ImportReport:
+    """What the import did, as counts and sentences for the user."""
+
+    strands_read: int = 0
+    points_read: int = 0
+    merged_points: int = 0
+    dropped_degenerate: int = 0
+    dropped_short: int = 0
+    kept: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        lines = [f"read {self.strands_read} strands, {self.points_read} points"]
+        lines += self.notes
+        if self.merged_points:
+            lines.append(f"merged {self.merged_points} repeated points")
+        if self.dropped_degenerate:
+            lines.append(f"dropped {self.dropped_degenerate} strands with fewer than 2 distinct points")
+        if self.dropped_short:
+            lines.append(f"dropped {self.dropped_short} strands shorter than the minimum length")
+        lines.append(f"kept {self.kept} strands")
+        return lines
+
+
+def guess_units(size: float, typical: float) -> str:
+    """The unit in which a bounding-box diagonal ``size`` is closest to ``typical`` metres."""
+    best = min(UNITS, key=lambda unit: abs(np.log(size * UNITS[unit] / typical)))
+    return best
+
+
+def _up_vector(axis) -> np.ndarray:
+    if isinstance(axis, str):
+        up = np.zeros(3)
+        up[AXES[axis]] = 1.0
+        return up
+    up = np.asarray(axis, dtype=np.float64)
+    return up / np.linalg.norm(up)
+
+
+def _flip(points: np.ndarray, flip: str, path) -> np.ndarray:
+    for axis in flip.replace(",", "").lower():
+        if axis not in AXES:
+            raise InputError(f"--flip takes axes among x, y, z; got {flip!r}", path)
+        points[:, AXES[axis]] *= -1.0
+    return points
+
+
+def resolve_scale(settings: ImportSettings, stated: float | None, size_native: float, typical: float,
+                  what: str, notes: list[str]) -> float:
+    """Metres per file unit from the settings, the file, or a reported guess."""
+    if settings.scale > 0:
+        scale = settings.scale
+        notes.append(f"units: {scale:g} m per file unit (--scale)")
+    elif settings.units != "auto":
+        if settings.units not in UNITS:
+            raise InputError(f"unknown unit {settings.units!r}; choose m, cm, mm, in or auto")
+        scale = UNITS[settings.units]
+        notes.append(f"units: {settings.units} (as given)")
+    elif stated is not None:
+        scale = stated
+        notes.append(f"units: {scale:g} m per unit (stated by the file)")
+    else:
+        unit = guess_units(size_native, typical)
+        scale = UNITS[unit]
+        notes.append(
+            f"units: guessed {unit} from the {what}'s size ({size_native:.4g} file units across, "
+            f"{size_native * scale:.3g} m); pass --units or --scale to set it"
+        )
+    if stated is not None and abs(scale - stated) > 1e-12 * stated:
+        notes.append(f"warning: the file states {stated:g} m per unit; using {scale:g} as asked")
+    return scale
+
+
+def _clean(points, offsets, merge_tol, min_length, report: ImportReport):
+    """Merge repeated consecutive points, drop degenerate and short strands."""
+    keep_pts = np.ones(len(points), dtype=bool)
+    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    close = step <= merge_tol
+    # a step is internal to a strand unless it crosses a strand boundary
+    boundary = np.zeros(len(points) - 1 if len(points) else 0, dtype=bool)
+    ends = offsets[1:-1] - 1
+    boundary[ends[(ends >= 0) & (ends < len(boundary))]] = True
+    merge = close & ~boundary
+    keep_pts[1:][merge] = False
+    counts = np.add.reduceat(keep_pts.astype(np.int64), offsets[:-1]) if len(points) else np.zeros(0, np.int64)
+    counts[np.diff(offsets) == 0] = 0
+    report.merged_points = int((~keep_pts).sum())
+    new_offsets = np.concatenate([[0], np.cumsum(counts)])
+    pts = points[keep_pts]
+    seg = np.where(np.isin(np.arange(len(pts) - 1), new_offsets[1:-1] - 1), 0.0,
+                   np.linalg.norm(np.diff(pts, axis=0), axis=1)) if len(pts) > 1 else np.zeros(0)
+    lengths = np.add.reduceat(np.concatenate([seg, [0.0]]), new_offsets[:-1]) if len(pts) else np.zeros(0)
+    lengths[counts == 0] = 0.0
+    degenerate = counts < 2
+    short = ~degenerate & (lengths < min_length)
+    report.dropped_degenerate = int(degenerate.sum())
+    report.dropped_short = int(short.sum())
+    keep = ~(degenerate | short)
+    return pts, new_offsets, keep
+
+
+def _subset(points, offsets, keep_idx) -> tuple[np.ndarray, np.ndarray]:
+    counts = np.diff(offsets)[keep_idx]
+    new_offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    rows = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in keep_idx]) if len(keep_idx) else np.zeros(0, np.int64)
+    return np.ascontiguousarray(points[rows]), new_offsets
+
+
+def select_guides(roots: np.ndarray, n: int, seed: int) -> np.ndarray:
+    """Indices of ``n`` strands, a seeded random subset spread evenly over the roots.
+
+    The roots are bucketed in a cubic grid whose cell size is chosen (by
+    bisection) so that about ``n`` cells are occupied; one random strand is
+    drawn per cell, then the count is trimmed or topped up at random.
+    """
+    count = len(roots)
+    if n <= 0 or n >= count:
+        return np.arange(count)
+    rng = np.random.default_rng(seed)
+    lo, hi = 0.0, float(np.ptp(roots, axis=0).max()) + 1e-12
+    origin = roots.min(axis=0)
+    cells = None
+    for _ in range(40):
+        h = 0.5 * (lo + hi)
+        keys = np.floor((roots - origin) / h).astype(np.int64)
+        _, cells = np.unique(keys, axis=0, return_inverse=True)
+        occupied = cells.max() + 1
+        if occupied > n:
+            lo = h
+        else:
+            hi = h
+        if occupied == n:
+            break
+    order = rng.permutation(count)
+    _, first = np.unique(cells[order], return_index=True)
+    chosen = order[first]
+    if len(chosen) > n:
+        chosen = rng.choice(chosen, n, replace=False)
+    elif len(chosen) < n:
+        rest = np.setdiff1d(np.arange(count), chosen)
+        chosen = np.concatenate([chosen, rng.choice(rest, n - len(chosen), replace=False)])
+    return np.sort(chosen)
+
+
+def load_groom(path, settings: ImportSettings, body_size_native: float | None = None) -> tuple[Groom, ImportReport]:
+    """Read, orient, scale and clean a hairstyle file.
+
+    Parameters
+    ----------
+    path : path-like
+        Any registered hairstyle format.
+    settings : ImportSettings
+    body_size_native : float, optional
+        Bounding-box diagonal of the paired body in the same file units; when
+        given, an ``auto`` unit is guessed from the body instead of the hair.
+    """
+    path = Path(path)
+    raw = formats.read_curves(path)
+    report = ImportReport(strands_read=raw.n_strands, points_read=len(raw.points))
+    points = _flip(raw.points.copy(), settings.flip, path)
+    if settings.flip:
+        report.notes.append(f"flipped axes: {settings.flip}")
+    if body_size_native is not None:
+        scale = resolve_scale(settings, raw.scale_to_m, body_size_native, _TYPICAL_BODY_SIZE, "body", report.notes)
+    else:
+        size = float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+        scale = resolve_scale(settings, raw.scale_to_m, size, _TYPICAL_HAIR_SIZE, "hairstyle", report.notes)
+    points *= scale
+    if settings.up != "auto":
+        if settings.up not in AXES:
+            raise InputError(f"--up takes x, y, z or auto; got {settings.up!r}")
+        up = _up_vector(settings.up)
+        report.notes.append(f"up: +{settings.up.upper()} (as given); gravity along -{settings.up.upper()}")
+    elif raw.up is not None:
+        up = _up_vector(raw.up)
+        label = f"+{raw.up.upper()}" if isinstance(raw.up, str) else np.array2string(up, precision=3)
+        report.notes.append(f"up: {label} (the {raw.format} convention); pass --up to change it")
+    else:
+        up = _up_vector("y")
+        report.notes.append("up: +Y (assumed); pass --up to change it")
+    pts, offsets, keep = _clean(points, raw.offsets, settings.merge_tolerance, settings.min_length, report)
+    keep_idx = np.flatnonzero(keep)
+    if len(keep_idx) == 0:
+        raise InputError("no strand is left after cleaning (all are degenerate or shorter than the minimum length)", path)
+    pts, offsets = _subset(pts, offsets, keep_idx)
+    if settings.guides > 0 and settings.guides < len(keep_idx):
+        chosen = select_guides(pts[offsets[:-1]], settings.guides, settings.seed)
+        report.notes.append(f"guides: kept {len(chosen)} of {len(keep_idx)} strands (seed {settings.seed})")
+        pts, offsets = _subset(pts, offsets, chosen)
+        keep_idx = keep_idx[chosen]
+    report.kept = len(keep_idx)
+    source = raw.extras.get("source") if raw.format == "hairinv-hdf5" else f"{path.name} ({raw.format})"
+    groom = Groom(pts, offsets, up, float(scale), str(source), keep_idx.astype(np.int64))
+    return groom, report
+
+
+def load_body(path, scale: float, flip: str = ""):
+    """Read a body mesh and bring it to metres with the hair's scale.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Triangles in metres, in the same world frame as the hair.
+    """
+    mesh = formats.read_mesh(path)
+    vertices = _flip(np.array(mesh.vertices, dtype=np.float64), flip, path) * scale
+    mesh = mesh.copy()
+    mesh.vertices = vertices
+    if flip and len(flip.replace(",", "")) % 2 == 1:
+        mesh.invert()
+    return mesh
+
+
+def body_size(path) -> float:
+    """Bounding-box diagonal of a body mesh in its file units (for unit guessing)."""
+    mesh = formats.read_mesh(path)
+    return float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))

@@ -1,0 +1,1 @@
+"""Super-helix rod kernels (numba): evaluation, frames, Jacobians, statics."""

@@ -1,0 +1,701 @@
+"""Kernels that fit G1 piecewise super-helices to polylines.
+
+One strand at a time (strands are independent, so the batch runs them in
+parallel with deterministic results):
+
+1. Sequential initialisation: element after element, starting from the
+   frame where the previous element ended, a circular arc is aimed at the
+   polyline point at the element's end, then its three parameters (and, for
+   the first element, the root tangent) are refined by a small
+   Levenberg-Marquardt solve on the vertices it covers.
+2. Global refinement, an orthogonal-distance fit: Levenberg-Marquardt on all
+   ``(kappa1, kappa2, tau)``, the root tangent (2 angles: the roll about the
+   tangent is a gauge freedom of an isotropic rod and stays fixed) and the
+   strand length. Interior vertices are matched to their closest curve point
+   (Newton on their arc length), the tip vertex to the curve's end, so a
+   polyline sampled from a super-helix is recovered exactly even though its
+   chord lengths are shorter than the arc. The Jacobian is exact: a change of
+   element ``e`` moves everything downstream rigidly about the end of ``e``.
+3. Adaptive size: elements holding a vertex farther than the tolerance are
+   split in two. A split element with unchanged omega is the same curve, so
+   each refinement starts from the previous optimum.
+
+Kernels return status codes instead of raising.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import jit, pjit, prange
+from .helix import _advance, chain, element_derivatives, element_step
+
+__all__ = ["fit_batch", "fit_adaptive", "closest_distances", "FIT_OK", "FIT_TOLERANCE_NOT_MET"]
+
+FIT_OK = 0
+FIT_TOLERANCE_NOT_MET = 1
+
+# Levenberg-Marquardt stops when an accepted step lowers the cost by less
+# than this fraction: zero-residual fits converge quadratically to round-off
+# long before, real data stagnate here.
+_RELATIVE_DECREASE = 1e-7
+_PROJECTION_NEWTON = 8
+
+
+@jit
+def _cross_add(a, b, out, scale):
+    out[0] += scale * (a[1] * b[2] - a[2] * b[1])
+    out[1] += scale * (a[2] * b[0] - a[0] * b[2])
+    out[2] += scale * (a[0] * b[1] - a[1] * b[0])
+
+
+@jit
+def _locate(starts, s):
+    """Element index and local arc length of arc length ``s``."""
+    n = starts.shape[0] - 1
+    e = np.searchsorted(starts, s, side="right") - 1
+    if e > n - 1:
+        e = n - 1
+    if e < 0:
+        e = 0
+    return e, s - starts[e]
+
+
+@jit
+def _starts(length, starts):
+    starts[0] = 0.0
+    for e in range(length.shape[0]):
+        starts[e + 1] = starts[e] + length[e]
+
+
+@jit
+def _darboux_world(omega_e, F):
+    """World Darboux vector ``Om = tau t + kappa1 n1 + kappa2 n2`` of an element."""
+    return omega_e[2] * F[0] + omega_e[0] * F[1] + omega_e[1] * F[2]
+
+
+@jit
+def _residual(root, F0, omega, length, s, p, project, xs, Fs, starts, r, tang):
+    """Orthogonal-distance residuals of one strand.
+
+    Interior vertices are projected on the curve (Newton on their arc length
+    ``s[j]``, started from its current value, updated in place); the root sits
+    at ``s = 0`` and the tip vertex is matched to the curve's end. Writes
+    ``r`` (3 (M - 1),) and the unit tangents ``tang`` at the matched points;
+    returns the cost ``1/2 |r|^2``.
+    """
+    m = s.shape[0]
+    chain(root, F0, omega, length, xs, Fs)
+    _starts(length, starts)
+    total = starts[starts.shape[0] - 1]
+    x = np.empty(3)
+    F = np.empty((3, 3))
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    cost = 0.0
+    s[m - 1] = total
+    for j in range(1, m):
+        sj = min(max(s[j], 0.0), total)
+        iterations = project if j < m - 1 else 0
+        if project < 0:
+            iterations = 0
+        for it in range(iterations + 1):
+            e, sig = _locate(starts, sj)
+            _advance(xs[e], Fs[e], omega[e], sig, x, F, R, P, Q)
+            if it == iterations:
+                break
+            # stationarity of |x(s) - p|^2: g = t.(x - p), g' = 1 + (Om x t).(x - p)
+            diff = x - p[j]
+            g = F[0] @ diff
+            Om = _darboux_world(omega[e], Fs[e])
+            h = 1.0
+            h += (Om[1] * F[0, 2] - Om[2] * F[0, 1]) * diff[0]
+            h += (Om[2] * F[0, 0] - Om[0] * F[0, 2]) * diff[1]
+            h += (Om[0] * F[0, 1] - Om[1] * F[0, 0]) * diff[2]
+            if h < 0.2:
+                h = 1.0
+            new = min(max(sj - g / h, 0.0), total)
+            if new == sj:
+                break
+            sj = new
+        s[j] = sj
+        for i in range(3):
+            v = x[i] - p[j, i]
+            r[3 * (j - 1) + i] = v
+            tang[j, i] = F[0, i]
+            cost += 0.5 * v * v
+    return cost
+
+
+@jit
+def _jacobian(root, omega, length, s, p, xs, Fs, starts, r, tang, J, odr):
+    """Gauss-Newton Jacobian of the orthogonal-distance residuals.
+
+    Columns: the root tangent's two angles (about n1, n2), the 3n omegas, and
+    the strand length (every element scales with it; vertices keep their
+    fraction of the length). Rows of interior vertices are projected on the
+    curve's normal plane (variable projection of their arc length).
+    """
+    n = omega.shape[0]
+    m = s.shape[0]
+    total = starts[n]
+    J[:, :] = 0.0
+    dxe = np.empty((n, 3, 3))
+    dthe = np.empty((n, 3, 3))
+    for e in range(n):
+        element_derivatives(omega[e], length[e], Fs[e], dxe[e], dthe[e])
+    dxj = np.empty((3, 3))
+    dthj = np.empty((3, 3))
+    col = np.empty(3)
+    dL = np.empty(3)
+    last = 2 + 3 * n
+    for j in range(1, m):
+        row = 3 * (j - 1)
+        xj = r[row:row + 3] + p[j]
+        rel = xj - root
+        for c in range(2):
+            col[:] = 0.0
+            _cross_add(Fs[0, 1 + c], rel, col, 1.0)
+            J[row:row + 3, c] = col
+        e, sig = _locate(starts, s[j])
+        dL[:] = 0.0
+        for f in range(e):
+            rel = xj - xs[f + 1]
+            for k in range(3):
+                col[:] = dxe[f, k]
+                _cross_add(dthe[f, k], rel, col, 1.0)
+                J[row:row + 3, 2 + 3 * f + k] = col
+            # per unit length of element f: its end moves along its end tangent and turns about Om_f
+            frac = length[f] / total
+            Om = _darboux_world(omega[f], Fs[f])
+            dL += frac * Fs[f + 1, 0]
+            _cross_add(Om, rel, dL, frac)
+        element_derivatives(omega[e], sig, Fs[e], dxj, dthj)
+        for k in range(3):
+            J[row:row + 3, 2 + 3 * e + k] = dxj[k]
+        for i in range(3):
+            J[row + i, last] = dL[i] + (sig / total) * tang[j, i]
+        if odr and j < m - 1:
+            t = tang[j]
+            for c in range(last + 1):
+                proj = t[0] * J[row, c] + t[1] * J[row + 1, c] + t[2] * J[row + 2, c]
+                for i in range(3):
+                    J[row + i, c] -= proj * t[i]
+
+
+@jit
+def _rotate_rows(F, th, out):
+    """Rotate the rows of a frame by the rotation vector ``th`` (Rodrigues), re-orthonormalised."""
+    angle = np.sqrt(th[0] ** 2 + th[1] ** 2 + th[2] ** 2)
+    R = np.eye(3)
+    if angle > 0.0:
+        k = th / angle
+        K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        R = R + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = R[j, 0] * F[i, 0] + R[j, 1] * F[i, 1] + R[j, 2] * F[i, 2]
+    t = out[0] / np.sqrt(out[0] @ out[0])
+    n1 = out[1] - (out[1] @ t) * t
+    n1 = n1 / np.sqrt(n1 @ n1)
+    out[0] = t
+    out[1] = n1
+    out[2, 0] = t[1] * n1[2] - t[2] * n1[1]
+    out[2, 1] = t[2] * n1[0] - t[0] * n1[2]
+    out[2, 2] = t[0] * n1[1] - t[1] * n1[0]
+
+
+@jit
+def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr):
+    """Refine ``F0`` (root tangent), ``omega`` and ``length`` (scaled as one) in place.
+
+    ``s`` holds the vertices' matched arc lengths, in and out. With ``odr``
+    false the vertices keep their fraction of the length (no sliding along
+    the curve: a robust first phase); with ``odr`` true they are projected on
+    the curve (the exact orthogonal-distance fit). Returns the final cost. Damping follows the gain ratio (Nielsen 1999): it grows by
+    ``nu`` on a rejected step and shrinks by ``max(1/3, 1 - (2 rho - 1)^3)``
+    on an accepted one.
+    """
+    n = omega.shape[0]
+    m = s.shape[0]
+    npar = 3 + 3 * n
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    starts = np.empty(n + 1)
+    r = np.empty(3 * (m - 1))
+    tang = np.zeros((m, 3))
+    J = np.zeros((3 * (m - 1), npar))
+    r_try = np.empty(3 * (m - 1))
+    tang_try = np.zeros((m, 3))
+    s_try = np.empty(m)
+    F_try = np.empty((3, 3))
+    om_try = np.empty_like(omega)
+    len_try = np.empty_like(length)
+    th = np.empty(3)
+    D = np.empty(npar)
+    newton = _PROJECTION_NEWTON if odr else -1
+    cost = _residual(root, F0, omega, length, s, p, newton, xs, Fs, starts, r, tang)
+    lam = 1e-4
+    nu = 2.0
+    iters = 0
+    while iters < max_iter and cost > 0.0:
+        iters += 1
+        _jacobian(root, omega, length, s, p, xs, Fs, starts, r, tang, J, odr)
+        total = starts[n]
+        JtJ = J.T @ J
+        g = J.T @ r
+        dmax = 0.0
+        for i in range(npar):
+            dmax = max(dmax, JtJ[i, i])
+        floor = 1e-12 * dmax + 1e-300
+        accepted = False
+        c_try = cost
+        for _try in range(30):
+            A = JtJ.copy()
+            for i in range(npar):
+                D[i] = max(JtJ[i, i], floor)
+                A[i, i] += lam * D[i]
+            delta = np.linalg.solve(A, -g)
+            for i in range(3):
+                th[i] = delta[0] * F0[1, i] + delta[1] * F0[2, i]
+            _rotate_rows(F0, th, F_try)
+            for e in range(n):
+                for k in range(3):
+                    om_try[e, k] = omega[e, k] + delta[2 + 3 * e + k]
+            ratio = (total + delta[npar - 1]) / total
+            predicted = 0.0
+            for i in range(npar):
+                predicted += 0.5 * delta[i] * (lam * D[i] * delta[i] - g[i])
+            if ratio > 0.0:
+                for e in range(n):
+                    len_try[e] = length[e] * ratio
+                for j in range(m):
+                    s_try[j] = s[j] * ratio
+                c_try = _residual(root, F_try, om_try, len_try, s_try, p, 3 if odr else -1, xs, Fs, starts,
+                                  r_try, tang_try)
+                if c_try < cost and predicted > 0.0:
+                    rho = (cost - c_try) / predicted
+                    lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                    nu = 2.0
+                    accepted = True
+                    break
+            lam *= nu
+            nu *= 2.0
+        if not accepted:
+            break
+        decrease = cost - c_try
+        F0[:, :] = F_try
+        omega[:, :] = om_try
+        length[:] = len_try
+        s[:] = s_try
+        r[:] = r_try
+        tang[:, :] = tang_try
+        cost = c_try
+        if decrease <= _RELATIVE_DECREASE * cost:
+            break
+    return _residual(root, F0, omega, length, s, p, newton, xs, Fs, starts, r, tang)
+
+
+@jit
+def _polyline_at(p, s, S, out):
+    """Point of the input polyline at arc length ``S`` (linear interpolation)."""
+    m = s.shape[0]
+    if S <= 0.0:
+        out[:] = p[0]
+        return
+    if S >= s[m - 1]:
+        out[:] = p[m - 1]
+        return
+    j = np.searchsorted(s, S, side="right") - 1
+    a = (S - s[j]) / (s[j + 1] - s[j])
+    for i in range(3):
+        out[i] = (1.0 - a) * p[j, i] + a * p[j + 1, i]
+
+
+@jit
+def _initial_frame(p, up, F0):
+    """Root frame: t along the first segment, n1 towards ``up`` (the roll is a gauge choice)."""
+    t = p[1] - p[0]
+    t = t / np.sqrt(t @ t)
+    ref = up.copy()
+    if abs(ref @ t) > 0.99:
+        # up is along the root tangent: use the world axis least aligned with it
+        ref[:] = 0.0
+        ref[np.argmin(np.abs(t))] = 1.0
+    n1 = ref - (ref @ t) * t
+    n1 = n1 / np.sqrt(n1 @ n1)
+    F0[0] = t
+    F0[1] = n1
+    F0[2, 0] = t[1] * n1[2] - t[2] * n1[1]
+    F0[2, 1] = t[2] * n1[0] - t[0] * n1[2]
+    F0[2, 2] = t[0] * n1[1] - t[1] * n1[0]
+
+
+@jit
+def _element_residual(x, F, om, sig, tgt, res):
+    """Residuals of one element started at (x, F) against targets; returns the cost."""
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    cost = 0.0
+    for i in range(sig.shape[0]):
+        element_step(om[2], om[0], om[1], sig[i], R, P, Q)
+        for a in range(3):
+            v = x[a] + F[0, a] * P[0] + F[1, a] * P[1] + F[2, a] * P[2] - tgt[i, a]
+            res[3 * i + a] = v
+            cost += 0.5 * v * v
+    return cost
+
+
+@jit
+def _fit_element(x, F, om, sig, tgt, free_frame, max_iter):
+    """Levenberg-Marquardt on one element's omega (and, for the first element,
+    the two angles of its start tangent); updates ``om`` and ``F`` in place."""
+    k = sig.shape[0]
+    npar = 5 if free_frame else 3
+    off = 2 if free_frame else 0
+    res = np.empty(3 * k)
+    res_try = np.empty(3 * k)
+    Jl = np.zeros((3 * k, npar))
+    om_try = np.empty(3)
+    F_try = F.copy()
+    th = np.empty(3)
+    dx = np.empty((3, 3))
+    dth = np.empty((3, 3))
+    col = np.empty(3)
+    xi = np.empty(3)
+    D = np.empty(npar)
+    cost = _element_residual(x, F, om, sig, tgt, res)
+    lam = 1e-4
+    nu = 2.0
+    for _ in range(max_iter):
+        for i in range(k):
+            element_derivatives(om, sig[i], F, dx, dth)
+            for b in range(3):
+                for a in range(3):
+                    Jl[3 * i + a, off + b] = dx[b, a]
+            if free_frame:
+                for a in range(3):
+                    xi[a] = res[3 * i + a] + tgt[i, a] - x[a]
+                for c in range(2):
+                    col[:] = 0.0
+                    _cross_add(F[1 + c], xi, col, 1.0)
+                    for a in range(3):
+                        Jl[3 * i + a, c] = col[a]
+        JtJ = Jl.T @ Jl
+        g = Jl.T @ res
+        accepted = False
+        c_try = cost
+        for _t in range(30):
+            A = JtJ.copy()
+            for b in range(npar):
+                D[b] = JtJ[b, b] + 1e-300
+                A[b, b] += lam * D[b]
+            d = np.linalg.solve(A, -g)
+            for b in range(3):
+                om_try[b] = om[b] + d[off + b]
+            if free_frame:
+                for a in range(3):
+                    th[a] = d[0] * F[1, a] + d[1] * F[2, a]
+                _rotate_rows(F, th, F_try)
+            else:
+                F_try[:, :] = F
+            c_try = _element_residual(x, F_try, om_try, sig, tgt, res_try)
+            predicted = 0.0
+            for b in range(npar):
+                predicted += 0.5 * d[b] * (lam * D[b] * d[b] - g[b])
+            if c_try < cost and predicted > 0.0:
+                rho = (cost - c_try) / predicted
+                lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                nu = 2.0
+                accepted = True
+                break
+            lam *= nu
+            nu *= 2.0
+        if not accepted:
+            break
+        rel = (cost - c_try) / (cost + 1e-300)
+        om[:] = om_try
+        F[:, :] = F_try
+        res[:] = res_try
+        cost = c_try
+        if rel < 1e-6:
+            break
+    return cost
+
+
+@jit
+def _sequential_init(root, F0, p, s, length, omega):
+    """Element-by-element initial guess (see the module docstring).
+
+    The first element also refines the root tangent ``F0`` in place: the
+    polyline's first chord is off the true tangent by about half the
+    curvature times the first segment length.
+    """
+    n = length.shape[0]
+    x = root.copy()
+    F = F0.copy()
+    x_next = np.empty(3)
+    F_next = np.empty((3, 3))
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    target = np.empty(3)
+    m = s.shape[0]
+    s0 = 0.0
+    for e in range(n):
+        s1 = s0 + length[e] if e < n - 1 else s[m - 1]
+        ell_e = s1 - s0
+        # The vertices inside the element and, as a continuation of the same
+        # helix, those up to one more element length ahead: they hold the end
+        # tangent near the polyline's instead of letting it chase a kink.
+        # The polyline point at the end is a target only when the element
+        # holds fewer than two vertices (it is a chord, off the curve).
+        ahead = min(s1 + ell_e, s[m - 1])
+        j0 = np.searchsorted(s, s0, side="right")
+        j1 = np.searchsorted(s, s1, side="left")
+        j2 = np.searchsorted(s, ahead, side="right")
+        inside = j1 - j0
+        extra = 1 if inside < 2 else 0
+        k = j2 - j0 + extra
+        sig = np.empty(k)
+        tgt = np.empty((k, 3))
+        for i in range(j2 - j0):
+            sig[i] = s[j0 + i] - s0
+            tgt[i] = p[j0 + i]
+        _polyline_at(p, s, s1, target)
+        if extra == 1:
+            sig[k - 1] = ell_e
+            tgt[k - 1] = target
+        # circular arc aimed at the end point: chord angle theta, curvature 2 theta / ell
+        c = target - x
+        cn = np.sqrt(c @ c)
+        om = np.zeros(3)
+        if cn > 0.0:
+            c = c / cn
+            ax = np.empty(3)
+            ax[0] = F[0, 1] * c[2] - F[0, 2] * c[1]
+            ax[1] = F[0, 2] * c[0] - F[0, 0] * c[2]
+            ax[2] = F[0, 0] * c[1] - F[0, 1] * c[0]
+            sn = np.sqrt(ax @ ax)
+            if sn > 1e-14:
+                theta = np.arctan2(sn, F[0] @ c)
+                kappa = 2.0 * theta / ell_e
+                ax = ax * (kappa / sn)
+                om[0] = ax @ F[1]
+                om[1] = ax @ F[2]
+        _fit_element(x, F, om, sig, tgt, e == 0, 10)
+        if e == 0:
+            F0[:, :] = F
+        omega[e] = om
+        _advance(x, F, om, ell_e, x_next, F_next, R, P, Q)
+        x[:] = x_next
+        F[:, :] = F_next
+        s0 = s1
+
+
+@jit
+def _vertex_errors(root, F0, omega, length, s, p, err):
+    """Distance of each vertex to its matched curve point (``err[0] = 0``); returns the max."""
+    n = omega.shape[0]
+    m = s.shape[0]
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    starts = np.empty(n + 1)
+    r = np.empty(3 * (m - 1))
+    tang = np.zeros((m, 3))
+    _residual(root, F0, omega, length, s, p, _PROJECTION_NEWTON, xs, Fs, starts, r, tang)
+    err[0] = 0.0
+    worst = 0.0
+    for j in range(1, m):
+        d = np.sqrt(r[3 * j - 3] ** 2 + r[3 * j - 2] ** 2 + r[3 * j - 1] ** 2)
+        err[j] = d
+        worst = max(worst, d)
+    return worst
+
+
+@jit
+def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out, length_out):
+    """Fit one strand, splitting elements until the tolerance is met.
+
+    Parameters
+    ----------
+    p : (M, 3) float64, m, the polyline (M >= 2)
+    up : (3,) float64, world up (fixes the roll of the root frame)
+    tolerance : float64, m, target for the largest vertex distance
+    fixed : int64, a fixed element count (equal lengths), or 0 for adaptive
+    n_min, n_max : int64, bounds of the adaptive count (never above M - 1)
+    max_iter : int64, Levenberg-Marquardt iterations per refinement
+    F0 : (3, 3) float64, out, root frame
+    omega_out : (n_max, 3) float64, out, first ``n`` rows used
+    length_out : (n_max,) float64, out, first ``n`` entries used
+
+    Returns
+    -------
+    n, worst, status : number of elements, largest vertex distance (m), FIT_*
+    """
+    m = p.shape[0]
+    s = np.zeros(m)
+    for j in range(1, m):
+        d = p[j] - p[j - 1]
+        s[j] = s[j - 1] + np.sqrt(d @ d)
+    cap = max(1, min(n_max, m - 1))
+    n = min(fixed, cap) if fixed > 0 else min(max(n_min, 1), cap)
+    length = np.full(n, s[m - 1] / n)
+    omega = np.zeros((n, 3))
+    root = p[0].copy()
+    _initial_frame(p, up, F0)
+    _sequential_init(root, F0, p, s, length, omega)
+    err = np.zeros(m)
+    while True:
+        _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False)
+        _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, True)
+        worst = _vertex_errors(root, F0, omega, length, s, p, err)
+        if fixed > 0 or worst <= tolerance or n >= cap:
+            break
+        # split the elements that hold a vertex beyond the tolerance, worst
+        # first, between their middle vertices so each half keeps data
+        starts = np.empty(n + 1)
+        _starts(length, starts)
+        badness = np.zeros(n)
+        first = np.full(n, -1)
+        count_in = np.zeros(n, dtype=np.int64)
+        for j in range(1, m - 1):
+            e = np.searchsorted(starts, s[j], side="right") - 1
+            e = min(max(e, 0), n - 1)
+            if first[e] < 0:
+                first[e] = j
+            count_in[e] += 1
+        for j in range(1, m):
+            if err[j] > tolerance:
+                e = np.searchsorted(starts, s[j], side="right") - 1
+                e = min(max(e, 0), n - 1)
+                badness[e] = max(badness[e], err[j])
+                # a vertex near a joint is shaped by both neighbours
+                if e > 0 and s[j] - starts[e] < 0.25 * length[e]:
+                    badness[e - 1] = max(badness[e - 1], err[j])
+                if e < n - 1 and starts[e + 1] - s[j] < 0.25 * length[e]:
+                    badness[e + 1] = max(badness[e + 1], err[j])
+        for e in range(n):
+            if count_in[e] < 2:
+                badness[e] = 0.0
+        room = cap - n
+        order = np.argsort(-badness)
+        cut = np.full(n, -1.0)
+        count = 0
+        for i in range(n):
+            e = order[i]
+            if badness[e] <= 0.0 or count >= room:
+                break
+            mid = first[e] + count_in[e] // 2
+            cut[e] = 0.5 * (s[mid - 1] + s[mid]) - starts[e]
+            count += 1
+        if count == 0:
+            break
+        new_omega = np.empty((n + count, 3))
+        new_length = np.empty(n + count)
+        k = 0
+        for e in range(n):
+            new_omega[k] = omega[e]
+            if cut[e] > 0.0:
+                new_length[k] = cut[e]
+                k += 1
+                new_omega[k] = omega[e]
+                new_length[k] = length[e] - cut[e]
+            else:
+                new_length[k] = length[e]
+            k += 1
+        n += count
+        omega = new_omega
+        length = new_length
+    omega_out[:n] = omega
+    length_out[:n] = length
+    status = FIT_OK if (fixed > 0 or worst <= tolerance) else FIT_TOLERANCE_NOT_MET
+    return n, worst, status
+
+
+@pjit
+def fit_batch(points, offsets, up, tolerance, fixed, n_min, n_max, max_iter,
+              out_n, out_frame, out_omega, out_length, out_worst, out_status):
+    """Fit every strand of a CSR polyline set (see :func:`fit_adaptive`).
+
+    Parameters
+    ----------
+    points : (P, 3) float64, m
+    offsets : (S + 1,) int64
+    out_n : (S,) int64, out, elements used per strand
+    out_frame : (S, 3, 3) float64, out, root frames
+    out_omega : (S, n_max, 3) float64, out
+    out_length : (S, n_max) float64, out, element lengths, m
+    out_worst : (S,) float64, out, largest vertex distance, m
+    out_status : (S,) int64, out, FIT_OK or FIT_TOLERANCE_NOT_MET
+    """
+    for i in prange(offsets.shape[0] - 1):
+        p = points[offsets[i]:offsets[i + 1]]
+        n, worst, status = fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter,
+                                        out_frame[i], out_omega[i], out_length[i])
+        out_n[i] = n
+        out_worst[i] = worst
+        out_status[i] = status
+
+
+@pjit
+def closest_distances(points, offsets, roots, frames, helix_offsets, omega, length, out_mean, out_max):
+    """Distance from every input vertex to the fitted centerline.
+
+    For vertex ``j`` of a strand, Newton's method on the arc length, started at
+    the vertex's proportional arc length, finds the nearest centerline point
+    (the stationarity condition ``t(sigma) . (x(sigma) - p_j) = 0``, derivative
+    ``1 + (Om x t) . (x - p_j)``). Writes the per-strand mean and max, m.
+    """
+    for i in prange(offsets.shape[0] - 1):
+        p = points[offsets[i]:offsets[i + 1]]
+        om = omega[helix_offsets[i]:helix_offsets[i + 1]]
+        ln = length[helix_offsets[i]:helix_offsets[i + 1]]
+        n = om.shape[0]
+        xs = np.empty((n + 1, 3))
+        Fs = np.empty((n + 1, 3, 3))
+        chain(roots[i], frames[i], om, ln, xs, Fs)
+        starts = np.empty(n + 1)
+        _starts(ln, starts)
+        total = starts[n]
+        x = np.empty(3)
+        F = np.empty((3, 3))
+        R = np.empty((3, 3))
+        P = np.empty(3)
+        Q = np.empty(3)
+        poly = 0.0
+        for j in range(1, p.shape[0]):
+            d = p[j] - p[j - 1]
+            poly += np.sqrt(d @ d)
+        sv = 0.0
+        acc = 0.0
+        worst = 0.0
+        for j in range(p.shape[0]):
+            if j > 0:
+                d = p[j] - p[j - 1]
+                sv += np.sqrt(d @ d)
+            sig = min(sv * total / poly, total)
+            best = 1e300
+            for _ in range(12):
+                e, local = _locate(starts, sig)
+                _advance(xs[e], Fs[e], om[e], local, x, F, R, P, Q)
+                diff = x - p[j]
+                best = min(best, np.sqrt(diff @ diff))
+                g = F[0] @ diff
+                Om = _darboux_world(om[e], Fs[e])
+                h = 1.0
+                h += (Om[1] * F[0, 2] - Om[2] * F[0, 1]) * diff[0]
+                h += (Om[2] * F[0, 0] - Om[0] * F[0, 2]) * diff[1]
+                h += (Om[0] * F[0, 1] - Om[1] * F[0, 0]) * diff[2]
+                if h < 0.2:
+                    h = 1.0
+                new = min(max(sig - g / h, 0.0), total)
+                if abs(new - sig) <= 1e-15 * (total + 1.0):
+                    break
+                sig = new
+            acc += best
+            worst = max(worst, best)
+        out_mean[i] = acc / p.shape[0]
+        out_max[i] = worst
