@@ -79,7 +79,9 @@ def _section_name(attr: str) -> str:
 _SECTIONS = {_section_name(f.name): f.name for f in dataclasses.fields(Settings)}
 
 
-def _coerce(value, typ, where: str):
+def _coerce(value, typ, where: str, source: str):
+    if typ in (int, float) and isinstance(value, bool):
+        raise InputError(f"{source}: setting {where} expects a number, got {value!r}")
     try:
         if typ is bool:
             if isinstance(value, str):
@@ -98,8 +100,9 @@ def _coerce(value, typ, where: str):
         if typ is str:
             return str(value)
     except (TypeError, ValueError):
-        raise InputError(f"setting {where} expects a {typ.__name__}, got {value!r}") from None
-    raise InputError(f"setting {where} has an unsupported type")
+        article = "an" if typ.__name__[0] in "aeiou" else "a"
+        raise InputError(f"{source}: setting {where} expects {article} {typ.__name__}, got {value!r}") from None
+    raise InputError(f"{source}: setting {where} has an unsupported type")
 
 
 def apply(settings: Settings, overrides: dict, source: str = "overrides") -> Settings:
@@ -126,7 +129,7 @@ def apply(settings: Settings, overrides: dict, source: str = "overrides") -> Set
                 raise InputError(
                     f"{source}: unknown setting {section}.{key}; known in [{section}]: {', '.join(sorted(known))}"
                 )
-            updates[key] = _coerce(value, hints[key], f"{section}.{key}")
+            updates[key] = _coerce(value, hints[key], f"{section}.{key}", source)
         changes[attr] = dataclasses.replace(current, **updates)
     return dataclasses.replace(settings, **changes)
 

@@ -15,6 +15,7 @@ import numpy as np
 from . import stages
 from .config import FitSettings
 from .errors import InputError
+from ._parallel import run_chunks
 from .groom import Groom
 from .rod.fitting import FIT_TOLERANCE_NOT_MET, closest_distances, fit_batch
 
@@ -110,7 +111,7 @@ def _validate(settings: FitSettings) -> None:
         raise InputError("fit.max_iterations must be >= 1")
 
 
-def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 256) -> tuple[Helices, FitReport]:
+def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 32) -> tuple[Helices, FitReport]:
     """Fit super-helices to every strand of ``groom``.
 
     Parameters
@@ -134,22 +135,26 @@ def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 2
     out_length = np.zeros((count, n_max))
     out_worst = np.zeros(count)
     out_status = np.zeros(count, np.int64)
-    for lo in range(0, count, chunk):
-        hi = min(count, lo + chunk)
+    def fit_chunk(lo: int, hi: int) -> None:
         sub = offsets[lo:hi + 1] - offsets[lo]
-        pts = points[offsets[lo]:offsets[hi]]
-        fit_batch(pts, sub, up, float(settings.tolerance), int(settings.elements), int(settings.min_elements),
-                  int(n_max), int(settings.max_iterations), out_n[lo:hi], out_frame[lo:hi],
-                  out_omega[lo:hi], out_length[lo:hi], out_worst[lo:hi], out_status[lo:hi])
-        if progress is not None:
-            progress(hi - lo)
+        fit_batch(points[offsets[lo]:offsets[hi]], sub, up, float(settings.tolerance), int(settings.elements),
+                  int(settings.min_elements), int(n_max), int(settings.max_iterations), out_n[lo:hi],
+                  out_frame[lo:hi], out_omega[lo:hi], out_length[lo:hi], out_worst[lo:hi], out_status[lo:hi])
+
+    run_chunks(fit_chunk, count, chunk, progress)
     helix_offsets = np.concatenate([[0], np.cumsum(out_n)]).astype(np.int64)
     omega = np.concatenate([out_omega[i, :out_n[i]] for i in range(count)])
     length = np.concatenate([out_length[i, :out_n[i]] for i in range(count)])
     roots = np.ascontiguousarray(points[offsets[:-1]])
     err_mean = np.zeros(count)
     err_max = np.zeros(count)
-    closest_distances(points, offsets, roots, out_frame, helix_offsets, omega, length, err_mean, err_max)
+    def error_chunk(lo: int, hi: int) -> None:
+        closest_distances(points[offsets[lo]:offsets[hi]], offsets[lo:hi + 1] - offsets[lo], roots[lo:hi],
+                          out_frame[lo:hi], helix_offsets[lo:hi + 1] - helix_offsets[lo],
+                          omega[helix_offsets[lo]:helix_offsets[hi]], length[helix_offsets[lo]:helix_offsets[hi]],
+                          err_mean[lo:hi], err_max[lo:hi])
+
+    run_chunks(error_chunk, count, 1024)
     fit_error = np.stack([err_mean, err_max], axis=1)
     helices = Helices(roots, out_frame, helix_offsets, length, omega, fit_error)
     missed = int((out_status == FIT_TOLERANCE_NOT_MET).sum()) if settings.elements == 0 else 0

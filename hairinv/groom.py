@@ -91,6 +91,13 @@ def guess_units(size: float, typical: float) -> str:
     return best
 
 
+def _axis_label(up: np.ndarray) -> str:
+    for name, index in AXES.items():
+        if abs(abs(up[index]) - 1.0) < 1e-12:
+            return f"{'+' if up[index] > 0 else '-'}{name.upper()}"
+    return "(" + ", ".join(f"{v:.3g}" for v in up) + ")"
+
+
 def _up_vector(axis) -> np.ndarray:
     if isinstance(axis, str):
         up = np.zeros(3)
@@ -134,26 +141,29 @@ def resolve_scale(settings: ImportSettings, stated: float | None, size_native: f
     return scale
 
 
+def strand_lengths(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Polyline length of every strand (0 for strands of fewer than 2 points)."""
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1) if len(points) > 1 else np.zeros(0)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    counts = np.diff(offsets)
+    last = np.maximum(offsets[1:] - 1, offsets[:-1])
+    lengths = cum[np.minimum(last, len(cum) - 1)] - cum[np.minimum(offsets[:-1], len(cum) - 1)]
+    return np.where(counts >= 2, lengths, 0.0)
+
+
 def _clean(points, offsets, merge_tol, min_length, report: ImportReport):
     """Merge repeated consecutive points, drop degenerate and short strands."""
+    strand_of = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
     keep_pts = np.ones(len(points), dtype=bool)
-    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    close = step <= merge_tol
-    # a step is internal to a strand unless it crosses a strand boundary
-    boundary = np.zeros(len(points) - 1 if len(points) else 0, dtype=bool)
-    ends = offsets[1:-1] - 1
-    boundary[ends[(ends >= 0) & (ends < len(boundary))]] = True
-    merge = close & ~boundary
-    keep_pts[1:][merge] = False
-    counts = np.add.reduceat(keep_pts.astype(np.int64), offsets[:-1]) if len(points) else np.zeros(0, np.int64)
-    counts[np.diff(offsets) == 0] = 0
+    if len(points) > 1:
+        step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        same_strand = strand_of[1:] == strand_of[:-1]
+        keep_pts[1:] = ~(same_strand & (step <= merge_tol))
     report.merged_points = int((~keep_pts).sum())
-    new_offsets = np.concatenate([[0], np.cumsum(counts)])
+    counts = np.bincount(strand_of[keep_pts], minlength=len(offsets) - 1)
+    new_offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     pts = points[keep_pts]
-    seg = np.where(np.isin(np.arange(len(pts) - 1), new_offsets[1:-1] - 1), 0.0,
-                   np.linalg.norm(np.diff(pts, axis=0), axis=1)) if len(pts) > 1 else np.zeros(0)
-    lengths = np.add.reduceat(np.concatenate([seg, [0.0]]), new_offsets[:-1]) if len(pts) else np.zeros(0)
-    lengths[counts == 0] = 0.0
+    lengths = strand_lengths(pts, new_offsets)
     degenerate = counts < 2
     short = ~degenerate & (lengths < min_length)
     report.dropped_degenerate = int(degenerate.sum())
@@ -236,8 +246,9 @@ def load_groom(path, settings: ImportSettings, body_size_native: float | None = 
         report.notes.append(f"up: +{settings.up.upper()} (as given); gravity along -{settings.up.upper()}")
     elif raw.up is not None:
         up = _up_vector(raw.up)
-        label = f"+{raw.up.upper()}" if isinstance(raw.up, str) else np.array2string(up, precision=3)
-        report.notes.append(f"up: {label} (the {raw.format} convention); pass --up to change it")
+        label = f"+{raw.up.upper()}" if isinstance(raw.up, str) else _axis_label(up)
+        source = "stated by the file" if raw.format == "hairinv-hdf5" else f"the {raw.format} convention"
+        report.notes.append(f"up: {label} ({source}); pass --up to change it")
     else:
         up = _up_vector("y")
         report.notes.append("up: +Y (assumed); pass --up to change it")

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jit import jit, pjit, prange
+from .._jit import jit
 from .helix import _advance, chain, element_derivatives, element_step
 
 __all__ = ["fit_batch", "fit_adaptive", "closest_distances", "FIT_OK", "FIT_TOLERANCE_NOT_MET"]
@@ -40,6 +40,12 @@ FIT_TOLERANCE_NOT_MET = 1
 # long before, real data stagnate here.
 _RELATIVE_DECREASE = 1e-7
 _PROJECTION_NEWTON = 8
+# Marquardt scaling floor, relative to the largest diagonal entry: parameters
+# the data do not see (the twist of a straight element) are damped instead of
+# drifting on round-off.
+_DAMPING_FLOOR = 1e-6
+# The look-ahead of the second initial guess, in element lengths.
+_LOOK_AHEAD = 0.5
 
 
 @jit
@@ -207,13 +213,14 @@ def _rotate_rows(F, th, out):
 
 
 @jit
-def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr):
+def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target):
     """Refine ``F0`` (root tangent), ``omega`` and ``length`` (scaled as one) in place.
 
     ``s`` holds the vertices' matched arc lengths, in and out. With ``odr``
     false the vertices keep their fraction of the length (no sliding along
     the curve: a robust first phase); with ``odr`` true they are projected on
-    the curve (the exact orthogonal-distance fit). Returns the final cost. Damping follows the gain ratio (Nielsen 1999): it grows by
+    the curve (the exact orthogonal-distance fit). Stops early once every
+    vertex residual is at most ``target`` (m). Returns the final cost. Damping follows the gain ratio (Nielsen 1999): it grows by
     ``nu`` on a rejected step and shrinks by ``max(1/3, 1 - (2 rho - 1)^3)``
     on an accepted one.
     """
@@ -248,7 +255,7 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr):
         dmax = 0.0
         for i in range(npar):
             dmax = max(dmax, JtJ[i, i])
-        floor = 1e-12 * dmax + 1e-300
+        floor = _DAMPING_FLOOR * dmax + 1e-300
         accepted = False
         c_try = cost
         for _try in range(30):
@@ -293,6 +300,11 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr):
         tang[:, :] = tang_try
         cost = c_try
         if decrease <= _RELATIVE_DECREASE * cost:
+            break
+        worst2 = 0.0
+        for j in range(m - 1):
+            worst2 = max(worst2, r[3 * j] ** 2 + r[3 * j + 1] ** 2 + r[3 * j + 2] ** 2)
+        if worst2 <= target * target:
             break
     return _residual(root, F0, omega, length, s, p, newton, xs, Fs, starts, r, tang)
 
@@ -385,12 +397,15 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter):
                         Jl[3 * i + a, c] = col[a]
         JtJ = Jl.T @ Jl
         g = Jl.T @ res
+        dmax = 0.0
+        for b in range(npar):
+            dmax = max(dmax, JtJ[b, b])
         accepted = False
         c_try = cost
         for _t in range(30):
             A = JtJ.copy()
             for b in range(npar):
-                D[b] = JtJ[b, b] + 1e-300
+                D[b] = max(JtJ[b, b], _DAMPING_FLOOR * dmax + 1e-300)
                 A[b, b] += lam * D[b]
             d = np.linalg.solve(A, -g)
             for b in range(3):
@@ -426,7 +441,59 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter):
 
 
 @jit
-def _sequential_init(root, F0, p, s, length, omega):
+def _discrete_darboux(p, j0, j1):
+    """World Darboux vector of the polyline between vertices ``j0`` and ``j1``.
+
+    For a uniform helix sampled evenly, each chord is the previous one turned
+    by the same screw rotation ``exp(h [Om])``; in Cayley form
+    ``d_{j+1} - d_j = (h/2) Om' x (d_j + d_{j+1})`` with
+    ``|Om'| h = 2 tan(|Om| h / 2)``, linear in ``Om'``. Solved in the least
+    squares sense over the chords; zero when there are fewer than 3.
+    """
+    out = np.zeros(3)
+    k = j1 - j0
+    if k < 3:
+        return out
+    A = np.zeros((3, 3))
+    b = np.zeros(3)
+    h_mean = 0.0
+    turning = 0.0
+    for j in range(j0, j1 - 1):
+        d0 = p[j + 1] - p[j]
+        d1 = p[j + 2] - p[j + 1]
+        l0 = np.sqrt(d0 @ d0)
+        l1 = np.sqrt(d1 @ d1)
+        if l0 == 0.0 or l1 == 0.0:
+            continue
+        d0 = d0 / l0
+        d1 = d1 / l1
+        turning += np.arccos(min(1.0, max(-1.0, d0 @ d1)))
+        h = 0.5 * (l0 + l1)
+        h_mean += h
+        sm = 0.5 * h * (d0 + d1)
+        # rows of -[sm]_x: (Om' x sm) = -[sm]_x Om'
+        M = np.array([[0.0, sm[2], -sm[1]], [-sm[2], 0.0, sm[0]], [sm[1], -sm[0], 0.0]])
+        A += M.T @ M
+        b += M.T @ (d1 - d0)
+    # Below a quarter turn the circular-arc start is good and the component
+    # of Om along the chords (the torsion) is ill-conditioned here.
+    if turning < 0.5 * np.pi:
+        return out
+    scale = 0.0
+    for i in range(3):
+        scale = max(scale, A[i, i])
+    for i in range(3):
+        A[i, i] += 1e-6 * scale
+    om = np.linalg.solve(A, b)
+    h_mean /= (k - 1)
+    mag = np.sqrt(om @ om)
+    if mag > 0.0:
+        out[:] = om * (2.0 * np.arctan(0.5 * mag * h_mean) / h_mean / mag)
+    return out
+
+
+@jit
+def _sequential_init(root, F0, p, s, length, omega, look_ahead):
     """Element-by-element initial guess (see the module docstring).
 
     The first element also refines the root tangent ``F0`` in place: the
@@ -452,7 +519,8 @@ def _sequential_init(root, F0, p, s, length, omega):
         # tangent near the polyline's instead of letting it chase a kink.
         # The polyline point at the end is a target only when the element
         # holds fewer than two vertices (it is a chord, off the curve).
-        ahead = min(s1 + ell_e, s[m - 1])
+        # (not on the first element, whose free root tangent it would bias)
+        ahead = min(s1 + (look_ahead * ell_e if e > 0 else 0.0), s[m - 1])
         j0 = np.searchsorted(s, s0, side="right")
         j1 = np.searchsorted(s, s1, side="left")
         j2 = np.searchsorted(s, ahead, side="right")
@@ -485,6 +553,17 @@ def _sequential_init(root, F0, p, s, length, omega):
                 ax = ax * (kappa / sn)
                 om[0] = ax @ F[1]
                 om[1] = ax @ F[2]
+        # second start: the polyline's own screw rotation over the element;
+        # keep the start that fits better (it wins on multi-turn curls)
+        Om = _discrete_darboux(p, j0 - 1, j1)
+        if Om @ Om > 0.0:
+            om2 = np.empty(3)
+            om2[0] = Om @ F[1]
+            om2[1] = Om @ F[2]
+            om2[2] = Om @ F[0]
+            res = np.empty(3 * k)
+            if _element_residual(x, F, om2, sig, tgt, res) < _element_residual(x, F, om, sig, tgt, res):
+                om[:] = om2
         _fit_element(x, F, om, sig, tgt, e == 0, 10)
         if e == 0:
             F0[:, :] = F
@@ -493,6 +572,41 @@ def _sequential_init(root, F0, p, s, length, omega):
         x[:] = x_next
         F[:, :] = F_next
         s0 = s1
+
+
+@jit
+def _arc_lengths(p, s):
+    """Arc-length estimates of the vertices of a smooth curve's polyline.
+
+    A chord of a circle turning by ``alpha`` is shorter than its arc by the
+    factor ``sin(alpha/2) / (alpha/2)``; with ``alpha`` the mean discrete
+    turning angle at the chord's two ends, the estimate is exact to O(h^4)
+    instead of O(h^2), which places the first element joints where the
+    curve's own joints are. Angles are capped at 90 degrees (kinks).
+    """
+    m = p.shape[0]
+    s[0] = 0.0
+    turn = np.zeros(m)
+    for j in range(1, m - 1):
+        a = p[j] - p[j - 1]
+        b = p[j + 1] - p[j]
+        na = np.sqrt(a @ a)
+        nb = np.sqrt(b @ b)
+        if na > 0.0 and nb > 0.0:
+            c = min(1.0, max(-1.0, (a @ b) / (na * nb)))
+            turn[j] = min(np.arccos(c), 0.5 * np.pi)
+    for j in range(1, m):
+        d = p[j] - p[j - 1]
+        chord = np.sqrt(d @ d)
+        if j == 1:
+            alpha = turn[1] if m > 2 else 0.0
+        elif j == m - 1:
+            alpha = turn[m - 2]
+        else:
+            alpha = 0.5 * (turn[j - 1] + turn[j])
+        half = 0.5 * alpha
+        factor = half / np.sin(half) if half > 1e-8 else 1.0 + half * half / 6.0
+        s[j] = s[j - 1] + chord * factor
 
 
 @jit
@@ -537,21 +651,38 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     """
     m = p.shape[0]
     s = np.zeros(m)
-    for j in range(1, m):
-        d = p[j] - p[j - 1]
-        s[j] = s[j - 1] + np.sqrt(d @ d)
+    _arc_lengths(p, s)
     cap = max(1, min(n_max, m - 1))
     n = min(fixed, cap) if fixed > 0 else min(max(n_min, 1), cap)
     length = np.full(n, s[m - 1] / n)
     omega = np.zeros((n, 3))
     root = p[0].copy()
-    _initial_frame(p, up, F0)
-    _sequential_init(root, F0, p, s, length, omega)
+    # Two starts: plain (exact on smooth data) and with look-ahead (robust at
+    # kinks, where the plain one chases the corner); keep the one that fits better.
     err = np.zeros(m)
+    _initial_frame(p, up, F0)
+    _sequential_init(root, F0, p, s, length, omega, 0.0)
+    plain = _vertex_errors(root, F0, omega, length, s.copy(), p, err)
+    F_ahead = np.empty((3, 3))
+    _initial_frame(p, up, F_ahead)
+    om_ahead = np.zeros((n, 3))
+    _sequential_init(root, F_ahead, p, s, length, om_ahead, _LOOK_AHEAD)
+    if _vertex_errors(root, F_ahead, om_ahead, length, s.copy(), p, err) < plain:
+        F0[:, :] = F_ahead
+        omega[:, :] = om_ahead
+    from_init = True
     while True:
-        _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False)
-        _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, True)
+        # Vertices first keep their fraction of the length (robust from a
+        # rough start); the orthogonal-distance phase runs only if that is
+        # not already within tolerance (fixed-fraction residuals bound the
+        # true distances from above).
+        if from_init:
+            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False, tolerance)
+            from_init = False
         worst = _vertex_errors(root, F0, omega, length, s, p, err)
+        if worst > tolerance:
+            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, True, tolerance)
+            worst = _vertex_errors(root, F0, omega, length, s, p, err)
         if fixed > 0 or worst <= tolerance or n >= cap:
             break
         # split the elements that hold a vertex beyond the tolerance, worst
@@ -615,7 +746,7 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     return n, worst, status
 
 
-@pjit
+@jit
 def fit_batch(points, offsets, up, tolerance, fixed, n_min, n_max, max_iter,
               out_n, out_frame, out_omega, out_length, out_worst, out_status):
     """Fit every strand of a CSR polyline set (see :func:`fit_adaptive`).
@@ -631,7 +762,7 @@ def fit_batch(points, offsets, up, tolerance, fixed, n_min, n_max, max_iter,
     out_worst : (S,) float64, out, largest vertex distance, m
     out_status : (S,) int64, out, FIT_OK or FIT_TOLERANCE_NOT_MET
     """
-    for i in prange(offsets.shape[0] - 1):
+    for i in range(offsets.shape[0] - 1):
         p = points[offsets[i]:offsets[i + 1]]
         n, worst, status = fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter,
                                         out_frame[i], out_omega[i], out_length[i])
@@ -640,16 +771,18 @@ def fit_batch(points, offsets, up, tolerance, fixed, n_min, n_max, max_iter,
         out_status[i] = status
 
 
-@pjit
+@jit
 def closest_distances(points, offsets, roots, frames, helix_offsets, omega, length, out_mean, out_max):
     """Distance from every input vertex to the fitted centerline.
 
-    For vertex ``j`` of a strand, Newton's method on the arc length, started at
-    the vertex's proportional arc length, finds the nearest centerline point
-    (the stationarity condition ``t(sigma) . (x(sigma) - p_j) = 0``, derivative
-    ``1 + (Om x t) . (x - p_j)``). Writes the per-strand mean and max, m.
+    For each vertex the curve is scanned at 8 points per element (a global
+    start, so no far local minimum is taken), then Newton's method on the arc
+    length polishes the nearest one (stationarity ``t . (x - p) = 0``,
+    derivative ``1 + (Om x t) . (x - p)``). Writes the per-strand mean and
+    max, m.
     """
-    for i in prange(offsets.shape[0] - 1):
+    scan_per_element = 8
+    for i in range(offsets.shape[0] - 1):
         p = points[offsets[i]:offsets[i + 1]]
         om = omega[helix_offsets[i]:helix_offsets[i + 1]]
         ln = length[helix_offsets[i]:helix_offsets[i + 1]]
@@ -665,19 +798,29 @@ def closest_distances(points, offsets, roots, frames, helix_offsets, omega, leng
         R = np.empty((3, 3))
         P = np.empty(3)
         Q = np.empty(3)
-        poly = 0.0
-        for j in range(1, p.shape[0]):
-            d = p[j] - p[j - 1]
-            poly += np.sqrt(d @ d)
-        sv = 0.0
+        k = n * scan_per_element + 1
+        scan_s = np.empty(k)
+        scan_x = np.empty((k, 3))
+        for e in range(n):
+            for h in range(scan_per_element):
+                idx = e * scan_per_element + h
+                scan_s[idx] = starts[e] + ln[e] * h / scan_per_element
+                _advance(xs[e], Fs[e], om[e], scan_s[idx] - starts[e], scan_x[idx], F, R, P, Q)
+        scan_s[k - 1] = total
+        scan_x[k - 1] = xs[n]
         acc = 0.0
         worst = 0.0
         for j in range(p.shape[0]):
-            if j > 0:
-                d = p[j] - p[j - 1]
-                sv += np.sqrt(d @ d)
-            sig = min(sv * total / poly, total)
             best = 1e300
+            sig = 0.0
+            for idx in range(k):
+                d2 = 0.0
+                for a in range(3):
+                    d2 += (scan_x[idx, a] - p[j, a]) ** 2
+                if d2 < best:
+                    best = d2
+                    sig = scan_s[idx]
+            best = np.sqrt(best)
             for _ in range(12):
                 e, local = _locate(starts, sig)
                 _advance(xs[e], Fs[e], om[e], local, x, F, R, P, Q)

@@ -1,0 +1,371 @@
+"""The ``hairinv`` command run as a subprocess: help, a real fit, ``info``, and bad input.
+
+Runtime: about 15-30 s with a warm numba cache. One ``fit`` subprocess on 20
+guide strands of the wavy sample (2-12 s warm, depending on machine load; after
+an edit of hairinv/rod/fitting.py numba recompiles, which adds 30-90 s once);
+the ~25 other subprocesses stop before any numerics (0.5-1 s each: interpreter
+start-up and imports). The interrupted-write checks run in-process.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import shutil
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import SAMPLES, real_path
+from hairinv import __version__, config, stages
+from hairinv.formats import write_curves
+
+ENV = {k: v for k, v in os.environ.items() if k != "HAIRINV_DEBUG"}
+ENV["HAIRINV_THREADS"] = "2"
+# Frames of a fitted root: orthonormal to round-off of the fit's rotations.
+FRAME_TOL = 1e-9
+# The fitted root is clamped to the input root (same float64 numbers, up to round-off).
+ROOT_TOL = 1e-12
+
+
+def hairinv(cwd: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "hairinv_cli.main", *map(str, args)],
+        cwd=cwd,
+        env=ENV,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    """Every file of ``folder`` (recursively) with its bytes."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def sample(name: str) -> Path:
+    path = SAMPLES / name
+    if not path.exists():
+        pytest.skip(f"sample {path} not found")
+    return path
+
+
+def strands(points: np.ndarray, offsets: np.ndarray) -> list[np.ndarray]:
+    return [points[a:b] for a, b in zip(offsets[:-1], offsets[1:])]
+
+
+# --------------------------------------------------------------------------- help
+
+
+@pytest.mark.parametrize(
+    "args, fragments",
+    [
+        (["--help"], ["fit", "info", "--quiet"]),
+        (["-h"], ["fit", "info"]),
+        (["fit", "--help"], ["CURVES", "--guides", "--units", "--scale", "--flip", "--up", "--set", "--config", "-o"]),
+        (["info", "--help"], ["--json"]),
+    ],
+)
+def test_help(tmp_path, args, fragments):
+    result = hairinv(tmp_path, *args)
+    assert result.returncode == 0, result.stderr
+    for fragment in fragments:
+        assert fragment in result.stdout
+    assert result.stderr == ""
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_version(tmp_path):
+    result = hairinv(tmp_path, "--version")
+    assert result.returncode == 0 and __version__ in result.stdout
+
+
+# --------------------------------------------------------------------------- a real fit
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    """``hairinv fit wavy.h5 -o out.h5 --guides 20`` over an older stage file at ``out.h5``."""
+    folder = tmp_path_factory.mktemp("fit")
+    source = folder / "wavy.h5"
+    shutil.copyfile(sample("wavy.h5"), source)  # a private copy: the samples may be regenerated meanwhile
+    old = folder / "out.h5"
+    write_curves(old, np.array([[0, 0, 0], [0, -0.1, 0], [1, 0, 0], [1, -0.1, 0]], float), np.array([0, 2, 4]))
+    old_bytes = old.read_bytes()
+    assert stages.read_stage(old).producer.endswith(" export")
+    umask = os.umask(0)
+    os.umask(umask)
+    result = hairinv(folder, "fit", "wavy.h5", "-o", "out.h5", "--guides", "20")
+    return {"folder": folder, "source": source, "out": folder / "out.h5", "old_bytes": old_bytes,
+            "result": result, "umask": umask}
+
+
+def test_fit_succeeds_and_reports(fitted):
+    result = fitted["result"]
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr and "error" not in result.stderr
+    source = stages.read_stage(fitted["source"])[stages.CURVES]
+    n_read = len(source["offsets"]) - 1
+    lines = result.stdout.splitlines()
+    assert lines[0] == f"read {n_read} strands, {len(source['points'])} points"
+    assert any(line.startswith("guides: kept 20 of ") for line in lines)
+    assert "kept 20 strands" in lines
+    assert lines[-1] == "wrote out.h5"
+
+
+def test_fit_leaves_only_the_output(fitted):
+    assert sorted(p.name for p in fitted["folder"].iterdir()) == ["out.h5", "wavy.h5"]
+    assert fitted["out"].stat().st_mode & 0o777 == 0o666 & ~fitted["umask"]
+
+
+def test_fit_replaces_an_older_stage_file(fitted):
+    assert fitted["result"].returncode == 0, fitted["result"].stderr
+    assert fitted["out"].read_bytes() != fitted["old_bytes"]
+    assert stages.read_stage(fitted["out"]).producer.endswith(" fit")
+
+
+def test_fit_output_root_attributes(fitted):
+    assert fitted["result"].returncode == 0, fitted["result"].stderr
+    with h5py.File(fitted["out"], "r") as fh:
+        attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in fh.attrs.items()}
+        assert sorted(fh.keys()) == ["curves", "helices"]
+    assert attrs["format"] == "hairinv"
+    assert int(attrs["schema_version"]) == stages.SCHEMA_VERSION == 1
+    assert attrs["producer"] == f"hairinv {__version__} fit"
+    assert attrs["stages"] == "curves,helices"
+
+
+def test_fit_output_curves_are_20_input_strands(fitted):
+    assert fitted["result"].returncode == 0, fitted["result"].stderr
+    stage = stages.read_stage(fitted["out"])
+    assert list(stage.groups) == ["curves", "helices"] and stage.schema_version == 1
+    curves = stage["curves"]
+    src = stages.read_stage(fitted["source"])["curves"]
+    assert curves["points"].dtype == np.float64 and curves["offsets"].dtype == np.int64
+    assert len(curves["offsets"]) == 21
+    by_root = {tuple(s[0]): s for s in strands(src["points"], src["offsets"])}
+    got = strands(curves["points"], curves["offsets"])
+    assert len({tuple(s[0]) for s in got}) == 20
+    for strand in got:  # the file is in metres already: strands are copied unchanged
+        assert tuple(strand[0]) in by_root
+        np.testing.assert_array_equal(strand, by_root[tuple(strand[0])])
+    assert curves.attrs["scale_to_m"] == 1.0
+    np.testing.assert_allclose(curves.attrs["up"], np.asarray(src.attrs.get("up", (0, 1, 0)), float), rtol=0, atol=1e-15)
+
+
+def test_fit_output_provenance(fitted):
+    assert fitted["result"].returncode == 0, fitted["result"].stderr
+    stage = stages.read_stage(fitted["out"])
+    digest = hashlib.sha256(fitted["source"].read_bytes()).hexdigest()
+    expected = config.resolve("default")
+    import_config = dict(dataclasses.asdict(expected.import_), guides=20)
+    assert stage["curves"].config == {"import": import_config}
+    assert stage["helices"].config == {"fit": dataclasses.asdict(expected.fit)}
+    for name in ("curves", "helices"):
+        inputs = stage[name].inputs
+        assert len(inputs) == 1
+        assert inputs[0]["name"] == "wavy.h5" and inputs[0]["sha256"] == digest
+    with h5py.File(fitted["out"], "r") as fh:  # stored as JSON strings, as the contract says
+        for name in ("curves", "helices"):
+            json.loads(fh[name].attrs["config"])
+            json.loads(fh[name].attrs["inputs"])
+
+
+def test_fit_output_helices(fitted):
+    assert fitted["result"].returncode == 0, fitted["result"].stderr
+    stage = stages.read_stage(fitted["out"])
+    curves, helices = stage["curves"], stage["helices"]
+    offsets = helices["offsets"]
+    assert len(offsets) == 21 and offsets[0] == 0 and np.all(np.diff(offsets) >= 1)
+    n_elements = offsets[-1]
+    assert helices["length"].shape == (n_elements,) and np.all(helices["length"] > 0)
+    assert helices["omega"].shape == (n_elements, 3)
+    np.testing.assert_allclose(helices["root"], curves["points"][curves["offsets"][:-1]], rtol=0, atol=ROOT_TOL)
+    frames = helices["frame0"]
+    assert frames.shape == (20, 3, 3)
+    eye = np.broadcast_to(np.eye(3), frames.shape)
+    np.testing.assert_allclose(frames @ frames.transpose(0, 2, 1), eye, rtol=0, atol=FRAME_TOL)
+    np.testing.assert_allclose(np.linalg.det(frames), 1.0, rtol=0, atol=FRAME_TOL)
+    err = helices["fit_error"]
+    assert err.shape == (20, 2) and np.all(err >= 0) and np.all(err[:, 0] <= err[:, 1])
+
+
+def test_info(fitted):
+    assert fitted["result"].returncode == 0, fitted["result"].stderr
+    result = hairinv(fitted["folder"], "info", "out.h5")
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0] == f"out.h5: hairinv {__version__} fit, schema 1, stages curves,helices"
+    assert "/curves" in lines and "/helices" in lines
+    assert "  strands: 20" in lines
+
+
+def test_info_json(fitted):
+    assert fitted["result"].returncode == 0, fitted["result"].stderr
+    result = hairinv(fitted["folder"], "info", "--json", "out.h5")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    stage = stages.read_stage(fitted["out"])
+    assert summary["stages"] == "curves,helices" and summary["schema_version"] == 1
+    assert summary["groups"]["curves"]["strands"] == 20
+    assert summary["groups"]["curves"]["points"] == len(stage["curves"]["points"])
+    assert summary["groups"]["helices"]["elements"] == int(stage["helices"]["offsets"][-1])
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+def _usc(strand_points: list[np.ndarray]) -> bytes:
+    parts = [struct.pack("<i", len(strand_points))]
+    for pts in strand_points:
+        parts += [struct.pack("<i", len(pts)), np.asarray(pts, "<f4").tobytes()]
+    return b"".join(parts)
+
+
+def _nan_in_strand_3(folder: Path) -> list[str]:
+    pts = [np.arange(12, dtype=float).reshape(4, 3) * 0.01 + s for s in range(5)]
+    pts[3][2, 1] = np.nan
+    (folder / "nan.data").write_bytes(_usc(pts))
+    return ["fit", "nan.data", "-o", "out.h5"]
+
+
+def _truncated_v4(folder: Path) -> list[str]:
+    sintel = real_path("sintel", "GEO-sintel_hair_emit.001-sintel_hair.tfx")
+    (folder / "trunc.tfx").write_bytes(sintel.read_bytes()[:1000])
+    return ["fit", "trunc.tfx", "-o", "out.h5"]
+
+
+def _foreign_hdf5(folder: Path) -> list[str]:
+    with h5py.File(folder / "foreign.h5", "w") as fh:
+        fh["data"] = np.arange(3)
+    return ["fit", "wavy.h5", "-o", "foreign.h5"]
+
+
+def _write(name: str, data: bytes, args: list[str]):
+    def setup(folder: Path) -> list[str]:
+        (folder / name).write_bytes(data)
+        return args
+
+    return setup
+
+
+def _mkdir(name: str, args: list[str]):
+    def setup(folder: Path) -> list[str]:
+        (folder / name).mkdir()
+        return args
+
+    return setup
+
+
+def _nothing(args: list[str]):
+    return lambda folder: args
+
+
+# id: (set-up returning the arguments, the name the message must hold, fragments of the message)
+BAD = {
+    "missing file": (_nothing(["fit", "missing.h5", "-o", "out.h5"]), "missing.h5", ["no such file"]),
+    "empty file": (_write("empty.h5", b"", ["fit", "empty.h5", "-o", "out.h5"]), "empty.h5", ["empty"]),
+    "truncated tfx v4": (_truncated_v4, "trunc.tfx", ["truncated"]),
+    "wrong magic hair": (
+        _write("bad.hair", b"HAIX" + bytes(124) + bytes(48), ["fit", "bad.hair", "-o", "out.h5"]),
+        "bad.hair", ["magic"]),
+    "negative usc count": (
+        _write("neg.data", struct.pack("<i", -5) + bytes(16), ["fit", "neg.data", "-o", "out.h5"]),
+        "neg.data", ["negative"]),
+    "nan in strand 3": (_nan_in_strand_3, "nan.data", ["strand 3", "NaN"]),
+    "unknown suffix": (_write("hair.xyz", b"1 2 3\n", ["fit", "hair.xyz", "-o", "out.h5"]), "hair.xyz", [".xyz"]),
+    "unknown setting": (_nothing(["fit", "wavy.h5", "-o", "out.h5", "--set", "fit.nope=1"]), "fit.nope", ["unknown"]),
+    "setting of the wrong type": (
+        _nothing(["fit", "wavy.h5", "-o", "out.h5", "--set", "import.guides=many"]), "import.guides", ["int"]),
+    "invalid toml": (
+        _write("bad.toml", b"[fit\ntolerance = 1\n", ["fit", "wavy.h5", "-o", "out.h5", "--config", "bad.toml"]),
+        "bad.toml", ["TOML"]),
+    "missing toml": (
+        _nothing(["fit", "wavy.h5", "-o", "out.h5", "--config", "nothere.toml"]), "nothere.toml", ["no such"]),
+    "output is the input": (_nothing(["fit", "wavy.h5", "-o", "wavy.h5"]), "wavy.h5", ["input"]),
+    "output is the input, other spelling": (
+        _mkdir("sub", ["fit", "wavy.h5", "-o", "sub/../wavy.h5"]), "wavy.h5", ["input"]),
+    "output is a text file": (
+        _write("notes.txt", b"precious\n", ["fit", "wavy.h5", "-o", "notes.txt"]), "notes.txt",
+        ["not a hairinv stage file"]),
+    "output is a foreign hdf5": (_foreign_hdf5, "foreign.h5", ["not a hairinv stage file"]),
+    "output is a folder": (_mkdir("outdir", ["fit", "wavy.h5", "-o", "outdir"]), "outdir", ["folder"]),
+    "output folder missing": (_nothing(["fit", "wavy.h5", "-o", "nodir/out.h5"]), "nodir", ["does not exist"]),
+    "info on a missing file": (_nothing(["info", "missing.h5"]), "missing.h5", ["no such file"]),
+    "info on a text file": (_write("notes.txt", b"precious\n", ["info", "notes.txt"]), "notes.txt", ["HDF5"]),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_input(tmp_path, case):
+    setup, name, fragments = BAD[case]
+    shutil.copyfile(sample("wavy.h5"), tmp_path / "wavy.h5")
+    args = setup(tmp_path)
+    before = snapshot(tmp_path)
+    dirs_before = sorted(str(p) for p in tmp_path.rglob("*") if p.is_dir())
+    result = hairinv(tmp_path, *args)
+    assert result.returncode == 2, (result.returncode, result.stderr)
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("hairinv: error: ")
+    assert name in lines[0]
+    for fragment in fragments:
+        assert fragment in lines[0]
+    assert "Traceback" not in result.stderr and result.stdout == ""
+    # nothing created (no output, no temp file, no folder), every existing file byte-for-byte unchanged
+    assert snapshot(tmp_path) == before
+    assert sorted(str(p) for p in tmp_path.rglob("*") if p.is_dir()) == dirs_before
+
+
+# --------------------------------------------------------------------------- interrupted writes (in-process)
+
+
+class _Interrupt:
+    """Stands for a dataset; turning it into an array is where the 'kill' lands."""
+
+    def __array__(self, *args, **kwargs):
+        raise KeyboardInterrupt
+
+
+def _groups(bad) -> list[stages.Group]:
+    pts = np.array([[0, 0, 0], [0, -0.1, 0], [1, 0, 0], [1, -0.1, 0]], float)
+    good = stages.Group(stages.CURVES, {"points": pts, "offsets": np.array([0, 2, 4])})
+    # the failing group comes second, so the temporary file already holds data when it fails
+    failing = stages.Group(stages.HELICES, {"root": pts[[0, 2]], "omega": bad})
+    return [good, failing]
+
+
+@pytest.mark.parametrize(
+    "bad, error",
+    [(np.array([object(), object()], dtype=object), TypeError), (_Interrupt(), KeyboardInterrupt)],
+    ids=["h5py-refuses-dataset", "interrupted"],
+)
+@pytest.mark.parametrize("existing", [True, False], ids=["over-old-file", "new-file"])
+def test_failed_write_leaves_destination_unchanged(tmp_path, bad, error, existing):
+    out = tmp_path / "out.h5"
+    if existing:
+        write_curves(out, np.array([[0, 0, 0], [0, 1, 0]], float), np.array([0, 2]))
+    before = snapshot(tmp_path)
+    with pytest.raises(error):
+        stages.write_stage(out, _groups(bad), "fit")
+    assert snapshot(tmp_path) == before
+    assert out.exists() == existing
+    if existing:
+        assert stages.read_stage(out).producer.endswith(" export")
+
+
+def test_write_stage_replaces_atomically_when_it_succeeds(tmp_path):
+    out = tmp_path / "out.h5"
+    write_curves(out, np.array([[0, 0, 0], [0, 1, 0]], float), np.array([0, 2]))
+    stages.write_stage(out, _groups(np.zeros((2, 3)))[:1], "fit")
+    assert [p.name for p in tmp_path.iterdir()] == ["out.h5"]
+    stage = stages.read_stage(out)
+    assert stage.producer.endswith(" fit") and len(stage["curves"]["points"]) == 4
