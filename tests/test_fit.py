@@ -217,3 +217,22 @@ def test_groom_of_one_two_point_strand():
     assert helices.n_elements == 1
     assert helices.length.sum() == pytest.approx(0.1, rel=1e-14)
     np.testing.assert_allclose(helices.omega, 0.0, atol=1e-9)
+
+
+def test_fitted_curvature_stays_within_the_data_curvature(wavy_subset):
+    """No degenerate shapes (tight corkscrews drawing a nearly straight piece):
+    every element's curvature is bounded by the polyline's own discrete
+    curvature (turning angle over segment length), with a factor for the
+    smoothing of a discrete estimate."""
+    helices, _ = fit_groom(wavy_subset, FitSettings())
+    pts, off = wavy_subset.points, wavy_subset.offsets
+    worst_data = 0.0
+    for i in range(len(off) - 1):
+        p = pts[off[i]:off[i + 1]]
+        d = np.diff(p, axis=0)
+        ln = np.linalg.norm(d, axis=1)
+        cos = np.sum(d[1:] * d[:-1], axis=1) / (ln[1:] * ln[:-1])
+        kappa = np.arccos(np.clip(cos, -1, 1)) / (0.5 * (ln[1:] + ln[:-1]))
+        worst_data = max(worst_data, kappa.max())
+    fitted = np.hypot(helices.omega[:, 0], helices.omega[:, 1])
+    assert fitted.max() <= 3.0 * worst_data

@@ -44,6 +44,14 @@ _PROJECTION_NEWTON = 8
 # the data do not see (the twist of a straight element) are damped instead of
 # drifting on round-off.
 _DAMPING_FLOOR = 1e-6
+# Least-bending prior: a residual eta * length_e * omega_e (m) per element
+# with eta = _PRIOR_OF_TOLERANCE * tolerance, i.e. a one-radian bend or twist
+# across an element weighs like a vertex error of half the tolerance. Among
+# fits within tolerance it selects the least bent and least twisted one,
+# instead of degenerate shapes the vertices cannot tell apart (a tight
+# corkscrew drawing a nearly straight piece, twist drifting where the
+# curvature vanishes). With tolerance 0 there is no prior.
+_PRIOR_OF_TOLERANCE = 0.5
 # The look-ahead of the second initial guess, in element lengths.
 _LOOK_AHEAD = 0.5
 
@@ -213,14 +221,15 @@ def _rotate_rows(F, th, out):
 
 
 @jit
-def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target):
+def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, eta):
     """Refine ``F0`` (root tangent), ``omega`` and ``length`` (scaled as one) in place.
 
     ``s`` holds the vertices' matched arc lengths, in and out. With ``odr``
     false the vertices keep their fraction of the length (no sliding along
     the curve: a robust first phase); with ``odr`` true they are projected on
     the curve (the exact orthogonal-distance fit). Stops early once every
-    vertex residual is at most ``target`` (m). Returns the final cost. Damping follows the gain ratio (Nielsen 1999): it grows by
+    vertex residual is at most ``target`` (m). ``eta`` (m) weighs the
+    least-bending prior. Returns the final cost. Damping follows the gain ratio (Nielsen 1999): it grows by
     ``nu`` on a rejected step and shrinks by ``max(1/3, 1 - (2 rho - 1)^3)``
     on an accepted one.
     """
@@ -242,7 +251,7 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target):
     th = np.empty(3)
     D = np.empty(npar)
     newton = _PROJECTION_NEWTON if odr else -1
-    cost = _residual(root, F0, omega, length, s, p, newton, xs, Fs, starts, r, tang)
+    cost = _residual(root, F0, omega, length, s, p, newton, xs, Fs, starts, r, tang) + _prior_cost(omega, length, eta)
     lam = 1e-4
     nu = 2.0
     iters = 0
@@ -252,6 +261,11 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target):
         total = starts[n]
         JtJ = J.T @ J
         g = J.T @ r
+        for e in range(n):
+            w2 = (eta * length[e]) ** 2
+            for k in range(3):
+                JtJ[2 + 3 * e + k, 2 + 3 * e + k] += w2
+                g[2 + 3 * e + k] += w2 * omega[e, k]
         dmax = 0.0
         for i in range(npar):
             dmax = max(dmax, JtJ[i, i])
@@ -280,7 +294,7 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target):
                 for j in range(m):
                     s_try[j] = s[j] * ratio
                 c_try = _residual(root, F_try, om_try, len_try, s_try, p, 3 if odr else -1, xs, Fs, starts,
-                                  r_try, tang_try)
+                                  r_try, tang_try) + _prior_cost(om_try, len_try, eta)
                 if c_try < cost and predicted > 0.0:
                     rho = (cost - c_try) / predicted
                     lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
@@ -307,6 +321,15 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target):
         if worst2 <= target * target:
             break
     return _residual(root, F0, omega, length, s, p, newton, xs, Fs, starts, r, tang)
+
+
+@jit
+def _prior_cost(omega, length, eta):
+    """1/2 sum_e (eta * length_e)^2 |omega_e|^2, m^2."""
+    c = 0.0
+    for e in range(omega.shape[0]):
+        c += 0.5 * (eta * length[e]) ** 2 * (omega[e, 0] ** 2 + omega[e, 1] ** 2 + omega[e, 2] ** 2)
+    return c
 
 
 @jit
@@ -361,7 +384,7 @@ def _element_residual(x, F, om, sig, tgt, res):
 
 
 @jit
-def _fit_element(x, F, om, sig, tgt, free_frame, max_iter):
+def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta):
     """Levenberg-Marquardt on one element's omega (and, for the first element,
     the two angles of its start tangent); updates ``om`` and ``F`` in place."""
     k = sig.shape[0]
@@ -378,7 +401,11 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter):
     col = np.empty(3)
     xi = np.empty(3)
     D = np.empty(npar)
-    cost = _element_residual(x, F, om, sig, tgt, res)
+    ell = 0.0
+    for i in range(k):
+        ell = max(ell, sig[i])
+    w2 = (eta * ell) ** 2
+    cost = _element_residual(x, F, om, sig, tgt, res) + 0.5 * w2 * (om @ om)
     lam = 1e-4
     nu = 2.0
     for _ in range(max_iter):
@@ -397,6 +424,9 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter):
                         Jl[3 * i + a, c] = col[a]
         JtJ = Jl.T @ Jl
         g = Jl.T @ res
+        for b in range(3):
+            JtJ[off + b, off + b] += w2
+            g[off + b] += w2 * om[b]
         dmax = 0.0
         for b in range(npar):
             dmax = max(dmax, JtJ[b, b])
@@ -416,7 +446,7 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter):
                 _rotate_rows(F, th, F_try)
             else:
                 F_try[:, :] = F
-            c_try = _element_residual(x, F_try, om_try, sig, tgt, res_try)
+            c_try = _element_residual(x, F_try, om_try, sig, tgt, res_try) + 0.5 * w2 * (om_try @ om_try)
             predicted = 0.0
             for b in range(npar):
                 predicted += 0.5 * d[b] * (lam * D[b] * d[b] - g[b])
@@ -493,7 +523,7 @@ def _discrete_darboux(p, j0, j1):
 
 
 @jit
-def _sequential_init(root, F0, p, s, length, omega, look_ahead):
+def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta):
     """Element-by-element initial guess (see the module docstring).
 
     The first element also refines the root tangent ``F0`` in place: the
@@ -564,7 +594,7 @@ def _sequential_init(root, F0, p, s, length, omega, look_ahead):
             res = np.empty(3 * k)
             if _element_residual(x, F, om2, sig, tgt, res) < _element_residual(x, F, om, sig, tgt, res):
                 om[:] = om2
-        _fit_element(x, F, om, sig, tgt, e == 0, 10)
+        _fit_element(x, F, om, sig, tgt, e == 0, 10, eta)
         if e == 0:
             F0[:, :] = F
         omega[e] = om
@@ -661,12 +691,13 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     # kinks, where the plain one chases the corner); keep the one that fits better.
     err = np.zeros(m)
     _initial_frame(p, up, F0)
-    _sequential_init(root, F0, p, s, length, omega, 0.0)
+    eta = _PRIOR_OF_TOLERANCE * tolerance
+    _sequential_init(root, F0, p, s, length, omega, 0.0, eta)
     plain = _vertex_errors(root, F0, omega, length, s.copy(), p, err)
     F_ahead = np.empty((3, 3))
     _initial_frame(p, up, F_ahead)
     om_ahead = np.zeros((n, 3))
-    _sequential_init(root, F_ahead, p, s, length, om_ahead, _LOOK_AHEAD)
+    _sequential_init(root, F_ahead, p, s, length, om_ahead, _LOOK_AHEAD, eta)
     if _vertex_errors(root, F_ahead, om_ahead, length, s.copy(), p, err) < plain:
         F0[:, :] = F_ahead
         omega[:, :] = om_ahead
@@ -677,11 +708,11 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         # not already within tolerance (fixed-fraction residuals bound the
         # true distances from above).
         if from_init:
-            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False, tolerance)
+            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False, tolerance, eta)
             from_init = False
         worst = _vertex_errors(root, F0, omega, length, s, p, err)
         if worst > tolerance:
-            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, True, tolerance)
+            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, True, tolerance, eta)
             worst = _vertex_errors(root, F0, omega, length, s, p, err)
         if fixed > 0 or worst <= tolerance or n >= cap:
             break
