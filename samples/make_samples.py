@@ -6,19 +6,25 @@ Writes ``samples/body.obj`` (a stylised bust), ``samples/straight.h5``,
 ``/curves``) and the preview picture ``docs/img/samples.png``.
 
 Everything is in metres, +Y up, face toward +Z. The script is deterministic
-(fixed seeds) and needs only numpy, trimesh, matplotlib and h5py::
+(fixed seeds) and needs only numpy, scipy, trimesh, matplotlib and h5py::
 
     cd <project root> && .venv/bin/python samples/make_samples.py
 
 How the hair is made: roots are spread evenly over the scalp of the body mesh
-(farthest-point sampling of random surface points). Each strand leaves the
-scalp along the normal, is combed along the head surface at a small offset
-(later strands lie a little further out, so the hair has some volume),
-bends toward -Y under gravity, and once below the widest part of the head
-falls freely; wherever it would enter the body it is pushed back out to the
-surface plus a small offset, so hair drapes over the shoulders and back.
-Waves and curls are added afterwards, the strands are pushed out of the body
-again and resampled to evenly spaced points.
+(farthest-point sampling of random surface points). Each strand's centre line
+is grown in 2 mm steps with a direction that turns smoothly, never faster than
+a set curvature: it leaves the scalp at a shallow angle, is combed along the
+head at a small offset (later strands lie a little further out, so the hair
+has some volume) while gravity bends it down, and below the widest part of
+the head it turns down freely. Points a few centimetres ahead look for the
+body, so a strand turns in time to slide over the shoulders and back instead
+of running into them. The centre lines are then smoothed (Gaussian) and
+pushed back out of the body where the smoothing pulled them in, twice; the
+pushes are smooth bumps, not point moves, so they put no corners in. Waves
+and curls are added as smooth offsets in a frame carried along the centre
+line by parallel transport (turned slowly to face away from the body), and
+the strands are resampled to evenly spaced points. The report checks the
+turning angle at every vertex.
 
 The body is a lofted surface: horizontal superelliptic rings whose
 half-widths follow smooth profiles of the height. Because the profiles are
@@ -34,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from scipy.interpolate import CubicSpline
+from scipy.ndimage import gaussian_filter1d
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[0]
@@ -323,132 +331,299 @@ def comb_direction(roots, normal):
     return unit(tangential(c, normal))
 
 
-def march(body, roots, off_head, off_fall, length, lift=0.004, ds=0.002, r_head=0.07, r_fall=0.025):
-    """Grow all strands together; returns (steps + 1, S, 3) positions."""
+NEAR = 12  # meridian window of distance queries that only need to be right within about 2 cm of the body
+
+
+def query(body, p, chunk=20000):
+    """``Body.query`` for points of any leading shape that only matter near the body."""
+    shape = p.shape[:-1]
+    flat = p.reshape(-1, 3)
+    d = np.empty(len(flat))
+    n = np.empty_like(flat)
+    for i in range(0, len(flat), chunk):
+        d[i : i + chunk], n[i : i + chunk] = body.query(flat[i : i + chunk], window=NEAR)
+    return d.reshape(shape), n.reshape(shape + (3,))
+
+
+def radial_normal(p, h=1e-4):
+    """Outward normal of the body surface at the height and azimuth of points ``p``
+    (the surface point straight out from the vertical axis, not the nearest one)."""
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    th = np.arctan2(z, x)
+    rho = np.hypot(x, z)
+    r = surface_radius(th, y)
+    dr_dy = (surface_radius(th, y + h) - surface_radius(th, y - h)) / (2 * h)
+    dr_dth = (surface_radius(th + h, y) - surface_radius(th - h, y)) / (2 * h)
+    e_rho = np.stack([np.cos(th), np.zeros_like(th), np.sin(th)], axis=1)
+    e_th = np.stack([-np.sin(th), np.zeros_like(th), np.cos(th)], axis=1)
+    g = e_rho - (dr_dth / np.maximum(np.maximum(rho, r), 1e-6))[:, None] * e_th + dr_dy[:, None] * G[None, :]
+    return unit(g)
+
+
+def no_closer(w, n, vn, weight=1.0):
+    """Directions ``w`` with their component along the surface normals ``n`` raised
+    to at least ``vn`` (fully where ``weight`` is 1, not at all where it is 0)."""
+    wn = np.sum(w * n, axis=1)
+    lift = weight * (np.maximum(wn, vn) - wn)
+    return unit(w + lift[:, None] * n)
+
+
+def turn_toward(t, w, max_angle, share=1.0):
+    """Rotate unit vectors ``t`` toward unit vectors ``w`` by ``share`` of the angle
+    between them, but by at most ``max_angle`` radians."""
+    c = np.clip(np.sum(t * w, axis=1), -1.0, 1.0)
+    ang = np.arccos(c)
+    e = w - c[:, None] * t
+    en = np.linalg.norm(e, axis=1)
+    ok = en > 1e-12
+    step = np.minimum(ang * share, max_angle)
+    out = t.copy()
+    e = e[ok] / en[ok, None]
+    out[ok] = t[ok] * np.cos(step[ok])[:, None] + e * np.sin(step[ok])[:, None]
+    return unit(out)
+
+
+def march(body, roots, off_head, off_fall, steps, kappa, ds=0.002, r_head=0.10, r_fall=0.08, approach=0.03,
+          climb=np.radians(15.0), feelers=(0.01, 0.02, 0.035, 0.05, 0.07, 0.09, 0.12, 0.16), deep=0.008):
+    """Guide paths of all strands, grown together in steps of ``ds``: (steps + 1, S, 3).
+
+    The direction of a strand turns smoothly, never faster than ``kappa``
+    (radians per metre), toward where the strand wants to go. On the head that
+    is along the scalp in the comb direction, bent down by gravity, at the
+    height ``off_head``: a strand leaves the scalp climbing (at most ``climb``)
+    and levels off at that height over about ``approach``; where the head
+    curves more sharply than ``kappa`` the strand stands off it a little. Once
+    below the widest part of the head a strand turns down under gravity (over
+    about ``r_fall``). Points ``feelers`` ahead of it look for the body: where
+    the strand would come closer than ``off_fall`` it turns, the more the
+    deeper (up to ``deep``) the feeler is, to run along the surface there.
+    Returns the paths and the step at which each strand started to fall.
+    """
     _, n0 = body.query(roots)
-    steps = int(np.ceil(length / ds)) + 1
-    out = [roots.copy()]
     p = roots.copy()
-    # 1) leave the scalp along the normal
-    n_lift = int(round(lift / ds))
-    for i in range(1, n_lift + 1):
-        p = roots + n0 * (i * ds)
-        out.append(p.copy())
-    t = comb_direction(roots, n0)
-    fall = n0[:, 1] < 0.0
-    t[fall] = n0[fall]
-    s = np.full(len(p), lift)
-    ramp_len = 0.02
-    for _ in range(steps - n_lift):
+    comb = comb_direction(roots, n0)
+    fall = n0[:, 1] < 0.0  # roots at the nape hang down the neck at once
+    vn0 = np.clip(off_head / approach, 0.0, np.sin(climb))
+    t = unit(comb * np.sqrt(1.0 - vn0**2)[:, None] + n0 * vn0[:, None])
+    t[fall] = unit(tangential(G[None, :], n0[fall]) + np.tan(climb) * n0[fall])
+    k_fall = np.where(fall, 0, steps + 1)
+    out = [p.copy()]
+    turn = kappa * ds
+    lam = np.asarray(feelers)
+    for k in range(1, steps + 1):
         head = ~fall
+        want = t.copy()
         if np.any(head):
-            ph = p[head]
-            d, n = body.query(ph)
-            th = t[head] + tangential(G[None, :], n) * (ds / r_head)
-            th = unit(tangential(th, n))
-            ph = ph + th * ds
-            d, n = body.query(ph)
-            sh = s[head] + ds
-            target = lift + (off_head[head] - lift) * smoothstep(lift, lift + ramp_len, sh)
-            ph = ph + n * (target - d)[:, None]
-            p[head] = ph
-            t[head] = th
-            fall[np.flatnonzero(head)[n[:, 1] < 0.0]] = True
+            d, n = body.query(p[head], window=NEAR)
+            along = unit(tangential(t[head], n) + tangential(G[None, :], n) * (ds / r_head))
+            vn = np.clip((off_head[head] - d) / approach, -np.sin(climb), np.sin(climb))
+            want[head] = along * np.sqrt(1.0 - vn**2)[:, None] + n * vn[:, None]
+            now = np.flatnonzero(head)[n[:, 1] < 0.0]
+            fall[now] = True
+            k_fall[now] = k
         fa = fall & ~head  # strands that were falling before this step
         if np.any(fa):
-            pf = p[fa]
-            tf = unit(t[fa] + G[None, :] * (ds / r_fall))
-            pf = pf + tf * ds
-            d, n = body.query(pf)
-            hit = d < off_fall[fa]
-            if np.any(hit):
-                pf[hit] += n[hit] * (off_fall[fa][hit] - d[hit])[:, None]
-                inward = np.minimum(np.sum(tf[hit] * n[hit], axis=1), 0.0)
-                tf[hit] = unit(tf[hit] - inward[:, None] * n[hit])
-            p[fa] = pf
-            t[fa] = tf
-        s += ds
+            pf, tf, need = p[fa], t[fa], off_fall[fa]
+            w = turn_toward(tf, np.broadcast_to(G, tf.shape), np.inf, ds / r_fall)
+            # look ahead along the current direction for where the strand would
+            # come too close; turn to run along the surface there once that is
+            # within the distance the strand needs to turn that far
+            d0 = body.query(pf, window=NEAR)[0]
+            need_ahead = np.minimum(need, d0 - 0.002)  # what is already too close is dealt with below
+            d, _ = query(body, pf[None] + tf[None] * lam[:, None, None])
+            hit = d < need_ahead[None]
+            c = hit.any(axis=0)
+            if np.any(c):
+                j = np.argmax(hit[:, c], axis=0)
+                hi = lam[j]
+                lo = np.where(j > 0, lam[np.maximum(j - 1, 0)], 0.0)
+                pc, tc, nc = pf[c], tf[c], need_ahead[c]
+                for _ in range(4):
+                    mid = 0.5 * (lo + hi)
+                    inside = body.query(pc + tc * mid[:, None], window=NEAR)[0] < nc
+                    hi = np.where(inside, mid, hi)
+                    lo = np.where(inside, lo, mid)
+                # the surface's normal a little below where the ray enters (the
+                # nearest-point normal would be the neck's in the corner between
+                # neck and shoulders)
+                ne = radial_normal(pc + tc * (hi + deep)[:, None])
+                brake = np.maximum(-np.sum(tc * ne, axis=1), 0.0) / kappa * 1.2 + 0.002
+                weight = np.clip((1.5 * brake - hi) / (0.75 * brake), 0.0, 1.0)
+                w[c] = no_closer(w[c], ne, 0.0, weight)
+            # close already: run along the surface; too close: move away
+            d, n = body.query(pf, window=NEAR)
+            c = d < need + 0.001
+            vn = np.clip((need[c] - d[c]) / approach, 0.0, np.sin(climb))
+            w[c] = no_closer(w[c], n[c], vn, np.clip((need[c] + 0.001 - d[c]) / 0.001, 0.0, 1.0))
+            want[fa] = w
+        t = turn_toward(t, unit(want), turn)
+        p = p + t * ds
         out.append(p.copy())
-    return np.stack(out)
+    return np.stack(out), k_fall
 
 
 def arclength(pts):
-    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    """Arc length at each point of a polyline (N, 3), or of strands stacked along axis 0 (N, S, 3)."""
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=-1)
+    return np.concatenate([np.zeros((1,) + seg.shape[1:]), np.cumsum(seg, axis=0)])
 
 
 def resample(pts, count, length=None):
+    """``count`` points evenly spaced along the first ``length`` of a polyline."""
     s = arclength(pts)
     total = s[-1] if length is None else min(length, s[-1])
     q = np.linspace(0.0, total, count)
     return np.stack([np.interp(q, s, pts[:, k]) for k in range(3)], axis=1)
 
 
-def smooth_rows(v, width):
-    """Moving average along a strand (edges padded), then renormalised."""
-    if width <= 1:
-        return v
-    kern = np.ones(width) / width
-    pad = width // 2
-    vp = np.pad(v, ((pad, width - 1 - pad), (0, 0)), mode="edge")
-    out = np.stack([np.convolve(vp[:, k], kern, mode="valid") for k in range(3)], axis=1)
-    return unit(out)
+def blur(a, sigma, fixed_ends=True):
+    """Gaussian smoothing along axis 0 with ``sigma`` in samples.
+
+    With ``fixed_ends`` the data are extended by point reflection at both ends,
+    which keeps the end points where they are and the curve straight there.
+    """
+    if sigma <= 0:
+        return a
+    if not fixed_ends:
+        return gaussian_filter1d(a, sigma, axis=0, mode="nearest", truncate=3.0)
+    pad = min(int(3.0 * sigma + 0.5) + 1, len(a) - 1)
+    ext = np.concatenate([2 * a[:1] - a[1 : pad + 1][::-1], a, 2 * a[-1:] - a[-pad - 1 : -1][::-1]])
+    return gaussian_filter1d(ext, sigma, axis=0, mode="nearest", truncate=3.0)[pad : pad + len(a)]
 
 
-def push_out(body, strands, min_off=0.001, iters=3):
-    """Move every non-root point to at least ``min_off`` outside the body."""
-    flat = np.concatenate([st[1:] for st in strands])
-    s_along = np.concatenate([arclength(st)[1:] for st in strands])
-    need = np.minimum(min_off, 0.8 * s_along)
+def soft_push(body, p, need, hold, width, iters=10, margin=0.001):
+    """Move points of strands ``p`` (K, S, 3) to at least ``need`` (K, S) outside the body
+    with a smooth displacement field.
+
+    Each deficit is spread along the strand as a Gaussian bump of ``width``
+    samples (a running maximum of the bumps, then blurred), so pushing a
+    strand out of the body bends it gently instead of putting a corner in it.
+    ``hold`` (K, S) scales the displacement (0 keeps the root in place).
+    Points more than ``margin`` beyond their ``need`` only move outward, so
+    they are not looked at again.
+    """
+    reach = int(3.0 * width)
+    d, n = query(body, p)
+    active = d < need + margin
     for _ in range(iters):
-        d, n = body.query(flat)
-        bad = d < need
-        if not np.any(bad):
+        deficit = np.maximum(need - d, 0.0)
+        if deficit.max() < 1e-6:
             break
-        flat[bad] += n[bad] * (need[bad] - d[bad])[:, None]
-    out, k = [], 0
-    for st in strands:
-        m = len(st) - 1
-        out.append(np.vstack([st[:1], flat[k : k + m]]))
-        k += m
-    return out
+        mag = deficit.copy()
+        for j in range(1, min(reach, len(p) - 1) + 1):
+            g = np.exp(-0.5 * (j / width) ** 2)
+            np.maximum(mag[j:], g * deficit[:-j], out=mag[j:])
+            np.maximum(mag[:-j], g * deficit[j:], out=mag[:-j])
+        mag = blur(mag, 0.4 * width, fixed_ends=False) * hold
+        p = p + n * (1.1 * mag)[..., None]
+        active &= d - mag < need + margin
+        d[active], n[active] = query(body, p[active])
+    # what is left (a few micrometres) is pushed point by point
+    deficit = np.maximum(need - d, 0.0) * (hold > 0)
+    return p + n * deficit[..., None]
 
 
-def add_shape(body, base, kind, rng):
-    """Add a planar-ish wave or a helical curl around a base path (root unchanged)."""
-    s = arclength(base)
-    tang = unit(np.gradient(base, axis=0))
-    _, n = body.query(base)
-    n = smooth_rows(n, 9)
-    u = unit(tangential(n, tang))  # away from the body, across the strand
-    v = np.cross(tang, u)  # along the body surface, across the strand
+def relax(body, p, need, hold, ds, passes):
+    """Smooth guide paths ``p`` (K, S, 3) and push them back out of the body, a few times.
+
+    ``passes`` holds (smoothing sigma, push width) in metres; ``need`` and
+    ``hold`` are as for ``soft_push``.
+    """
+    for sigma, width in passes:
+        p = soft_push(body, blur(p, sigma / ds), need, hold, width / ds)
+    return p
+
+
+def transported_frames(p, normal, sigma):
+    """Two unit normals ``u``, ``v`` of strands ``p`` (K, S, 3), smooth along them.
+
+    The normals are carried along by parallel transport and then turned about
+    the tangent by a slowly varying angle so that ``u`` points away from the
+    body (``normal``) on average over ``sigma`` samples.
+    """
+    tang = unit(np.gradient(p, axis=0))
+    u = np.empty_like(p)
+    u0 = tangential(normal[0], tang[0])
+    u0 = np.where(np.linalg.norm(u0, axis=1, keepdims=True) > 1e-6, u0, tangential(-G[None, :], tang[0]))
+    u[0] = unit(u0)
+    for k in range(1, len(p)):
+        # rotate the previous normal by the rotation taking tang[k-1] to tang[k]
+        a, b = tang[k - 1], tang[k]
+        axis = np.cross(a, b)
+        c = np.sum(a * b, axis=1, keepdims=True)
+        prev = u[k - 1]
+        rot = prev * c + np.cross(axis, prev) + axis * (np.sum(axis * prev, axis=1, keepdims=True) / (1.0 + c))
+        u[k] = unit(tangential(rot, b))
+    v = np.cross(tang, u)
+    cu = blur(np.sum(normal * u, axis=-1), sigma, fixed_ends=False)
+    cv = blur(np.sum(normal * v, axis=-1), sigma, fixed_ends=False)
+    phi = np.arctan2(cv, cu)[..., None]
+    u2 = np.cos(phi) * u + np.sin(phi) * v
+    return u2, np.cross(tang, u2)
+
+
+def shape_params(kind, count, rng):
+    """Per-strand wave or curl parameters."""
     if kind == "wavy":
-        amp = rng.uniform(0.005, 0.010)
-        lam = rng.uniform(0.04, 0.06)
-        ramp = smoothstep(0.0, rng.uniform(0.03, 0.05), s)
-        phase = rng.uniform(0, 2 * np.pi)
-        tilt = rng.uniform(-0.35, 0.35)  # mostly along the surface, a little off it
-        w = unit(v + tilt * u)
-        return base + (amp * ramp * np.sin(2 * np.pi * s / lam + phase))[:, None] * w
+        lam = rng.uniform(0.09, 0.12, count)  # wavelength
+        kappa = rng.uniform(11.0, 16.0, count)  # curvature at the crests, 1/m
+        return dict(
+            amp=kappa / (2 * np.pi / lam) ** 2,
+            lam=lam,
+            ramp=rng.uniform(0.06, 0.09, count),
+            phase=rng.uniform(0, 2 * np.pi, count),
+            tilt=rng.uniform(-0.35, 0.35, count),  # mostly along the surface, a little off it
+        )
     if kind == "curly":
-        rad = rng.uniform(0.005, 0.008)
-        pitch = rng.uniform(0.02, 0.03)
-        ramp = smoothstep(0.0, rng.uniform(0.025, 0.04), s)
-        phase = rng.uniform(0, 2 * np.pi) + rng.choice([-1.0, 1.0]) * 2 * np.pi * s / pitch
-        # start from the outward side so the curl begins away from the scalp
-        off = np.cos(phase)[:, None] * u + np.sin(phase)[:, None] * v
-        return base + (rad * ramp)[:, None] * off
+        return dict(
+            rad=rng.uniform(0.0055, 0.007, count),
+            pitch=rng.uniform(0.025, 0.030, count),
+            ramp=rng.uniform(0.04, 0.06, count),
+            phase=rng.uniform(0, 2 * np.pi, count),
+            hand=rng.choice([-1.0, 1.0], count),
+        )
+    return {}
+
+
+def centre_pad(kind, prm):
+    """How far the wave or curl reaches toward the body from the centre line (S,)."""
+    if kind == "wavy":  # (the frame follows the body normal only on average)
+        return prm["amp"] * (np.abs(prm["tilt"]) + 0.05) / np.sqrt(1.0 + prm["tilt"] ** 2)
+    if kind == "curly":
+        return prm["rad"]
+    return 0.0
+
+
+def add_shape(base, u, v, s, kind, prm):
+    """Add a wave (along the surface, tilted a little off it) or a helical curl
+    around centre lines ``base`` (K, S, 3) with frames ``u``, ``v`` and arc length ``s``."""
+    if kind == "wavy":
+        ramp = smoothstep(0.0, prm["ramp"], s)
+        w = unit(v + prm["tilt"][None, :, None] * u)
+        off = prm["amp"] * ramp * np.sin(2 * np.pi * s / prm["lam"] + prm["phase"])
+        return base + off[..., None] * w
+    if kind == "curly":
+        # the curl grows in over the first few cm, winding up from a looser pitch
+        ramp = smoothstep(0.0, prm["ramp"], s)
+        rate = 2 * np.pi / prm["pitch"] * (0.4 + 0.6 * ramp)
+        turned = np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(s, axis=0), axis=0)
+        ph = prm["phase"] + prm["hand"] * np.concatenate([np.zeros((1,) + s.shape[1:]), turned])
+        off = np.cos(ph)[..., None] * u + np.sin(ph)[..., None] * v
+        return base + (prm["rad"] * ramp)[..., None] * off
     return base
 
 
 GROOMS = {
-    # name: strand count, points per strand (min, max), length range in metres, random seed
-    "straight": dict(count=300, points=(24, 36), length=(0.25, 0.40), seed=11),
-    "wavy": dict(count=280, points=(30, 40), length=(0.25, 0.35), seed=22),
-    "curly": dict(count=260, points=(32, 40), length=(0.15, 0.25), seed=33),
+    # name: strand count, points per strand (min, max) and their target spacing in metres,
+    # largest curvature of the centre lines (1/m), length range in metres, random seed
+    "straight": dict(count=300, points=(24, 40), spacing=0.0095, kappa=12.0, length=(0.25, 0.40), seed=11),
+    "wavy": dict(count=280, points=(32, 48), spacing=0.0072, kappa=13.0, length=(0.25, 0.35), seed=22),
+    "curly": dict(count=260, points=(64, 96), spacing=0.0025, kappa=9.0, length=(0.15, 0.24), seed=33),
 }
 
 
-def make_groom(body, mesh, name, spec):
+def make_groom(body, mesh, name, spec, ds=0.002):
+    """Strands of one groom (a list of (N, 3) arrays) and per-strand notes."""
     rng = np.random.default_rng(spec["seed"])
     count = spec["count"]
     roots = sample_roots(mesh, count, rng)
@@ -461,22 +636,51 @@ def make_groom(body, mesh, name, spec):
         lengths = lo + (hi - lo) * np.clip(0.55 * (1.0 - uy) / 1.6 + 0.45 * rng.random(count), 0, 1)
     else:
         lengths = rng.uniform(lo, hi, count)
-    npts = rng.integers(spec["points"][0], spec["points"][1] + 1, count)
-    # wavy and curly centre lines keep a little further from the body than the curl radius allows
-    curl_pad = {"straight": 0.0, "wavy": 0.001, "curly": 0.004}[name]
-    path = march(body, roots, off_head + curl_pad, off_fall + curl_pad, lengths.max())
-    strands = []
-    for i in range(count):
-        base = path[:, i]
-        if name != "straight":
-            base = add_shape(body, base, name, rng)
-        strands.append(base)
-    strands = push_out(body, strands)
-    strands = [resample(st, npts[i], lengths[i]) for i, st in enumerate(strands)]
-    strands = push_out(body, strands, min_off=0.0008)
-    # keep the stored spacing even after the push
-    strands = [resample(st, len(st)) for st in strands]
-    return strands
+    pmin, pmax = spec["points"]
+    npts = np.clip(np.round(lengths / spec["spacing"]).astype(int) + 1 + rng.integers(-2, 3, count), pmin, pmax)
+    prm = shape_params(name, count, rng)
+    pad = centre_pad(name, prm)
+
+    # 1) guide paths (centre lines); curls need less centre line than their length
+    base_len = lengths.max() * (0.7 if name == "curly" else 1.0) + 0.06
+    steps = int(np.ceil(base_len / ds))
+    path, k_fall = march(body, roots, off_head + pad, off_fall + pad, steps, spec["kappa"], ds)
+
+    # 2) smooth them a little, not letting them come closer to the body
+    k = np.arange(steps + 1)[:, None]
+    s = k * ds
+    d, _ = query(body, path)
+    ramp = smoothstep(0.0, prm["ramp"], s) if name != "straight" else 1.0
+    # (at least 0.8 mm plus room for the wave or curl beyond the first 2 cm; near
+    # the root the smoothing may bring a path a little closer than it was)
+    nominal = off_fall + pad * ramp
+    floor = (0.0008 + pad * ramp) * smoothstep(0.0, 0.02, s)
+    need = np.maximum(np.minimum(d, nominal), floor) - 0.0005 * (1.0 - smoothstep(0.0, 0.03, s))
+    hold = smoothstep(0.0, 0.01, s) * np.ones((1, count))
+    path = relax(body, path, need, hold, ds, ((1.5 * spec["spacing"], 0.012), (0.8 * spec["spacing"], 0.010)))
+
+    # 3) the wave or curl, on a finer grid
+    up = 4 if name == "curly" else 2
+    fine_k = np.linspace(0, steps, steps * up + 1)
+    d, normal = query(body, path)
+    base = CubicSpline(k[:, 0], path, axis=0)(fine_k)
+    normal = CubicSpline(k[:, 0], normal, axis=0)(fine_k)
+    d = CubicSpline(k[:, 0], d, axis=0)(fine_k)
+    sb = arclength(base)
+    u, v = transported_frames(base, normal, 0.03 / (ds / up))
+    strands = add_shape(base, u, v, sb, name, prm)
+
+    # 4) nothing inside the body, then even spacing
+    sf = arclength(strands)
+    need = np.minimum(0.0008, d)
+    hold = smoothstep(0.0, 0.004, sf)
+    strands = soft_push(body, strands, need, hold, 0.008 / (ds / up))
+    out = [resample(strands[:, i], npts[i], lengths[i]) for i in range(count)]
+    notes = {}
+    if name == "curly":
+        turn = np.hypot(2 * np.pi * prm["rad"], prm["pitch"])
+        notes["points per turn"] = turn / (lengths / (npts - 1))
+    return out, notes
 
 
 # --------------------------------------------------------------------------
@@ -529,7 +733,34 @@ def mesh_signed_distance(mesh, points):
     return np.where(side < 0, -dist, dist)
 
 
-def report_groom(name, strands, mesh, body):
+def turning_angles(st):
+    """Angle in degrees between consecutive segments at each interior vertex."""
+    d = unit(np.diff(st, axis=0))
+    return np.degrees(np.arccos(np.clip(np.sum(d[:-1] * d[1:], axis=1), -1.0, 1.0)))
+
+
+def isolated_corners(st, floor=1.0):
+    """Vertices of a polyline turning more than twice as much as their neighbours
+    on average (and more than ``floor`` degrees).
+
+    The first and last turning vertex have one neighbour only; there the
+    comparison is with the larger of that neighbour's turn and the turn
+    extrapolated linearly from the next two vertices (as turning vectors, so
+    that a curve just past an inflection does not count).
+    """
+    angles = turning_angles(st)
+    if len(angles) < 3:
+        return 0
+    d = unit(np.diff(st, axis=0))
+    turn = unit(np.cross(d[:-1], d[1:])) * angles[:, None]  # turning vectors, degrees
+    nb = np.empty_like(angles)
+    nb[1:-1] = 0.5 * (angles[:-2] + angles[2:])
+    nb[0] = max(angles[1], np.linalg.norm(2 * turn[1] - turn[2]))
+    nb[-1] = max(angles[-2], np.linalg.norm(2 * turn[-2] - turn[-3]))
+    return int(np.sum((angles > 2.0 * nb) & (angles > floor)))
+
+
+def report_groom(name, strands, mesh, body, notes=None):
     counts = np.array([len(s) for s in strands])
     lengths = np.array([arclength(s)[-1] for s in strands])
     roots = np.array([s[0] for s in strands])
@@ -563,6 +794,17 @@ def report_groom(name, strands, mesh, body):
         f"on the head (beyond 2 cm from the root) {len(touch_head) / len(strands) * 100:.1f}%; "
         f"segment length / strand mean {seg.min():.3f}-{seg.max():.3f}"
     )
+    angles = [turning_angles(s) for s in strands]
+    flat = np.concatenate(angles)
+    corners = sum(isolated_corners(s) for s in strands)
+    line = (
+        f"  turning angle per vertex max {flat.max():.2f} deg, 99th percentile {np.percentile(flat, 99):.2f} deg; "
+        f"isolated corners (> 2x the neighbours' mean and > 1 deg) {corners}"
+    )
+    if notes and "points per turn" in notes:
+        ppt = notes["points per turn"]
+        line += f"; points per turn of curl min/median/max {ppt.min():.1f}/{np.median(ppt):.1f}/{ppt.max():.1f}"
+    print(line)
 
 
 def draw(mesh_view, grooms, path, views=(("front-left 3/4 view", 10, -55), ("left side view", 4, 0))):
@@ -630,9 +872,9 @@ def main():
     body = Body()
     grooms = {}
     for name, spec in GROOMS.items():
-        strands = make_groom(body, mesh, name, spec)
+        strands, notes = make_groom(body, mesh, name, spec)
         write_curves(HERE / f"{name}.h5", strands, f"hairinv sample groom '{name}' (samples/make_samples.py)")
-        report_groom(name, strands, mesh, body)
+        report_groom(name, strands, mesh, body, notes)
         grooms[name] = strands
     img = ROOT / "docs" / "img"
     img.mkdir(parents=True, exist_ok=True)

@@ -44,14 +44,19 @@ _PROJECTION_NEWTON = 8
 # the data do not see (the twist of a straight element) are damped instead of
 # drifting on round-off.
 _DAMPING_FLOOR = 1e-6
-# Least-bending prior: a residual eta * length_e * omega_e (m) per element
-# with eta = _PRIOR_OF_TOLERANCE * tolerance, i.e. a one-radian bend or twist
-# across an element weighs like a vertex error of half the tolerance. Among
-# fits within tolerance it selects the least bent and least twisted one,
-# instead of degenerate shapes the vertices cannot tell apart (a tight
-# corkscrew drawing a nearly straight piece, twist drifting where the
-# curvature vanishes). With tolerance 0 there is no prior.
-_PRIOR_OF_TOLERANCE = 0.5
+# Priors that choose, among fits within tolerance, a physically plausible one:
+# - least bending: a residual eta * length_e * omega_e (m) per element with
+#   eta = _PRIOR_OF_TOLERANCE * tolerance (a one-radian bend or twist across
+#   an element weighs like 5% of the tolerance), so the twist the curve does
+#   not see (straight parts, inflection points) stays at zero;
+# - a curvature cap: a residual _CAP_WEIGHT * tolerance * length_e *
+#   max(0, |omega_e| - cap) with cap = _CAP_FACTOR times the strand's largest
+#   discrete curvature, so no element winds into a tight corkscrew that draws
+#   a nearly straight piece within tolerance.
+# With tolerance 0 (exact recovery) both vanish.
+_PRIOR_OF_TOLERANCE = 0.05
+_CAP_WEIGHT = 10.0
+_CAP_FACTOR = 3.0
 # The look-ahead of the second initial guess, in element lengths.
 _LOOK_AHEAD = 0.5
 
@@ -221,15 +226,15 @@ def _rotate_rows(F, th, out):
 
 
 @jit
-def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, eta):
+def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, eta, cap):
     """Refine ``F0`` (root tangent), ``omega`` and ``length`` (scaled as one) in place.
 
     ``s`` holds the vertices' matched arc lengths, in and out. With ``odr``
     false the vertices keep their fraction of the length (no sliding along
     the curve: a robust first phase); with ``odr`` true they are projected on
     the curve (the exact orthogonal-distance fit). Stops early once every
-    vertex residual is at most ``target`` (m). ``eta`` (m) weighs the
-    least-bending prior. Returns the final cost. Damping follows the gain ratio (Nielsen 1999): it grows by
+    vertex residual is at most ``target`` (m). ``eta`` (m) and ``cap``
+    (1/m) set the priors. Returns the final cost. Damping follows the gain ratio (Nielsen 1999): it grows by
     ``nu`` on a rejected step and shrinks by ``max(1/3, 1 - (2 rho - 1)^3)``
     on an accepted one.
     """
@@ -251,7 +256,7 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, e
     th = np.empty(3)
     D = np.empty(npar)
     newton = _PROJECTION_NEWTON if odr else -1
-    cost = _residual(root, F0, omega, length, s, p, newton, xs, Fs, starts, r, tang) + _prior_cost(omega, length, eta)
+    cost = _residual(root, F0, omega, length, s, p, newton, xs, Fs, starts, r, tang) + _prior_cost(omega, length, eta, cap)
     lam = 1e-4
     nu = 2.0
     iters = 0
@@ -262,10 +267,7 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, e
         JtJ = J.T @ J
         g = J.T @ r
         for e in range(n):
-            w2 = (eta * length[e]) ** 2
-            for k in range(3):
-                JtJ[2 + 3 * e + k, 2 + 3 * e + k] += w2
-                g[2 + 3 * e + k] += w2 * omega[e, k]
+            _add_prior(JtJ, g, 2 + 3 * e, omega[e], length[e], eta, cap)
         dmax = 0.0
         for i in range(npar):
             dmax = max(dmax, JtJ[i, i])
@@ -294,7 +296,7 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, e
                 for j in range(m):
                     s_try[j] = s[j] * ratio
                 c_try = _residual(root, F_try, om_try, len_try, s_try, p, 3 if odr else -1, xs, Fs, starts,
-                                  r_try, tang_try) + _prior_cost(om_try, len_try, eta)
+                                  r_try, tang_try) + _prior_cost(om_try, len_try, eta, cap)
                 if c_try < cost and predicted > 0.0:
                     rho = (cost - c_try) / predicted
                     lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
@@ -324,12 +326,34 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, e
 
 
 @jit
-def _prior_cost(omega, length, eta):
-    """1/2 sum_e (eta * length_e)^2 |omega_e|^2, m^2."""
+def _prior_cost(omega, length, eta, cap):
+    """The priors' cost (see the module constants), m^2."""
     c = 0.0
     for e in range(omega.shape[0]):
-        c += 0.5 * (eta * length[e]) ** 2 * (omega[e, 0] ** 2 + omega[e, 1] ** 2 + omega[e, 2] ** 2)
+        a2 = omega[e, 0] ** 2 + omega[e, 1] ** 2 + omega[e, 2] ** 2
+        c += 0.5 * (eta * length[e]) ** 2 * a2
+        a = np.sqrt(a2)
+        if a > cap:
+            c += 0.5 * (_CAP_WEIGHT / _PRIOR_OF_TOLERANCE * eta * length[e] * (a - cap)) ** 2
     return c
+
+
+@jit
+def _add_prior(JtJ, g, off, om, ell, eta, cap):
+    """Add the priors' Gauss-Newton terms of one element (parameters at ``off``)."""
+    w2 = (eta * ell) ** 2
+    for k in range(3):
+        JtJ[off + k, off + k] += w2
+        g[off + k] += w2 * om[k]
+    a = np.sqrt(om[0] ** 2 + om[1] ** 2 + om[2] ** 2)
+    if a > cap:
+        wc = _CAP_WEIGHT / _PRIOR_OF_TOLERANCE * eta * ell
+        rho = wc * (a - cap)
+        for i in range(3):
+            gi = wc * om[i] / a
+            g[off + i] += rho * gi
+            for j in range(3):
+                JtJ[off + i, off + j] += gi * wc * om[j] / a
 
 
 @jit
@@ -384,7 +408,7 @@ def _element_residual(x, F, om, sig, tgt, res):
 
 
 @jit
-def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta):
+def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap):
     """Levenberg-Marquardt on one element's omega (and, for the first element,
     the two angles of its start tangent); updates ``om`` and ``F`` in place."""
     k = sig.shape[0]
@@ -404,8 +428,10 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta):
     ell = 0.0
     for i in range(k):
         ell = max(ell, sig[i])
-    w2 = (eta * ell) ** 2
-    cost = _element_residual(x, F, om, sig, tgt, res) + 0.5 * w2 * (om @ om)
+    ell_a = np.full(1, ell)
+    om_a = np.empty((1, 3))
+    om_a[0] = om
+    cost = _element_residual(x, F, om, sig, tgt, res) + _prior_cost(om_a, ell_a, eta, cap)
     lam = 1e-4
     nu = 2.0
     for _ in range(max_iter):
@@ -424,9 +450,7 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta):
                         Jl[3 * i + a, c] = col[a]
         JtJ = Jl.T @ Jl
         g = Jl.T @ res
-        for b in range(3):
-            JtJ[off + b, off + b] += w2
-            g[off + b] += w2 * om[b]
+        _add_prior(JtJ, g, off, om, ell, eta, cap)
         dmax = 0.0
         for b in range(npar):
             dmax = max(dmax, JtJ[b, b])
@@ -446,7 +470,8 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta):
                 _rotate_rows(F, th, F_try)
             else:
                 F_try[:, :] = F
-            c_try = _element_residual(x, F_try, om_try, sig, tgt, res_try) + 0.5 * w2 * (om_try @ om_try)
+            om_a[0] = om_try
+            c_try = _element_residual(x, F_try, om_try, sig, tgt, res_try) + _prior_cost(om_a, ell_a, eta, cap)
             predicted = 0.0
             for b in range(npar):
                 predicted += 0.5 * d[b] * (lam * D[b] * d[b] - g[b])
@@ -523,7 +548,7 @@ def _discrete_darboux(p, j0, j1):
 
 
 @jit
-def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta):
+def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta, cap):
     """Element-by-element initial guess (see the module docstring).
 
     The first element also refines the root tangent ``F0`` in place: the
@@ -594,7 +619,7 @@ def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta):
             res = np.empty(3 * k)
             if _element_residual(x, F, om2, sig, tgt, res) < _element_residual(x, F, om, sig, tgt, res):
                 om[:] = om2
-        _fit_element(x, F, om, sig, tgt, e == 0, 10, eta)
+        _fit_element(x, F, om, sig, tgt, e == 0, 10, eta, cap)
         if e == 0:
             F0[:, :] = F
         omega[e] = om
@@ -602,6 +627,21 @@ def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta):
         x[:] = x_next
         F[:, :] = F_next
         s0 = s1
+
+
+@jit
+def _max_discrete_curvature(p):
+    """Largest turning angle over mean adjacent segment length along a polyline, 1/m."""
+    worst = 0.0
+    for j in range(1, p.shape[0] - 1):
+        a = p[j] - p[j - 1]
+        b = p[j + 1] - p[j]
+        na = np.sqrt(a @ a)
+        nb = np.sqrt(b @ b)
+        if na > 0.0 and nb > 0.0:
+            c = min(1.0, max(-1.0, (a @ b) / (na * nb)))
+            worst = max(worst, np.arccos(c) / (0.5 * (na + nb)))
+    return worst
 
 
 @jit
@@ -660,6 +700,23 @@ def _vertex_errors(root, F0, omega, length, s, p, err):
 
 
 @jit
+def _start(root, F0, p, s, up, length, omega, eta, bend_cap, err):
+    """Initial guess for the given elements: two starts, plain (exact on
+    smooth data) and with look-ahead (robust at kinks, where the plain one
+    chases the corner); keeps the one that fits better. Writes F0, omega."""
+    _initial_frame(p, up, F0)
+    _sequential_init(root, F0, p, s, length, omega, 0.0, eta, bend_cap)
+    plain = _vertex_errors(root, F0, omega, length, s.copy(), p, err)
+    F_ahead = np.empty((3, 3))
+    _initial_frame(p, up, F_ahead)
+    om_ahead = np.zeros_like(omega)
+    _sequential_init(root, F_ahead, p, s, length, om_ahead, _LOOK_AHEAD, eta, bend_cap)
+    if _vertex_errors(root, F_ahead, om_ahead, length, s.copy(), p, err) < plain:
+        F0[:, :] = F_ahead
+        omega[:, :] = om_ahead
+
+
+@jit
 def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out, length_out):
     """Fit one strand, splitting elements until the tolerance is met.
 
@@ -684,23 +741,13 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     _arc_lengths(p, s)
     cap = max(1, min(n_max, m - 1))
     n = min(fixed, cap) if fixed > 0 else min(max(n_min, 1), cap)
+    root = p[0].copy()
+    err = np.zeros(m)
+    eta = _PRIOR_OF_TOLERANCE * tolerance
+    bend_cap = _CAP_FACTOR * _max_discrete_curvature(p)
     length = np.full(n, s[m - 1] / n)
     omega = np.zeros((n, 3))
-    root = p[0].copy()
-    # Two starts: plain (exact on smooth data) and with look-ahead (robust at
-    # kinks, where the plain one chases the corner); keep the one that fits better.
-    err = np.zeros(m)
-    _initial_frame(p, up, F0)
-    eta = _PRIOR_OF_TOLERANCE * tolerance
-    _sequential_init(root, F0, p, s, length, omega, 0.0, eta)
-    plain = _vertex_errors(root, F0, omega, length, s.copy(), p, err)
-    F_ahead = np.empty((3, 3))
-    _initial_frame(p, up, F_ahead)
-    om_ahead = np.zeros((n, 3))
-    _sequential_init(root, F_ahead, p, s, length, om_ahead, _LOOK_AHEAD, eta)
-    if _vertex_errors(root, F_ahead, om_ahead, length, s.copy(), p, err) < plain:
-        F0[:, :] = F_ahead
-        omega[:, :] = om_ahead
+    _start(root, F0, p, s, up, length, omega, eta, bend_cap, err)
     from_init = True
     while True:
         # Vertices first keep their fraction of the length (robust from a
@@ -708,11 +755,11 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         # not already within tolerance (fixed-fraction residuals bound the
         # true distances from above).
         if from_init:
-            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False, tolerance, eta)
+            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False, tolerance, eta, bend_cap)
             from_init = False
         worst = _vertex_errors(root, F0, omega, length, s, p, err)
         if worst > tolerance:
-            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, True, tolerance, eta)
+            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, True, tolerance, eta, bend_cap)
             worst = _vertex_errors(root, F0, omega, length, s, p, err)
         if fixed > 0 or worst <= tolerance or n >= cap:
             break
@@ -751,7 +798,11 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
             if badness[e] <= 0.0 or count >= room:
                 break
             mid = first[e] + count_in[e] // 2
-            cut[e] = 0.5 * (s[mid - 1] + s[mid]) - starts[e]
+            c = 0.5 * (s[mid - 1] + s[mid]) - starts[e]
+            # matched arc lengths need not be ordered after sliding: keep the cut inside
+            if not (0.1 * length[e] < c < 0.9 * length[e]):
+                c = 0.5 * length[e]
+            cut[e] = c
             count += 1
         if count == 0:
             break
@@ -771,6 +822,24 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         n += count
         omega = new_omega
         length = new_length
+    if fixed == 0 and worst > tolerance and n < cap:
+        # Splitting stalled in a local minimum: refit from scratch with the
+        # largest allowed count of equal elements and keep the better fit.
+        F_u = np.empty((3, 3))
+        s_u = np.zeros(m)
+        _arc_lengths(p, s_u)
+        length_u = np.full(cap, s_u[m - 1] / cap)
+        omega_u = np.zeros((cap, 3))
+        _start(root, F_u, p, s_u, up, length_u, omega_u, eta, bend_cap, err)
+        _levenberg_marquardt(root, F_u, omega_u, length_u, s_u, p, max_iter, False, tolerance, eta, bend_cap)
+        _levenberg_marquardt(root, F_u, omega_u, length_u, s_u, p, max_iter, True, tolerance, eta, bend_cap)
+        worst_u = _vertex_errors(root, F_u, omega_u, length_u, s_u, p, err)
+        if worst_u < worst:
+            worst = worst_u
+            n = cap
+            F0[:, :] = F_u
+            omega = omega_u
+            length = length_u
     omega_out[:n] = omega
     length_out[:n] = length
     status = FIT_OK if (fixed > 0 or worst <= tolerance) else FIT_TOLERANCE_NOT_MET
