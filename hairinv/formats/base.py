@@ -9,6 +9,7 @@ units and axes are applied afterwards by :mod:`hairinv.groom`.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -26,6 +27,7 @@ __all__ = [
     "mesh_reader_for",
     "curves_writer_for",
     "check_strands",
+    "write_atomic",
     "CURVE_READERS",
     "MESH_READERS",
     "CURVE_WRITERS",
@@ -147,3 +149,15 @@ def check_strands(points: np.ndarray, offsets: np.ndarray, path: Path, fmt: str)
         strand = int(np.searchsorted(offsets, first, side="right") - 1)
         raise InputError("vertex coordinates contain NaN or Inf", path, strand=strand)
     return RawCurves(points=points, offsets=offsets, format=fmt)
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise InputError(f"cannot be written ({exc.strerror or exc})", path) from None

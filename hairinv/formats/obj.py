@@ -11,13 +11,12 @@ mesh reader for ``.obj`` lives in :mod:`hairinv.formats.mesh` and shares
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from .base import check_strands, register_curves_reader, register_curves_writer
+from .base import check_strands, register_curves_reader, register_curves_writer, write_atomic
 
 
 def parse_obj(path: Path, element: str) -> tuple[np.ndarray, list[tuple[int, list[int]]]]:
@@ -117,10 +116,4 @@ def write_obj_curves(path: Path, points, offsets) -> None:
     out += [f"v {x!r} {y!r} {z!r}\n" for x, y, z in raw.points.tolist()]
     for a, b in zip(raw.offsets[:-1].tolist(), raw.offsets[1:].tolist()):
         out.append("l " + " ".join(map(str, range(a + 1, b + 1))) + "\n")
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text("".join(out))
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(f"cannot be written ({exc.strerror or exc})", path) from None
+    write_atomic(path, "".join(out).encode())

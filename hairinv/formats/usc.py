@@ -8,14 +8,13 @@ data is Y-up and roughly in metres, but the file does not say so.
 
 from __future__ import annotations
 
-import os
 import struct
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from .base import check_strands, register_curves_reader, register_curves_writer
+from .base import check_strands, register_curves_reader, register_curves_writer, write_atomic
 
 _INT = struct.Struct("<i")
 
@@ -98,14 +97,5 @@ def write_usc(path: Path, points, offsets) -> None:
     for s, n in enumerate(counts):
         parts.append(_INT.pack(int(n)))
         parts.append(pts[raw.offsets[s] : raw.offsets[s + 1]].tobytes())
-    _write_atomic(path, b"".join(parts))
+    write_atomic(path, b"".join(parts))
 
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(f"cannot be written ({exc.strerror or exc})", path) from None

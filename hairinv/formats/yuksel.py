@@ -10,14 +10,13 @@ transparency (P float), colours (P x 3 float). Yuksel's models are Z-up.
 
 from __future__ import annotations
 
-import os
 import struct
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from .base import check_strands, register_curves_reader, register_curves_writer
+from .base import check_strands, register_curves_reader, register_curves_writer, write_atomic
 
 HEADER_SIZE = 128
 _HEADER = struct.Struct("<4s4I2f3f88s")
@@ -139,14 +138,5 @@ def write_hair(path: Path, points, offsets, thickness=None, color=None, info: st
             raise InputError(f"color must be one RGB triple or one per point, not shape {c.shape}", path)
     text = info.encode("utf-8")[:88]
     header = _HEADER.pack(b"HAIR", len(counts), n_points, bits, 0, default_thickness, 0.0, *default_color, text)
-    _write_atomic(path, b"".join([header, *arrays]))
+    write_atomic(path, b"".join([header, *arrays]))
 
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    except OSError as exc:
-        tmp.unlink(missing_ok=True)
-        raise InputError(f"cannot be written ({exc.strerror or exc})", path) from None

@@ -204,6 +204,24 @@ def _jacobian(root, omega, length, s, p, xs, Fs, starts, r, tang, J, odr):
 
 
 @jit
+def _gain_ratio(cost, c_try, delta, D, g, lam, nu):
+    """Accept or reject a Levenberg-Marquardt step; returns (accepted, lam, nu).
+
+    The damping follows the gain ratio rho = actual / predicted decrease
+    (Nielsen 1999): times max(1/3, 1 - (2 rho - 1)^3) on acceptance, times a
+    doubling ``nu`` on rejection. The model's predicted decrease for the step
+    solving ``(J^T J + lam D) delta = -g`` is ``1/2 delta . (lam D delta - g)``.
+    """
+    predicted = 0.0
+    for i in range(delta.shape[0]):
+        predicted += 0.5 * delta[i] * (lam * D[i] * delta[i] - g[i])
+    if c_try < cost and predicted > 0.0:
+        rho = (cost - c_try) / predicted
+        return True, lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 2.0
+    return False, lam * nu, nu * 2.0
+
+
+@jit
 def _rotate_rows(F, th, out):
     """Rotate the rows of a frame by the rotation vector ``th`` (Rodrigues), re-orthonormalised."""
     angle = np.sqrt(th[0] ** 2 + th[1] ** 2 + th[2] ** 2)
@@ -287,9 +305,7 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, e
                 for k in range(3):
                     om_try[e, k] = omega[e, k] + delta[2 + 3 * e + k]
             ratio = (total + delta[npar - 1]) / total
-            predicted = 0.0
-            for i in range(npar):
-                predicted += 0.5 * delta[i] * (lam * D[i] * delta[i] - g[i])
+            c_try = np.inf
             if ratio > 0.0:
                 for e in range(n):
                     len_try[e] = length[e] * ratio
@@ -297,14 +313,9 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, e
                     s_try[j] = s[j] * ratio
                 c_try = _residual(root, F_try, om_try, len_try, s_try, p, 3 if odr else -1, xs, Fs, starts,
                                   r_try, tang_try) + _prior_cost(om_try, len_try, eta, cap)
-                if c_try < cost and predicted > 0.0:
-                    rho = (cost - c_try) / predicted
-                    lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-                    nu = 2.0
-                    accepted = True
-                    break
-            lam *= nu
-            nu *= 2.0
+            accepted, lam, nu = _gain_ratio(cost, c_try, delta, D, g, lam, nu)
+            if accepted:
+                break
         if not accepted:
             break
         decrease = cost - c_try
@@ -472,17 +483,9 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap):
                 F_try[:, :] = F
             om_a[0] = om_try
             c_try = _element_residual(x, F_try, om_try, sig, tgt, res_try) + _prior_cost(om_a, ell_a, eta, cap)
-            predicted = 0.0
-            for b in range(npar):
-                predicted += 0.5 * d[b] * (lam * D[b] * d[b] - g[b])
-            if c_try < cost and predicted > 0.0:
-                rho = (cost - c_try) / predicted
-                lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-                nu = 2.0
-                accepted = True
+            accepted, lam, nu = _gain_ratio(cost, c_try, d, D, g, lam, nu)
+            if accepted:
                 break
-            lam *= nu
-            nu *= 2.0
         if not accepted:
             break
         rel = (cost - c_try) / (cost + 1e-300)
