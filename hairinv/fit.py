@@ -16,10 +16,13 @@ from . import stages
 from .config import FitSettings
 from .errors import InputError
 from ._parallel import run_chunks
-from .groom import Groom
+from .groom import Groom, strand_lengths
 from .rod.fitting import FIT_TOLERANCE_NOT_MET, closest_distances, fit_batch
 
 __all__ = ["Helices", "FitReport", "fit_groom"]
+
+# A fitted strand longer than this times its polyline winds between vertices.
+OVERLONG = 1.05
 
 
 @dataclass
@@ -83,6 +86,9 @@ class FitReport:
     fit_error: np.ndarray
     tolerance_missed: int
     seconds: float
+    overlong: int = 0
+    """Strands whose fitted curve is over 5% longer than their polyline: it
+    winds between vertices, a shape the vertices do not show."""
 
     def lines(self) -> list[str]:
         mean_mm = 1e3 * self.fit_error[:, 0]
@@ -94,6 +100,11 @@ class FitReport:
             f"fit error, mm: mean {mean_mm.mean():.4f}, median of strand means {np.median(mean_mm):.4f}, "
             f"95th percentile of strand maxima {np.percentile(max_mm, 95):.4f}, max {max_mm.max():.4f}",
         ]
+        if self.overlong:
+            lines.append(
+                f"warning: {self.overlong} fitted strands are over 5% longer than their polyline (the curve winds "
+                "between vertices); check them, or fit with more points per strand or a larger tolerance"
+            )
         if self.tolerance_missed:
             lines.append(
                 f"{self.tolerance_missed} strands did not reach the tolerance with the maximum element count "
@@ -158,5 +169,7 @@ def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 3
     fit_error = np.stack([err_mean, err_max], axis=1)
     helices = Helices(roots, out_frame, helix_offsets, length, omega, fit_error)
     missed = int((out_status == FIT_TOLERANCE_NOT_MET).sum()) if settings.elements == 0 else 0
-    report = FitReport(count, out_n, fit_error, missed, time.perf_counter() - start)
+    fitted_length = np.add.reduceat(length, helix_offsets[:-1])
+    overlong = int((fitted_length > OVERLONG * strand_lengths(points, offsets)).sum())
+    report = FitReport(count, out_n, fit_error, missed, time.perf_counter() - start, overlong)
     return helices, report

@@ -186,6 +186,7 @@ def test_adaptive_fit_meets_the_tolerance_on_a_sample(wavy_subset):
     fit = FitSettings(tolerance=2e-4)
     helices, report = fit_groom(wavy_subset, fit)
     assert report.tolerance_missed == 0
+    assert report.overlong == 0  # no loops invented between vertices
     assert np.all(helices.fit_error[:, 1] <= fit.tolerance * (1 + 1e-9))
     assert np.all(helices.fit_error[:, 0] <= helices.fit_error[:, 1])
     counts = np.diff(helices.offsets)

@@ -57,6 +57,11 @@ _DAMPING_FLOOR = 1e-6
 _PRIOR_OF_TOLERANCE = 0.05
 _CAP_WEIGHT = 10.0
 _CAP_FACTOR = 3.0
+# Bounds of the arc between consecutive matched points, per unit distance
+# between the vertices (a smooth curve sampled at under ~40 degrees per
+# vertex has an arc within 2% of the chord).
+_MIN_ARC_PER_CHORD = 0.5
+_MAX_ARC_PER_CHORD = 1.5
 # The look-ahead of the second initial guess, in element lengths.
 _LOOK_AHEAD = 0.5
 
@@ -138,6 +143,18 @@ def _residual(root, F0, omega, length, s, p, project, xs, Fs, starts, r, tang):
             if new == sj:
                 break
             sj = new
+        if project > 0 and j < m - 1:
+            # Keep the arc between consecutive matched points near the distance
+            # between the vertices: a curve that winds a loop between two
+            # close vertices must not be free (the vertices would still be
+            # close to it, but the shape between them would be invented).
+            d = np.sqrt((p[j, 0] - p[j - 1, 0]) ** 2 + (p[j, 1] - p[j - 1, 1]) ** 2 + (p[j, 2] - p[j - 1, 2]) ** 2)
+            lo = s[j - 1] + _MIN_ARC_PER_CHORD * d
+            hi = s[j - 1] + _MAX_ARC_PER_CHORD * d
+            if sj < lo or sj > hi:
+                sj = min(max(sj, lo), min(hi, total))
+                e, sig = _locate(starts, sj)
+                _advance(xs[e], Fs[e], omega[e], sig, x, F, R, P, Q)
         s[j] = sj
         for i in range(3):
             v = x[i] - p[j, i]

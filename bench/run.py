@@ -1,0 +1,75 @@
+"""Run every benchmark and write ``docs/benchmarks.md``.
+
+Every ``bench/*_bench.py`` module with a ``run() -> str`` function is a
+benchmark; each returns one markdown section. Usage, from the project root::
+
+    make bench            # or: .venv/bin/python bench/run.py
+    .venv/bin/python bench/run.py fit    # only the modules whose name starts with "fit"
+"""
+
+from __future__ import annotations
+
+import datetime
+import importlib
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from common import DOCS, log, machine, machine_markdown  # noqa: E402
+
+OUTPUT = DOCS / "benchmarks.md"
+
+
+def discover(prefixes=()) -> list[str]:
+    names = sorted(p.stem for p in HERE.glob("*_bench.py"))
+    if prefixes:
+        names = [n for n in names if any(n.startswith(pre) for pre in prefixes)]
+    return names
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    info = machine()
+    started = datetime.datetime.now(datetime.timezone.utc)
+    sections, durations = [], []
+    for name in discover(argv):
+        log(f"== {name}")
+        module = importlib.import_module(name)
+        start = time.perf_counter()
+        sections.append(module.run().rstrip() + "\n")
+        durations.append((name, time.perf_counter() - start))
+        log(f"== {name}: {durations[-1][1]:.0f} s")
+    total = sum(d for _, d in durations)
+    head = [
+        "# Benchmarks",
+        "",
+        "Speed and accuracy of hairinv, measured by `bench/run.py`, which rewrites this page. "
+        "Each section states what it measures, on which data, and against which peer. Times are wall clock "
+        "and are medians of repeated runs; ratios compare programs run in the same process on the same machine. "
+        "Absolute times depend on the machine below and on what else was running on it.",
+        "",
+        f"Measured on {started:%Y-%m-%d} (UTC); the whole run took {total / 60:.1f} min.",
+        "",
+        machine_markdown(info),
+        "",
+        "## How to reproduce",
+        "",
+        "```sh",
+        "make bench        # sets up .venv if needed, runs bench/run.py, rewrites docs/benchmarks.md",
+        "```",
+        "",
+        "One benchmark alone prints its section without writing this page, e.g. `.venv/bin/python bench/fit_bench.py`. "
+        "The real hair files are read from `/work/shared/data/real/` (see its README for their origin and units).",
+        "",
+    ]
+    OUTPUT.parent.mkdir(parents=True, exist_ok=True)
+    OUTPUT.write_text("\n".join(head) + "\n" + "\n".join(sections))
+    log(f"wrote {OUTPUT}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
