@@ -14,7 +14,8 @@ from typing import Callable, Sequence
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 IMG = DOCS / "img"
-DATA = Path("/work/shared/data/real")
+# The real third-party grooms: HAIRINV_REAL_DATA, or shared/data/real beside the repository.
+DATA = Path(os.environ.get("HAIRINV_REAL_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "real"))
 
 
 def _cpu_model() -> str:

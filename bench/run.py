@@ -62,7 +62,7 @@ def main(argv=None) -> int:
         "```",
         "",
         "One benchmark alone prints its section without writing this page, e.g. `.venv/bin/python bench/fit_bench.py`. "
-        "The real hair files are read from `/work/shared/data/real/` (see its README for their origin and units).",
+        "The real hair files are read from `../shared/data/real/` beside the repository, or from the folder named by `HAIRINV_REAL_DATA` (see that folder's README for their origin and units).",
         "",
     ]
     OUTPUT.parent.mkdir(parents=True, exist_ok=True)
