@@ -760,7 +760,19 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     s = np.zeros(m)
     _arc_lengths(p, s)
     cap = max(1, min(n_max, m - 1))
-    n = min(fixed, cap) if fixed > 0 else min(max(n_min, 1), cap)
+    # Start with at least one element per half turn of the polyline: an
+    # element that has to wind through several turns of a curl starts far
+    # from the data and the refinement can settle on loops between vertices.
+    turning = 0.0
+    for j in range(1, m - 1):
+        a = p[j] - p[j - 1]
+        b = p[j + 1] - p[j]
+        na = np.sqrt(a @ a)
+        nb = np.sqrt(b @ b)
+        if na > 0.0 and nb > 0.0:
+            turning += np.arccos(min(1.0, max(-1.0, (a @ b) / (na * nb))))
+    n_start = max(n_min, int(np.ceil(turning / np.pi)))
+    n = min(fixed, cap) if fixed > 0 else min(max(n_start, 1), cap)
     root = p[0].copy()
     err = np.zeros(m)
     eta = _PRIOR_OF_TOLERANCE * tolerance
