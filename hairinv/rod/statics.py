@@ -1,0 +1,124 @@
+"""Rod statics kernels: the generalized gravity force of super-helices.
+
+Gravity's potential on a strand of linear density ``lam`` is
+``V(q) = -lam * g . int x(s) ds``, and its generalized force is
+``F_g = -dV/dq = lam * int g . dx(s)/dq ds``. For element ``e`` of a strand:
+
+- the element itself moves by ``dx(sigma)/d omega_e``; its contribution is
+  ``lam g . d/d omega_e int_0^l x dsigma``, the derivative of the element's
+  first moment ``F_e^T Q(l)`` (taken by complex step, exact to round-off);
+- everything downstream moves rigidly about the element's end ``x_{e+1}``:
+  ``dx = dx_end + dth x (x - x_{e+1})``, so its contribution is
+  ``lam [ M g . dx_end + dth . ((S - M x_{e+1}) x g) ]`` with ``M`` the
+  downstream length and ``S`` the downstream integral of ``x``, both suffix
+  sums. The whole strand costs O(N), never O(N^2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import jit
+from .helix import chain, element_derivatives, element_step
+
+__all__ = ["gravity_forces", "gravity_potential"]
+
+_H = 1e-30  # complex-step size: the derivative is exact for any tiny step
+
+
+@jit
+def _moment_derivatives(omega_e, ell, F, dS):
+    """d/d omega_e[k] of the element's world first moment ``F^T Q(ell)`` (rows k), m^3."""
+    Rc = np.empty((3, 3), dtype=np.complex128)
+    Pc = np.empty(3, dtype=np.complex128)
+    Qc = np.empty(3, dtype=np.complex128)
+    for k in range(3):
+        w0 = complex(omega_e[2])
+        w1 = complex(omega_e[0])
+        w2 = complex(omega_e[1])
+        # stored (kappa1, kappa2, tau) -> local (tau, kappa1, kappa2)
+        if k == 0:
+            w1 += 1j * _H
+        elif k == 1:
+            w2 += 1j * _H
+        else:
+            w0 += 1j * _H
+        element_step(w0, w1, w2, ell, Rc, Pc, Qc)
+        for i in range(3):
+            dS[k, i] = (F[0, i] * Qc[0].imag + F[1, i] * Qc[1].imag + F[2, i] * Qc[2].imag) / _H
+
+
+@jit
+def gravity_potential(root, frame0, omega, length, lam, gravity):
+    """Gravitational potential ``-lam g . int x ds`` of one strand, J.
+
+    Parameters
+    ----------
+    root : (3,) float64, m
+    frame0 : (3, 3) float64, rows (t, n1, n2)
+    omega : (N, 3) float64, (kappa1, kappa2, tau), 1/m
+    length : (N,) float64, m
+    lam : float64, linear density, kg/m
+    gravity : (3,) float64, m/s^2 (pointing down)
+    """
+    n = omega.shape[0]
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    chain(root, frame0, omega, length, xs, Fs)
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    v = 0.0
+    for e in range(n):
+        element_step(omega[e, 2], omega[e, 0], omega[e, 1], length[e], R, P, Q)
+        for i in range(3):
+            moment = length[e] * xs[e, i] + Fs[e, 0, i] * Q[0] + Fs[e, 1, i] * Q[1] + Fs[e, 2, i] * Q[2]
+            v -= lam * gravity[i] * moment
+    return v
+
+
+@jit
+def gravity_forces(root, frame0, omega, length, lam, gravity, out):
+    """Generalized gravity force ``F_g = -dV/d omega`` of one strand.
+
+    Parameters
+    ----------
+    root, frame0, omega, length, lam, gravity : as :func:`gravity_potential`
+    out : (N, 3) float64, out
+        Force conjugate to ``(kappa1, kappa2, tau)`` of each element, J m
+        (work per unit change of curvature).
+    """
+    n = omega.shape[0]
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    chain(root, frame0, omega, length, xs, Fs)
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    # suffix sums of length and of int x ds over the elements after e
+    mass = 0.0
+    first = np.zeros(3)
+    dx = np.empty((3, 3))
+    dth = np.empty((3, 3))
+    dS = np.empty((3, 3))
+    arm = np.empty(3)
+    for e in range(n - 1, -1, -1):
+        # downstream of e (elements e+1 ...): rigid motion about xs[e+1]
+        for i in range(3):
+            arm[i] = first[i] - mass * xs[e + 1, i]
+        # (S - M x_{e+1}) x g
+        torque0 = arm[1] * gravity[2] - arm[2] * gravity[1]
+        torque1 = arm[2] * gravity[0] - arm[0] * gravity[2]
+        torque2 = arm[0] * gravity[1] - arm[1] * gravity[0]
+        element_derivatives(omega[e], length[e], Fs[e], dx, dth)
+        _moment_derivatives(omega[e], length[e], Fs[e], dS)
+        for k in range(3):
+            down = mass * (gravity[0] * dx[k, 0] + gravity[1] * dx[k, 1] + gravity[2] * dx[k, 2])
+            down += dth[k, 0] * torque0 + dth[k, 1] * torque1 + dth[k, 2] * torque2
+            own = gravity[0] * dS[k, 0] + gravity[1] * dS[k, 1] + gravity[2] * dS[k, 2]
+            out[e, k] = lam * (down + own)
+        # add element e to the suffix sums
+        element_step(omega[e, 2], omega[e, 0], omega[e, 1], length[e], R, P, Q)
+        mass += length[e]
+        for i in range(3):
+            first[i] += length[e] * xs[e, i] + Fs[e, 0, i] * Q[0] + Fs[e, 1, i] * Q[1] + Fs[e, 2, i] * Q[2]
