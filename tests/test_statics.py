@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import FINITE_DIFFERENCE
 from hairinv.rod.helix import points_at
 from hairinv.rod.statics import gravity_forces, gravity_potential
 
@@ -93,3 +94,31 @@ def test_horizontal_cantilever_root_torque_closed_form():
         assert force[e, 1] == pytest.approx(expected, rel=1e-12)
     np.testing.assert_allclose(force[:, 0], 0.0, atol=1e-20)
     np.testing.assert_allclose(force[:, 2], 0.0, atol=1e-20)
+
+
+@pytest.mark.parametrize("scale", [0.0, 8.0, 80.0])
+@pytest.mark.parametrize("fraction", [0.0, 0.37, 0.5, 1.0])
+def test_point_jacobian_matches_finite_differences_of_positions(rng, scale, fraction):
+    from hairinv.rod.statics import point_jacobian
+
+    n = 5
+    root, frame0, omega, length = random_strand(rng, n, scale)
+    s = fraction * length.sum()
+    J = np.empty((n, 3, 3))
+    e_s = point_jacobian(root, frame0, omega, length, s, J)
+    h = 1e-6
+    fd = np.zeros((n, 3, 3))
+    for e in range(n):
+        for k in range(3):
+            plus, minus = omega.copy(), omega.copy()
+            plus[e, k] += h
+            minus[e, k] -= h
+            xp = np.empty((1, 3))
+            xm = np.empty((1, 3))
+            points_at(root, frame0, plus, length, np.array([s]), xp)
+            points_at(root, frame0, minus, length, np.array([s]), xm)
+            fd[e, k] = (xp[0] - xm[0]) / (2 * h)
+    np.testing.assert_allclose(J, fd, rtol=0, atol=FINITE_DIFFERENCE * (np.abs(fd).max() + 1e-12))
+    # elements downstream of the point do not move it
+    assert np.all(J[e_s + 1:] == 0.0)
+    assert np.all(np.abs(fd[e_s + 1:]) < 1e-12)

@@ -21,7 +21,7 @@ import numpy as np
 from .._jit import jit
 from .helix import chain, element_derivatives, element_step
 
-__all__ = ["gravity_forces", "gravity_potential"]
+__all__ = ["gravity_forces", "gravity_potential", "point_jacobian"]
 
 _H = 1e-30  # complex-step size: the derivative is exact for any tiny step
 
@@ -122,3 +122,63 @@ def gravity_forces(root, frame0, omega, length, lam, gravity, out):
         mass += length[e]
         for i in range(3):
             first[i] += length[e] * xs[e, i] + Fs[e, 0, i] * Q[0] + Fs[e, 1, i] * Q[1] + Fs[e, 2, i] * Q[2]
+
+
+@jit
+def point_jacobian(root, frame0, omega, length, s, out):
+    """Derivatives of the centerline point at arc length ``s`` w.r.t. every omega.
+
+    A contact at ``s`` moves when an element upstream of it changes (rigidly,
+    about that element's end) or when its own element does; elements
+    downstream do not move it. With a contact frame ``C`` (rows normal,
+    tangent1, tangent2), the contact Jacobian rows are ``H_i = C @ J``.
+
+    Parameters
+    ----------
+    root, frame0, omega, length : one strand, as :func:`gravity_potential`
+    s : float64, arc length of the point, m (clamped to the strand)
+    out : (N, 3, 3) float64, out
+        ``out[e, k]`` is d x(s) / d omega[e, k] in world coordinates, m^2;
+        zero for the elements after the one holding ``s``.
+
+    Returns
+    -------
+    int
+        Index of the element holding ``s``: rows ``0..e`` are the non-zeros.
+    """
+    n = omega.shape[0]
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    chain(root, frame0, omega, length, xs, Fs)
+    start = 0.0
+    e_s = n - 1
+    for e in range(n):
+        if s < start + length[e] or e == n - 1:
+            e_s = e
+            break
+        start += length[e]
+    sigma = min(max(s - start, 0.0), length[e_s])
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    element_step(omega[e_s, 2], omega[e_s, 0], omega[e_s, 1], sigma, R, P, Q)
+    x = np.empty(3)
+    for i in range(3):
+        x[i] = xs[e_s, i] + Fs[e_s, 0, i] * P[0] + Fs[e_s, 1, i] * P[1] + Fs[e_s, 2, i] * P[2]
+    out[:, :, :] = 0.0
+    dx = np.empty((3, 3))
+    dth = np.empty((3, 3))
+    for e in range(e_s):
+        element_derivatives(omega[e], length[e], Fs[e], dx, dth)
+        for k in range(3):
+            r0 = x[0] - xs[e + 1, 0]
+            r1 = x[1] - xs[e + 1, 1]
+            r2 = x[2] - xs[e + 1, 2]
+            out[e, k, 0] = dx[k, 0] + dth[k, 1] * r2 - dth[k, 2] * r1
+            out[e, k, 1] = dx[k, 1] + dth[k, 2] * r0 - dth[k, 0] * r2
+            out[e, k, 2] = dx[k, 2] + dth[k, 0] * r1 - dth[k, 1] * r0
+    element_derivatives(omega[e_s], sigma, Fs[e_s], dx, dth)
+    for k in range(3):
+        for i in range(3):
+            out[e_s, k, i] = dx[k, i]
+    return e_s
