@@ -117,14 +117,12 @@ def _import_extra(units, scale, up, flip, guides, seed) -> dict:
 
 
 def _default_output(source: Path, suffix: str) -> Path:
-    stem = source.name
-    for ext in (".h5", ".hdf5"):
-        if stem.lower().endswith(ext):
-            stem = stem[: -len(ext)]
-    for known in (".fit", ".contacts", ".model", ".frames"):
-        if stem.endswith(known):
-            stem = stem[: -len(known)]
-    stem = Path(stem).stem if not source.suffix.lower() in (".h5", ".hdf5") else stem
+    """``./<name>.<suffix>.h5``: the input's name without its extension (and,
+    for a stage file, without its stage suffix such as ``.fit``)."""
+    stem = source.stem
+    if source.suffix.lower() in (".h5", ".hdf5"):
+        for known in (".fit", ".contacts", ".model", ".frames"):
+            stem = stem.removesuffix(known)
     return Path.cwd() / f"{stem}.{suffix}.h5"
 
 

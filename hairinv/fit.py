@@ -7,6 +7,7 @@ builds the ``/helices`` stage group.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -55,8 +56,6 @@ class Helices:
         return int(self.offsets[-1])
 
     def group(self, settings: FitSettings, inputs: list[dict], extra_attrs: dict | None = None) -> stages.Group:
-        import dataclasses
-
         return stages.Group(
             stages.HELICES,
             {

@@ -284,8 +284,3 @@ def load_body(path, scale: float, flip: str = ""):
         mesh.invert()
     return mesh
 
-
-def body_size(path) -> float:
-    """Bounding-box diagonal of a body mesh in its file units (for unit guessing)."""
-    mesh = formats.read_mesh(path)
-    return float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))

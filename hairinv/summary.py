@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import stages
+from .groom import strand_lengths
 
 
 def _stats(values, scale: float = 1.0, digits: int = 4) -> dict:
@@ -16,12 +17,6 @@ def _stats(values, scale: float = 1.0, digits: int = 4) -> dict:
         "median": round(float(np.median(values)), digits),
         "max": round(float(values.max()), digits),
     }
-
-
-def _strand_lengths(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
-    return cum[offsets[1:] - 1] - cum[offsets[:-1]]
 
 
 def summarise(stage: stages.StageFile) -> dict:
@@ -40,7 +35,7 @@ def summarise(stage: stages.StageFile) -> dict:
             "strands": int(len(off) - 1),
             "points": int(len(pts)),
             "points_per_strand": _stats(np.diff(off), digits=1),
-            "length_m": _stats(_strand_lengths(pts, off)),
+            "length_m": _stats(strand_lengths(pts, off)),
             "bbox_min_m": [round(float(v), 4) for v in pts.min(axis=0)],
             "bbox_max_m": [round(float(v), 4) for v in pts.max(axis=0)],
             "scale_to_m": float(g.attrs.get("scale_to_m", 1.0)),

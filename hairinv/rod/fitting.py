@@ -99,6 +99,25 @@ def _darboux_world(omega_e, F):
 
 
 @jit
+def _projection_step(omega_e, F_start, F, diff):
+    """Newton step on the arc length towards the curve point nearest a vertex.
+
+    Stationarity of ``|x(s) - p|^2``: ``g = t . (x - p)``, ``g' = 1 + (Om x t) . (x - p)``
+    with ``Om`` the element's world Darboux vector; a gradient step where
+    ``g'`` is small (far from a minimum). ``F`` is the frame at the current
+    point, ``F_start`` the element's start frame, ``diff = x - p``.
+    """
+    Om = _darboux_world(omega_e, F_start)
+    h = 1.0
+    h += (Om[1] * F[0, 2] - Om[2] * F[0, 1]) * diff[0]
+    h += (Om[2] * F[0, 0] - Om[0] * F[0, 2]) * diff[1]
+    h += (Om[0] * F[0, 1] - Om[1] * F[0, 0]) * diff[2]
+    if h < 0.2:
+        h = 1.0
+    return (F[0] @ diff) / h
+
+
+@jit
 def _residual(root, F0, omega, length, s, p, project, xs, Fs, starts, r, tang):
     """Orthogonal-distance residuals of one strand.
 
@@ -129,17 +148,7 @@ def _residual(root, F0, omega, length, s, p, project, xs, Fs, starts, r, tang):
             _advance(xs[e], Fs[e], omega[e], sig, x, F, R, P, Q)
             if it == iterations:
                 break
-            # stationarity of |x(s) - p|^2: g = t.(x - p), g' = 1 + (Om x t).(x - p)
-            diff = x - p[j]
-            g = F[0] @ diff
-            Om = _darboux_world(omega[e], Fs[e])
-            h = 1.0
-            h += (Om[1] * F[0, 2] - Om[2] * F[0, 1]) * diff[0]
-            h += (Om[2] * F[0, 0] - Om[0] * F[0, 2]) * diff[1]
-            h += (Om[0] * F[0, 1] - Om[1] * F[0, 0]) * diff[2]
-            if h < 0.2:
-                h = 1.0
-            new = min(max(sj - g / h, 0.0), total)
+            new = min(max(sj - _projection_step(omega[e], Fs[e], F, x - p[j]), 0.0), total)
             if new == sj:
                 break
             sj = new
@@ -650,17 +659,33 @@ def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta, cap):
 
 
 @jit
-def _max_discrete_curvature(p):
-    """Largest turning angle over mean adjacent segment length along a polyline, 1/m."""
-    worst = 0.0
-    for j in range(1, p.shape[0] - 1):
+def _turning_angles(p, turn, span):
+    """Turning angle at each interior vertex (0 at the ends, and where a
+    segment has zero length) and the mean length of its two segments, m."""
+    m = p.shape[0]
+    turn[:] = 0.0
+    span[:] = 0.0
+    for j in range(1, m - 1):
         a = p[j] - p[j - 1]
         b = p[j + 1] - p[j]
         na = np.sqrt(a @ a)
         nb = np.sqrt(b @ b)
+        span[j] = 0.5 * (na + nb)
         if na > 0.0 and nb > 0.0:
-            c = min(1.0, max(-1.0, (a @ b) / (na * nb)))
-            worst = max(worst, np.arccos(c) / (0.5 * (na + nb)))
+            turn[j] = np.arccos(min(1.0, max(-1.0, (a @ b) / (na * nb))))
+
+
+@jit
+def _max_discrete_curvature(p):
+    """Largest turning angle over mean adjacent segment length along a polyline, 1/m."""
+    m = p.shape[0]
+    turn = np.empty(m)
+    span = np.empty(m)
+    _turning_angles(p, turn, span)
+    worst = 0.0
+    for j in range(1, m - 1):
+        if turn[j] > 0.0:
+            worst = max(worst, turn[j] / span[j])
     return worst
 
 
@@ -676,15 +701,11 @@ def _arc_lengths(p, s):
     """
     m = p.shape[0]
     s[0] = 0.0
-    turn = np.zeros(m)
-    for j in range(1, m - 1):
-        a = p[j] - p[j - 1]
-        b = p[j + 1] - p[j]
-        na = np.sqrt(a @ a)
-        nb = np.sqrt(b @ b)
-        if na > 0.0 and nb > 0.0:
-            c = min(1.0, max(-1.0, (a @ b) / (na * nb)))
-            turn[j] = min(np.arccos(c), 0.5 * np.pi)
+    turn = np.empty(m)
+    span = np.empty(m)
+    _turning_angles(p, turn, span)
+    for j in range(m):
+        turn[j] = min(turn[j], 0.5 * np.pi)
     for j in range(1, m):
         d = p[j] - p[j - 1]
         chord = np.sqrt(d @ d)
@@ -763,15 +784,10 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     # Start with at least one element per half turn of the polyline: an
     # element that has to wind through several turns of a curl starts far
     # from the data and the refinement can settle on loops between vertices.
-    turning = 0.0
-    for j in range(1, m - 1):
-        a = p[j] - p[j - 1]
-        b = p[j + 1] - p[j]
-        na = np.sqrt(a @ a)
-        nb = np.sqrt(b @ b)
-        if na > 0.0 and nb > 0.0:
-            turning += np.arccos(min(1.0, max(-1.0, (a @ b) / (na * nb))))
-    n_start = max(n_min, int(np.ceil(turning / np.pi)))
+    turn = np.empty(m)
+    span = np.empty(m)
+    _turning_angles(p, turn, span)
+    n_start = max(n_min, int(np.ceil(turn.sum() / np.pi)))
     n = min(fixed, cap) if fixed > 0 else min(max(n_start, 1), cap)
     root = p[0].copy()
     err = np.zeros(m)
@@ -958,15 +974,7 @@ def closest_distances(points, offsets, roots, frames, helix_offsets, omega, leng
                 _advance(xs[e], Fs[e], om[e], local, x, F, R, P, Q)
                 diff = x - p[j]
                 best = min(best, np.sqrt(diff @ diff))
-                g = F[0] @ diff
-                Om = _darboux_world(om[e], Fs[e])
-                h = 1.0
-                h += (Om[1] * F[0, 2] - Om[2] * F[0, 1]) * diff[0]
-                h += (Om[2] * F[0, 0] - Om[0] * F[0, 2]) * diff[1]
-                h += (Om[0] * F[0, 1] - Om[1] * F[0, 0]) * diff[2]
-                if h < 0.2:
-                    h = 1.0
-                new = min(max(sig - g / h, 0.0), total)
+                new = min(max(sig - _projection_step(om[e], Fs[e], F, diff), 0.0), total)
                 if abs(new - sig) <= 1e-15 * (total + 1.0):
                     break
                 sig = new

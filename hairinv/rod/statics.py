@@ -49,6 +49,17 @@ def _moment_derivatives(omega_e, ell, F, dS):
 
 
 @jit
+def _element_moment(x0, F, omega_e, ell, out):
+    """World first moment ``int_0^ell x dsigma = ell x0 + F^T Q(ell)`` of an element, m^2."""
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    element_step(omega_e[2], omega_e[0], omega_e[1], ell, R, P, Q)
+    for i in range(3):
+        out[i] = ell * x0[i] + F[0, i] * Q[0] + F[1, i] * Q[1] + F[2, i] * Q[2]
+
+
+@jit
 def gravity_potential(root, frame0, omega, length, lam, gravity):
     """Gravitational potential ``-lam g . int x ds`` of one strand, J.
 
@@ -65,15 +76,11 @@ def gravity_potential(root, frame0, omega, length, lam, gravity):
     xs = np.empty((n + 1, 3))
     Fs = np.empty((n + 1, 3, 3))
     chain(root, frame0, omega, length, xs, Fs)
-    R = np.empty((3, 3))
-    P = np.empty(3)
-    Q = np.empty(3)
+    moment = np.empty(3)
     v = 0.0
     for e in range(n):
-        element_step(omega[e, 2], omega[e, 0], omega[e, 1], length[e], R, P, Q)
-        for i in range(3):
-            moment = length[e] * xs[e, i] + Fs[e, 0, i] * Q[0] + Fs[e, 1, i] * Q[1] + Fs[e, 2, i] * Q[2]
-            v -= lam * gravity[i] * moment
+        _element_moment(xs[e], Fs[e], omega[e], length[e], moment)
+        v -= lam * (gravity[0] * moment[0] + gravity[1] * moment[1] + gravity[2] * moment[2])
     return v
 
 
@@ -92,9 +99,7 @@ def gravity_forces(root, frame0, omega, length, lam, gravity, out):
     xs = np.empty((n + 1, 3))
     Fs = np.empty((n + 1, 3, 3))
     chain(root, frame0, omega, length, xs, Fs)
-    R = np.empty((3, 3))
-    P = np.empty(3)
-    Q = np.empty(3)
+    moment = np.empty(3)
     # suffix sums of length and of int x ds over the elements after e
     mass = 0.0
     first = np.zeros(3)
@@ -118,10 +123,9 @@ def gravity_forces(root, frame0, omega, length, lam, gravity, out):
             own = gravity[0] * dS[k, 0] + gravity[1] * dS[k, 1] + gravity[2] * dS[k, 2]
             out[e, k] = lam * (down + own)
         # add element e to the suffix sums
-        element_step(omega[e, 2], omega[e, 0], omega[e, 1], length[e], R, P, Q)
+        _element_moment(xs[e], Fs[e], omega[e], length[e], moment)
         mass += length[e]
-        for i in range(3):
-            first[i] += length[e] * xs[e, i] + Fs[e, 0, i] * Q[0] + Fs[e, 1, i] * Q[1] + Fs[e, 2, i] * Q[2]
+        first += moment
 
 
 @jit
