@@ -62,11 +62,77 @@ class FitSettings:
 
 
 @dataclass(frozen=True)
+class MaterialSettings:
+    """The hair material: stiffness, mass and cross-section (paper, section 7)."""
+
+    youngs_modulus: float = 4e9
+    """Pa. Young's modulus E of hair keratin; the paper uses 4 GPa for every groom."""
+    poisson_ratio: float = 0.48
+    """Poisson ratio nu of hair; the shear modulus is G = E / (2 (1 + nu)) unless ``shear_modulus`` is set."""
+    shear_modulus: float = 0.0
+    """Pa. Shear modulus G for the twist stiffness GJ; 0 derives it from E and ``poisson_ratio``."""
+    density: float = 1300.0
+    """kg/m^3. Volumetric density of hair (paper: 1300)."""
+    radius: float = 5e-5
+    """m. Radius of the circular cross-section (a 0.1 mm thick hair); I = pi r^4 / 4, J = pi r^4 / 2."""
+    gravity: float = 9.81
+    """m/s^2. Gravity's magnitude; it points along minus the groom's up axis."""
+
+    @property
+    def shear(self) -> float:
+        return self.shear_modulus if self.shear_modulus > 0 else self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """Where contacts are declared (paper, section 5: bounding cylinders and spatial hashing)."""
+
+    body: bool = True
+    """Declare hair-body contacts (false: the body is ignored)."""
+    hair_hair: bool = True
+    """Declare hair-hair contacts."""
+    body_distance: float = 4e-3
+    """m. A strand point closer than this to the body surface touches it. Captured hair floats a few
+    millimetres off the scalp, so this is larger than the hair-hair distance (the paper uses 1-10x)."""
+    hair_distance: float = 1e-3
+    """m. Two strands whose centerlines come closer than this touch (the width of the bounding cylinders)."""
+    root_clearance: float = 5e-3
+    """m. No body contact within this arc length of the root: the root is clamped there already."""
+    mu_body: float = 0.3
+    """Coulomb friction coefficient between hair and body (paper: 0.1-0.3)."""
+    mu_hair: float = 0.3
+    """Coulomb friction coefficient between two hairs."""
+    samples_per_element: int = 8
+    """Points per element at which the distance to the body and to other strands is measured (at least 2)."""
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """The inverse problem and its cone complementarity solver (paper, section 6)."""
+
+    target: str = "actual"
+    """Rest shape the inversion draws towards: actual (the input curvature, the paper's choice), zero,
+    uniform (each strand's mean curvature), tip (the curvature at the free end), or gravity-only
+    (no contacts: q0 = q - K^-1 F_g, the baseline)."""
+    gamma: float = 1e-3
+    """N^-2 m^-2. Weight of the contact forces in the objective (paper: 1e-3 for every groom)."""
+    tolerance: float = 1e-6
+    """Stop when the natural-map residual is below this fraction of the heaviest strand's weight."""
+    max_sweeps: int = 2000
+    """Largest number of Gauss-Seidel sweeps over all contacts."""
+    check_every: int = 5
+    """Sweeps between two residual evaluations (each costs one product with W)."""
+
+
+@dataclass(frozen=True)
 class Settings:
     """All settings of a run, one section per stage."""
 
     import_: ImportSettings = field(default_factory=ImportSettings)
     fit: FitSettings = field(default_factory=FitSettings)
+    material: MaterialSettings = field(default_factory=MaterialSettings)
+    contacts: ContactSettings = field(default_factory=ContactSettings)
+    solver: SolverSettings = field(default_factory=SolverSettings)
 
     def to_dict(self) -> dict:
         return {_section_name(f.name): dataclasses.asdict(getattr(self, f.name)) for f in dataclasses.fields(self)}
