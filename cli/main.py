@@ -135,8 +135,9 @@ def main(ctx, quiet, no_progress):
     """Inverse dynamic hair modeling with frictional contact.
 
     Stages read and write HDF5 stage files: fit (curves to super-helices),
-    then the later stages as they become available. `hairinv info FILE.h5`
-    summarises any stage file.
+    detect (hair-body and hair-hair contacts), invert (rest shape and
+    contact forces). `hairinv invert STYLE BODY` runs whatever stage is
+    missing; `hairinv info FILE.h5` summarises any stage file.
     """
     ctx.ensure_object(dict)
     ctx.obj["quiet"] = quiet
@@ -192,6 +193,163 @@ def fit(obj, curves, output, units, scale, up, flip, guides, seed, tolerance, el
         [groom.curves_group(settings.import_, inputs), helices.group(settings.fit, inputs)],
         "fit",
     )
+    _say(obj, f"wrote {output}")
+
+
+def _stage_progress(enabled: bool):
+    """A factory of per-stage progress bars for :func:`hairinv.pipeline.prepare`."""
+    if not enabled:
+        return None
+    return lambda name, total: Progress(total, name, True)
+
+
+class SolverProgress:
+    """A bar of Gauss-Seidel sweeps showing the relative residual, on a terminal only."""
+
+    def __init__(self, total: int, enabled: bool):
+        self.bar = None
+        if enabled and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc="invert", unit="sweep", leave=False, file=sys.stderr)
+
+    def __call__(self, sweeps: int, relative: float) -> None:
+        if self.bar is not None:
+            self.bar.update(sweeps - self.bar.n)
+            self.bar.set_postfix_str(f"residual {relative:.1e}")
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _contact_extra(body_distance, hair_distance, mu, no_hair_hair) -> dict:
+    extra = {}
+    if body_distance is not None:
+        extra["body_distance"] = body_distance
+    if hair_distance is not None:
+        extra["hair_distance"] = hair_distance
+    if mu is not None:
+        extra["mu_body"] = mu
+        extra["mu_hair"] = mu
+    if no_hair_hair:
+        extra["hair_hair"] = False
+    return extra
+
+
+def contact_options(fn):
+    """Options of the contact detection shared by detect and invert."""
+    options = [
+        click.option("--body-distance", type=float, default=None,
+                     help="Metres: a strand closer than this to the body touches it [contacts.body_distance]."),
+        click.option("--hair-distance", type=float, default=None,
+                     help="Metres: strands closer than this touch each other [contacts.hair_distance]."),
+        click.option("--mu", type=float, default=None,
+                     help="Friction coefficient of every contact (sets contacts.mu_body and contacts.mu_hair)."),
+        click.option("--no-hair-hair", is_flag=True, help="Declare no hair-hair contacts."),
+    ]
+    for option in reversed(options):
+        fn = option(fn)
+    return fn
+
+
+@main.command()
+@click.argument("style", type=click.Path(path_type=Path))
+@click.argument("body", type=click.Path(path_type=Path), required=False)
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
+              help="Output stage file [default: ./<name>.contacts.h5].")
+@import_options
+@contact_options
+@settings_options
+@click.pass_obj
+@handle_errors
+def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_distance, hair_distance, mu,
+           no_hair_hair, quality, config_file, sets):
+    """Declare the hair-body and hair-hair contacts of STYLE resting on BODY.
+
+    STYLE is a fitted stage file (from `hairinv fit`) or any hairstyle file,
+    which is then fitted first. BODY is the body mesh (.obj, .ply, .stl,
+    .off, .glb, .tfxmesh) in the hairstyle's original units. Writes /curves,
+    /helices and /contacts.
+    """
+    from hairinv import config, stages
+    from hairinv.pipeline import prepare
+
+    settings = config.resolve(quality, config_file, sets)
+    settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed),
+                                       "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair)},
+                            "command line")
+    output = output or _default_output(style, "contacts")
+    stages.check_output_path(output, inputs=[style, body])
+    scene = prepare(style, body, settings, contacts=True, progress=_stage_progress(obj["progress"]))
+    for line in scene.lines:
+        _say(obj, line)
+    stages.write_stage(output, list(scene.groups.values()), "detect")
+    _say(obj, f"wrote {output}")
+
+
+@main.command()
+@click.argument("style", type=click.Path(path_type=Path))
+@click.argument("body", type=click.Path(path_type=Path), required=False)
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
+              help="Output stage file [default: ./<name>.model.h5].")
+@click.option("--target", type=click.Choice(["actual", "zero", "uniform", "tip", "gravity-only"]), default=None,
+              help="Rest shape the inversion draws towards [solver.target, default actual: the input shape].")
+@click.option("--gamma", type=float, default=None, help="Weight of the contact forces, N^-2 m^-2 [solver.gamma].")
+@import_options
+@contact_options
+@settings_options
+@click.pass_obj
+@handle_errors
+def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guides, seed, body_distance,
+           hair_distance, mu, no_hair_hair, quality, config_file, sets):
+    """Invert STYLE resting on BODY: find the rest shape and contact forces
+    that make the input shape a static equilibrium.
+
+    STYLE is any hairstyle file or a stage file at any stage; missing stages
+    (fit, detect) run first with the same settings. BODY is the body mesh in
+    the hairstyle's original units (optional: without it only hair-hair
+    contacts are declared). Writes /curves, /helices, /contacts and /model.
+    """
+    from hairinv import config, stages
+    from hairinv.errors import RunError
+    from hairinv.invert import Material, invert as run_invert, settings_dict, validate_settings
+    from hairinv.pipeline import prepare
+
+    settings = config.resolve(quality, config_file, sets)
+    solver_extra = {}
+    if target is not None:
+        solver_extra["target"] = target
+    if gamma is not None:
+        solver_extra["gamma"] = gamma
+    settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed),
+                                       "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair),
+                                       "solver": solver_extra}, "command line")
+    output = output or _default_output(style, "model")
+    stages.check_output_path(output, inputs=[style, body])
+    # bad material or solver settings fail here, before any fitting
+    Material.from_settings(settings.material, (0.0, 1.0, 0.0))
+    validate_settings(settings.solver)
+    gravity_only = settings.solver.target == "gravity-only"
+    scene = prepare(style, body, settings, contacts=not gravity_only, progress=_stage_progress(obj["progress"]))
+    for line in scene.lines:
+        _say(obj, line)
+    material = Material.from_settings(settings.material, scene.up)
+    bar = SolverProgress(settings.solver.max_sweeps, obj["progress"])
+    try:
+        model, report = run_invert(scene.helices, scene.contacts, material, settings.solver, progress=bar)
+    finally:
+        bar.close()
+    for line in report.lines():
+        _say(obj, line)
+    if model.result.status == "NUMERICAL_ERROR":
+        raise RunError(f"the contact solver met a numerical error after {model.result.sweeps} sweeps "
+                       f"(residual {model.result.residual:.3g} N); no output was written")
+    groups = dict(scene.groups)
+    groups.pop(stages.MODEL, None)
+    groups.pop(stages.FRAMES, None)
+    groups[stages.MODEL] = model.group(settings_dict(settings.material, settings.solver), scene.inputs)
+    stages.write_stage(output, list(groups.values()), "invert")
     _say(obj, f"wrote {output}")
 
 

@@ -1,0 +1,386 @@
+"""Inverse statics with frictional contact (paper, section 6).
+
+The shape ``q`` is known (the fit). Find contact forces ``r`` in the Coulomb
+cones and the rest shape ``q0`` such that ``q`` is a static equilibrium,
+
+    K (q - q0) = F_g(q) + H(q)^T r,                                  eq. (4)
+
+choosing among all such ``r`` the one that minimises
+``1/2 sum_e w_e |q0_e - t_e|^2 + gamma/2 |r|^2`` (eq. 6) for a target
+rest shape ``t``. With ``q0 = q - K^-1 (F_g + H^T r)`` this is the SOCQP
+``min 1/2 r^T W r + b^T r`` over the cones, with
+
+    D = w K^-2 (diagonal),  W = H D H^T + gamma I,  b = H D (F_g - K (q - t)),
+
+solved by :func:`hairinv.solver.gauss_seidel.solve_cone_qp`. Without
+contacts the minimiser is ``r = 0`` and ``q0 = q - K^-1 F_g``: the
+gravity-only inversion of Derouet-Jourdan et al. 2010.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import stages
+from ._jit import jit
+from ._parallel import run_chunks
+from .config import MaterialSettings, SolverSettings
+from .contacts import Contacts
+from .errors import InputError, RunError
+from .fit import Helices
+from .rod.statics import gravity_forces
+from .solver.gauss_seidel import CONVERGED, SolverResult, solve_cone_qp
+from .solver.rows import ContactRows, contact_rows
+
+__all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness", "generalized_gravity",
+           "target_shape", "stability"]
+
+TARGETS = ("actual", "zero", "uniform", "tip", "gravity-only")
+
+
+@dataclass(frozen=True)
+class Material:
+    """Rod constants derived from :class:`MaterialSettings` (SI)."""
+
+    youngs_modulus: float
+    shear_modulus: float
+    density: float
+    radius: float
+    gravity: np.ndarray
+    """(3,) m/s^2, pointing down."""
+
+    @classmethod
+    def from_settings(cls, settings: MaterialSettings, up: np.ndarray) -> "Material":
+        for name in ("youngs_modulus", "density", "radius", "gravity"):
+            if not getattr(settings, name) > 0:
+                raise InputError(f"material.{name} must be > 0, got {getattr(settings, name)}")
+        if settings.shear_modulus < 0 or not -1.0 < settings.poisson_ratio <= 0.5:
+            raise InputError("material.shear_modulus must be >= 0 and material.poisson_ratio in (-1, 0.5]")
+        up = np.asarray(up, dtype=np.float64)
+        return cls(float(settings.youngs_modulus), float(settings.shear), float(settings.density),
+                   float(settings.radius), -settings.gravity * up / np.linalg.norm(up))
+
+    @property
+    def area(self) -> float:
+        return np.pi * self.radius ** 2
+
+    @property
+    def linear_density(self) -> float:
+        """kg/m."""
+        return self.density * self.area
+
+    @property
+    def bending(self) -> float:
+        """EI, N m^2, with I = pi r^4 / 4."""
+        return self.youngs_modulus * np.pi * self.radius ** 4 / 4.0
+
+    @property
+    def twisting(self) -> float:
+        """GJ, N m^2, with J = pi r^4 / 2."""
+        return self.shear_modulus * np.pi * self.radius ** 4 / 2.0
+
+    def attrs(self) -> dict:
+        return {"youngs_modulus": self.youngs_modulus, "shear_modulus": self.shear_modulus,
+                "density": self.density, "radius": self.radius, "gravity": self.gravity}
+
+
+def stiffness(helices: Helices, material: Material) -> np.ndarray:
+    """Diagonal of ``K``, (3E,): ``K_e = length_e diag(EI, EI, GJ)``, N m^3."""
+    per_component = np.array([material.bending, material.bending, material.twisting])
+    return (helices.length[:, None] * per_component[None, :]).ravel()
+
+
+@jit
+def _gravity_chunk(root, frame0, offsets, omega, length, lam, gravity, out, lo, hi):
+    for s in range(lo, hi):
+        a = offsets[s]
+        z = offsets[s + 1]
+        gravity_forces(root[s], frame0[s], omega[a:z], length[a:z], lam, gravity, out[a:z])
+
+
+def generalized_gravity(helices: Helices, material: Material) -> np.ndarray:
+    """``F_g(q)`` of every element, (E, 3), J m."""
+    out = np.zeros((helices.n_elements, 3))
+
+    def work(lo: int, hi: int) -> None:
+        _gravity_chunk(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
+                       material.linear_density, material.gravity, out, lo, hi)
+
+    run_chunks(work, helices.n_strands, 256)
+    return out
+
+
+def target_shape(helices: Helices, target: str) -> np.ndarray:
+    """The rest shape ``t`` the inversion draws ``q0`` towards, (E, 3).
+
+    actual: the input shape ``q`` (the paper's default); zero: straight;
+    uniform: each strand's length-weighted mean of ``q``; tip: each strand's
+    last element (its curliness at the free end) along the whole strand;
+    gravity-only: ``q`` (there are no contacts to choose).
+    """
+    q = helices.omega
+    if target in ("actual", "gravity-only"):
+        return q.copy()
+    if target == "zero":
+        return np.zeros_like(q)
+    counts = np.diff(helices.offsets)
+    if target == "uniform":
+        starts = helices.offsets[:-1]
+        weighted = np.add.reduceat(q * helices.length[:, None], starts, axis=0)
+        mean = weighted / np.add.reduceat(helices.length, starts)[:, None]
+        return np.repeat(mean, counts, axis=0)
+    if target == "tip":
+        return np.repeat(q[helices.offsets[1:] - 1], counts, axis=0)
+    raise InputError(f"unknown inversion target {target!r}; choose one of {', '.join(TARGETS)}")
+
+
+@jit
+def _gravity_hessian_chunk(root, frame0, offsets, omega, length, lam, gravity, lo, hi, hess_ptr, hess):
+    """Central differences of ``-F_g`` per strand: the Hessian of the gravity potential (dense per strand)."""
+    for s in range(lo, hi):
+        a = offsets[s]
+        z = offsets[s + 1]
+        n = z - a
+        m = 3 * n
+        q = omega[a:z].copy()
+        fp = np.empty((n, 3))
+        fm = np.empty((n, 3))
+        total = 0.0
+        for e in range(n):
+            total += length[a + e]
+        base = hess_ptr[s]
+        for j in range(m):
+            e = j // 3
+            k = j % 3
+            h = 1e-5 * (1.0 / total + abs(q[e, k]))
+            q[e, k] += h
+            gravity_forces(root[s], frame0[s], q, length[a:z], lam, gravity, fp)
+            q[e, k] -= 2.0 * h
+            gravity_forces(root[s], frame0[s], q, length[a:z], lam, gravity, fm)
+            q[e, k] += h
+            for i in range(m):
+                hess[base + i * m + j] = -(fp[i // 3, i % 3] - fm[i // 3, i % 3]) / (2.0 * h)
+
+
+def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None,
+              contacts: Contacts | None, r: np.ndarray | None, carrying: np.ndarray | None) -> np.ndarray:
+    """Which strands sit in an unstable equilibrium, (S,) bool.
+
+    The Hessian of the total energy at ``q`` is ``K + d^2 V_g / dq^2``
+    (independent of ``q0``). A strand is stable if it is positive definite on
+    the directions that keep the points of its force-carrying contacts in
+    place (the supports; the other strand of a hair-hair contact is held
+    fixed). The gravity Hessian is taken by central differences of ``F_g``,
+    accurate to about 1e-8 relative: enough to tell a sign.
+    """
+    S = helices.n_strands
+    counts = 3 * np.diff(helices.offsets)
+    hess_ptr = np.concatenate([[0], np.cumsum(counts ** 2)]).astype(np.int64)
+    hess = np.empty(hess_ptr[-1])
+
+    def work(lo: int, hi: int) -> None:
+        _gravity_hessian_chunk(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
+                               material.linear_density, material.gravity, lo, hi, hess_ptr, hess)
+
+    run_chunks(work, S, 256)
+    # supports per strand: the rows of H on that strand's columns for contacts carrying force
+    support: dict[int, list[np.ndarray]] = {}
+    if rows is not None and carrying is not None and carrying.any():
+        for i in np.flatnonzero(carrying):
+            a, b = rows.ptr[i], rows.ptr[i + 1]
+            cols = rows.cols[a:b]
+            vals = rows.vals[a:b]
+            for side in contacts.strand[i]:
+                if side < 0:
+                    continue
+                lo = 3 * helices.offsets[side]
+                hi = 3 * helices.offsets[side + 1]
+                mask = (cols >= lo) & (cols < hi)
+                block = np.zeros((3, hi - lo))
+                block[:, cols[mask] - lo] = vals[mask].T
+                support.setdefault(int(side), []).append(block)
+    unstable = np.zeros(S, dtype=bool)
+    for s in range(S):
+        m = counts[s]
+        k = stiff[3 * helices.offsets[s]:3 * helices.offsets[s + 1]]
+        A = hess[hess_ptr[s]:hess_ptr[s + 1]].reshape(m, m)
+        A = 0.5 * (A + A.T)
+        # scale by K^-1/2 so the test reads "eigenvalue of I + K^-1/2 V'' K^-1/2 below zero"
+        scale = 1.0 / np.sqrt(k)
+        A = scale[:, None] * A * scale[None, :] + np.eye(m)
+        if s in support:
+            C = np.vstack(support[s]) * scale[None, :]
+            _, sv, vt = np.linalg.svd(C)
+            rank = int((sv > 1e-10 * max(sv.max(), 1e-300)).sum())
+            Z = vt[rank:].T
+            if Z.shape[1] == 0:
+                continue
+            A = Z.T @ A @ Z
+        unstable[s] = np.linalg.eigvalsh(A)[0] < -1e-6
+    return unstable
+
+
+@dataclass
+class Model:
+    """The inverted model (the ``/model`` group)."""
+
+    omega_rest: np.ndarray
+    omega_target: np.ndarray
+    target_weight: np.ndarray
+    force: np.ndarray
+    material: Material
+    gamma: float
+    target: str
+    result: SolverResult
+
+    def group(self, settings: dict, inputs: list[dict]) -> stages.Group:
+        attrs = dict(self.material.attrs())
+        attrs.update(gamma=self.gamma, target=self.target, iterations=self.result.sweeps,
+                     residual=self.result.residual, seconds=self.result.seconds,
+                     status=self.result.status, relative_residual=self.result.relative_residual)
+        return stages.Group(
+            stages.MODEL,
+            {"omega_rest": self.omega_rest, "omega_target": self.omega_target,
+             "target_weight": self.target_weight, "force": self.force,
+             "residual_history": np.array(self.result.history, dtype=np.float64).reshape(-1, 2)},
+            attrs=attrs, config=settings, inputs=inputs,
+        )
+
+
+@dataclass
+class InvertReport:
+    """Figures of an inversion, for the user."""
+
+    target: str
+    contacts: int
+    body_contacts: int
+    carrying: int
+    result: SolverResult
+    force_scale: float
+    drift_rms: float
+    max_rest_curvature: float
+    unstable: int
+    unstable_gravity_only: int
+    strands: int
+    seconds: float
+    notes: list[str] = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        r = self.result
+        lines = [
+            f"inverted {self.strands} strands (target {self.target}) with {self.contacts} contacts "
+            f"({self.body_contacts} body, {self.contacts - self.body_contacts} hair-hair); "
+            f"{self.carrying} carry force",
+            f"solver: {r.status} after {r.sweeps} sweeps in {r.seconds:.2f} s ({r.colours} colours); "
+            f"residual {r.residual:.3g} N = {r.relative_residual:.2g} of the heaviest strand's weight "
+            f"({self.force_scale:.3g} N)",
+            f"rest shape: rms drift from the target {self.drift_rms:.4g} 1/m, "
+            f"largest rest curvature {self.max_rest_curvature:.4g} 1/m",
+        ]
+        if self.unstable:
+            lines.append(f"warning: {self.unstable} of {self.strands} strands rest in an unstable equilibrium "
+                         f"(a simulation may let them fall away from the input shape)")
+        else:
+            lines.append("every strand rests in a stable equilibrium")
+        if self.target != "gravity-only":
+            lines.append(f"for comparison, the gravity-only inversion leaves {self.unstable_gravity_only} "
+                         "strands unstable")
+        lines += self.notes
+        if r.local_failures:
+            lines.append(f"note: {r.local_failures} local contact solves stopped at their best iterate in the last sweep")
+        return lines
+
+
+def validate_settings(settings: SolverSettings) -> None:
+    if settings.target not in TARGETS:
+        raise InputError(f"unknown inversion target {settings.target!r}; choose one of {', '.join(TARGETS)}")
+    if not settings.gamma > 0:
+        raise InputError(f"solver.gamma must be > 0 (it makes the problem strictly convex), got {settings.gamma}")
+    if not settings.tolerance > 0:
+        raise InputError(f"solver.tolerance must be > 0, got {settings.tolerance}")
+    if settings.max_sweeps < 1 or settings.check_every < 1:
+        raise InputError("solver.max_sweeps and solver.check_every must be >= 1")
+
+
+def invert(helices: Helices, contacts: Contacts | None, material: Material, settings: SolverSettings,
+           progress=None, check_stability: bool = True) -> tuple[Model, InvertReport]:
+    """Solve the inverse problem for ``helices`` resting on ``contacts``.
+
+    Parameters
+    ----------
+    helices : Helices, the fitted shape ``q``
+    contacts : Contacts or None; ignored for the gravity-only target
+    material : Material
+    settings : SolverSettings
+    progress : callable(sweeps, relative residual), optional
+
+    Raises
+    ------
+    RunError
+        If the solver meets a numerical error (NaN): the message names the residual reached.
+    """
+    validate_settings(settings)
+    started = time.perf_counter()
+    if settings.target == "gravity-only" or contacts is None:
+        contacts = Contacts.empty()
+    q = helices.omega.ravel()
+    stiff = stiffness(helices, material)
+    weight = np.ones(helices.n_elements)
+    target = target_shape(helices, settings.target)
+    F_g = generalized_gravity(helices, material).ravel()
+    # D = w K^-2; b = H D (F_g - K (q - t))
+    d = np.repeat(weight, 3) / stiff ** 2
+    g = d * (F_g - stiff * (q - target.ravel()))
+    rows = contact_rows(helices, contacts, run=lambda work, count: run_chunks(work, count, 2048))
+    b = rows.matvec(g)
+    strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
+    force_scale = material.linear_density * np.linalg.norm(material.gravity) * float(strand_length.max())
+    result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, helices.n_strands,
+                           force_scale, settings.tolerance, settings.max_sweeps, settings.check_every,
+                           progress=progress, s=contacts.s)
+    if result.status not in (CONVERGED,) and not np.all(np.isfinite(result.r)):
+        raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
+                       f"residual {result.residual:.3g} N")
+    r = result.r
+    # q0 = q - K^-1 (F_g + H^T r), eq. (4)
+    omega_rest = (q - (F_g + rows.rmatvec(r)) / stiff).reshape(-1, 3)
+    if not np.all(np.isfinite(omega_rest)):
+        raise RunError("the inverted rest shape is not finite; check the material settings")
+    carrying = r[:, 0] > settings.tolerance * force_scale if len(r) else np.zeros(0, bool)
+    unstable = unstable_g = 0
+    if check_stability:
+        unstable_mask = stability(helices, material, stiff, rows, contacts, r, carrying)
+        unstable = int(unstable_mask.sum())
+        if contacts.n_contacts and carrying.any():
+            unstable_g = int(stability(helices, material, stiff, None, None, None, None).sum())
+        else:
+            unstable_g = unstable
+    drift = omega_rest - target
+    curvature = np.hypot(omega_rest[:, 0], omega_rest[:, 1])
+    model = Model(omega_rest, target, weight, r, material, float(settings.gamma), settings.target, result)
+    report = InvertReport(
+        settings.target, contacts.n_contacts, contacts.n_body, int(carrying.sum()), result, force_scale,
+        float(np.sqrt(np.mean(np.sum(drift ** 2, axis=1)))) if len(drift) else 0.0,
+        float(curvature.max()) if len(curvature) else 0.0, unstable, unstable_g, helices.n_strands,
+        time.perf_counter() - started,
+    )
+    if result.status != CONVERGED:
+        report.notes.append(
+            f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "
+            f"(tolerance {settings.tolerance:g}); raise solver.max_sweeps or the tolerance")
+    return model, report
+
+
+def material_from_group(group: stages.Group) -> Material:
+    """The material of a ``/model`` group."""
+    a = group.attrs
+    return Material(float(a["youngs_modulus"]), float(a["shear_modulus"]), float(a["density"]),
+                    float(a["radius"]), np.asarray(a["gravity"], dtype=np.float64))
+
+
+def settings_dict(material: MaterialSettings, solver: SolverSettings) -> dict:
+    return {"material": dataclasses.asdict(material), "solver": dataclasses.asdict(solver)}

@@ -1,0 +1,134 @@
+"""Run whatever upstream stage a command needs and the input lacks.
+
+``hairinv invert style.h5 body.obj`` accepts raw curves in any readable
+format or a stage file at any stage: a stage already in the file is used as
+it is (and said so); a missing one is computed with the current settings.
+Contacts stored with other contact settings than the current ones are
+detected again (detection is cheap and its settings are easy to change).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import formats, stages
+from .config import Settings
+from .contacts import Contacts, detect_contacts
+from .errors import InputError
+from .fit import Helices, fit_groom
+from .groom import load_body, load_groom
+
+__all__ = ["Scene", "prepare"]
+
+
+@dataclass
+class Scene:
+    """A groom ready for the later stages.
+
+    Attributes
+    ----------
+    groups : dict of stage name -> Group, the upstream groups to carry into the output file
+    helices : Helices
+    up : (3,) float64
+    contacts : Contacts or None (None until detected)
+    body : trimesh.Trimesh or None, in metres
+    inputs : list of provenance records (the style file, then the body file)
+    lines : report lines of the stages that ran or were reused
+    """
+
+    groups: dict
+    helices: Helices
+    up: np.ndarray
+    contacts: Contacts | None = None
+    body: object = None
+    inputs: list = field(default_factory=list)
+    lines: list = field(default_factory=list)
+
+
+def _native_body_size(body_path) -> float:
+    mesh = formats.read_mesh(body_path)
+    return float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))
+
+
+def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Scene:
+    """Read ``style`` (raw curves or a stage file) and ``body`` and bring them to the contact stage.
+
+    Parameters
+    ----------
+    style : path of a hairstyle file or a hairinv stage file
+    body : path of the body mesh, or None (no body: no hair-body contacts)
+    settings : Settings
+    contacts : bool, detect (or reuse) contacts
+    progress : callable(stage name, total) -> callable(n) with a ``close()``, optional
+    """
+    style = Path(style)
+    if not style.exists():
+        raise InputError("no such file", style)
+    if body is not None and not Path(body).exists():
+        raise InputError("no such file", body)
+    inputs = [stages.file_record(style)]
+    if body is not None:
+        inputs.append(stages.file_record(body))
+    lines: list[str] = []
+    groups: dict = {}
+    if stages.is_stage_file(style):
+        stage = stages.read_stage(style)
+        if stages.CURVES not in stage:
+            raise InputError("has no /curves group, so its units and up axis are unknown", style)
+        curves = stage[stages.CURVES]
+        groups[stages.CURVES] = curves
+        up = np.asarray(curves.attrs.get("up", (0.0, 1.0, 0.0)), dtype=np.float64)
+        scale = float(curves.attrs.get("scale_to_m", 1.0))
+        flip = str(curves.config.get("import", {}).get("flip", ""))
+        if stages.HELICES in stage:
+            helices = Helices.from_group(stage[stages.HELICES])
+            groups[stages.HELICES] = stage[stages.HELICES]
+            lines.append(f"using the fitted helices in {style.name} ({helices.n_strands} strands, "
+                         f"{helices.n_elements} elements)")
+        else:
+            helices = None
+        stored_contacts = stage[stages.CONTACTS] if stages.CONTACTS in stage else None
+        groom = None
+        if helices is None:
+            groom, report = load_groom(style, settings.import_)
+            lines += report.lines()
+    else:
+        size = _native_body_size(body) if body is not None else None
+        groom, report = load_groom(style, settings.import_, body_size_native=size)
+        lines += report.lines()
+        groups[stages.CURVES] = groom.curves_group(settings.import_, inputs[:1])
+        up, scale, flip = groom.up, groom.scale_to_m, settings.import_.flip
+        helices = None
+        stored_contacts = None
+    if helices is None:
+        bar = progress("fit", groom.n_strands) if progress else None
+        try:
+            helices, fit_report = fit_groom(groom, settings.fit, progress=bar)
+        finally:
+            if bar is not None:
+                bar.close()
+        lines += fit_report.lines()
+        groups[stages.HELICES] = helices.group(settings.fit, inputs[:1])
+    mesh = load_body(body, scale, flip) if body is not None else None
+    scene = Scene(groups, helices, up, None, mesh, inputs, lines)
+    if not contacts:
+        return scene
+    wanted = {"contacts": dataclasses.asdict(settings.contacts)}
+    if stored_contacts is not None and stored_contacts.config == wanted:
+        scene.contacts = Contacts.from_group(stored_contacts)
+        groups[stages.CONTACTS] = stored_contacts
+        lines.append(f"using the {scene.contacts.n_contacts} contacts in {style.name}")
+        return scene
+    if stored_contacts is not None:
+        lines.append(f"the contacts in {style.name} were detected with other settings; detecting them again")
+    if mesh is None and settings.contacts.body:
+        lines.append("no body given: only hair-hair contacts are declared")
+    found, detect_report = detect_contacts(helices, mesh, settings.contacts)
+    lines += detect_report.lines()
+    scene.contacts = found
+    groups[stages.CONTACTS] = found.group(settings.contacts, inputs)
+    return scene

@@ -1,0 +1,314 @@
+"""Block Gauss-Seidel over contacts for the cone complementarity problem.
+
+Solves ``K_mu ∋ r_i ⟂ (W r + b)_i ∈ K*_mu`` for every contact ``i`` with
+``W = H D H^T + gamma I`` (Daviet et al. 2011, So-bogus), never assembling
+``W``: the solver keeps ``f = D H^T r`` (one entry per coordinate of q), so
+``(W r)_i = H_i f + gamma r_i`` and updating ``r_i`` by ``d`` adds
+``D H_i^T d`` to ``f``. A sweep costs O(nnz(H)).
+
+Contacts that share no strand are given the same colour; a sweep visits
+the colours in order, and the contacts of one colour touch disjoint parts of
+``f``, so they may run on several threads with results that do not depend
+on the thread count.
+
+The stop test is the natural map ``|r_i - P_K(r_i - (W r + b)_i / rho_i)|``
+with ``rho_i = trace(W_ii) / 3``: a force, in newtons, zero exactly at the
+solution. Its largest value over the contacts is compared with
+``tolerance * force_scale``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._jit import jit
+from .._parallel import run_chunks, worker_count
+from .local import NUMERICAL_ERROR, project_cone, solve_contact
+from .rows import ContactRows
+
+__all__ = ["CONVERGED", "MAX_ITERS", "NUMERICAL", "SolverResult", "colour_contacts", "solve_cone_qp"]
+
+CONVERGED = "CONVERGED"
+MAX_ITERS = "MAX_ITERS"
+NUMERICAL = "NUMERICAL_ERROR"
+
+# Colours with fewer contacts than this run on one thread: handing a small
+# colour to the thread pool costs more than it saves.
+_MIN_PARALLEL = 4096
+_LOCAL_ITERATIONS = 50
+
+
+@dataclass
+class SolverResult:
+    """What the cone solver found.
+
+    Attributes
+    ----------
+    r : (C, 3) float64, N, forces in the contact frames (the last iterate)
+    status : CONVERGED, MAX_ITERS or NUMERICAL_ERROR
+    sweeps : int, Gauss-Seidel sweeps done
+    residual : float, N, largest natural-map residual over the contacts
+    relative_residual : float, ``residual / force_scale``
+    history : list of (sweep, residual in N)
+    seconds : float
+    colours : int
+    local_failures : int, local solves that returned their best iterate unconverged in the last sweep
+    """
+
+    r: np.ndarray
+    status: str
+    sweeps: int
+    residual: float
+    relative_residual: float
+    history: list = field(default_factory=list)
+    seconds: float = 0.0
+    colours: int = 0
+    local_failures: int = 0
+
+
+@jit
+def diagonal_blocks(ptr, cols, vals, d, gamma, out):
+    """``W_ii = H_i D H_i^T + gamma I`` of every contact, (C, 3, 3)."""
+    for i in range(ptr.shape[0] - 1):
+        for a in range(3):
+            for c in range(3):
+                out[i, a, c] = 0.0
+        for j in range(ptr[i], ptr[i + 1]):
+            dj = d[cols[j]]
+            for a in range(3):
+                for c in range(3):
+                    out[i, a, c] += vals[j, a] * dj * vals[j, c]
+        for a in range(3):
+            out[i, a, a] += gamma
+
+
+@jit
+def _accumulate_f(ptr, cols, vals, d, r, f):
+    """``f = D H^T r`` from scratch."""
+    f[:] = 0.0
+    for i in range(ptr.shape[0] - 1):
+        for j in range(ptr[i], ptr[i + 1]):
+            f[cols[j]] += vals[j, 0] * r[i, 0] + vals[j, 1] * r[i, 1] + vals[j, 2] * r[i, 2]
+    for k in range(f.shape[0]):
+        f[k] *= d[k]
+
+
+@jit
+def _sweep(order, lo, hi, ptr, cols, vals, d, gamma, Wd, b, mu, r, f, local_tol, desaxce):
+    """Update the contacts ``order[lo:hi]`` one after the other; returns (failures, numerical errors)."""
+    u = np.empty(3)
+    bl = np.empty(3)
+    rn = np.empty(3)
+    failures = 0
+    numerical = 0
+    for t in range(lo, hi):
+        i = order[t]
+        # u = (W r + b)_i = H_i f + gamma r_i + b_i
+        u[0] = b[i, 0] + gamma * r[i, 0]
+        u[1] = b[i, 1] + gamma * r[i, 1]
+        u[2] = b[i, 2] + gamma * r[i, 2]
+        for j in range(ptr[i], ptr[i + 1]):
+            fj = f[cols[j]]
+            u[0] += vals[j, 0] * fj
+            u[1] += vals[j, 1] * fj
+            u[2] += vals[j, 2] * fj
+        # local problem W_ii r_i + bl with the other contacts frozen
+        for a in range(3):
+            bl[a] = u[a] - (Wd[i, a, 0] * r[i, 0] + Wd[i, a, 1] * r[i, 1] + Wd[i, a, 2] * r[i, 2])
+            rn[a] = r[i, a]
+        status, _ = solve_contact(Wd[i], bl, mu[i], rn, local_tol, _LOCAL_ITERATIONS, desaxce)
+        if status == NUMERICAL_ERROR:
+            numerical += 1
+            continue
+        if status != 0:
+            failures += 1
+        d0 = rn[0] - r[i, 0]
+        d1 = rn[1] - r[i, 1]
+        d2 = rn[2] - r[i, 2]
+        r[i, 0] = rn[0]
+        r[i, 1] = rn[1]
+        r[i, 2] = rn[2]
+        for j in range(ptr[i], ptr[i + 1]):
+            c = cols[j]
+            f[c] += d[c] * (vals[j, 0] * d0 + vals[j, 1] * d1 + vals[j, 2] * d2)
+    return failures, numerical
+
+
+@jit
+def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, out):
+    """Per-contact natural-map residual ``|r_i - P_K(r_i - u_i / rho_i)|`` in force units.
+
+    ``u = H f + gamma r + b`` with ``f = D H^T r``; ``rho_i = trace(W_ii) / 3``.
+    Returns the largest value (NaN if any is not finite).
+    """
+    u = np.empty(3)
+    x = np.empty(3)
+    p = np.empty(3)
+    worst = 0.0
+    for i in range(ptr.shape[0] - 1):
+        u[0] = b[i, 0] + gamma * r[i, 0]
+        u[1] = b[i, 1] + gamma * r[i, 1]
+        u[2] = b[i, 2] + gamma * r[i, 2]
+        for j in range(ptr[i], ptr[i + 1]):
+            fj = f[cols[j]]
+            u[0] += vals[j, 0] * fj
+            u[1] += vals[j, 1] * fj
+            u[2] += vals[j, 2] * fj
+        rho = (Wd[i, 0, 0] + Wd[i, 1, 1] + Wd[i, 2, 2]) / 3.0
+        for a in range(3):
+            x[a] = r[i, a] - u[a] / rho
+        project_cone(x, mu[i], p)
+        e = np.sqrt((r[i, 0] - p[0]) ** 2 + (r[i, 1] - p[1]) ** 2 + (r[i, 2] - p[2]) ** 2)
+        out[i] = e
+        if not (e <= worst):  # also catches NaN
+            worst = e
+    return worst
+
+
+@jit
+def _greedy_colours(strand, visit, n_strands, max_colours, colour):
+    """Greedy colouring in the order ``visit``: contacts sharing a strand get different colours."""
+    used = np.zeros((n_strands, max_colours), dtype=np.bool_)
+    n_colours = 0
+    for t in range(visit.shape[0]):
+        i = visit[t]
+        a = strand[i, 0]
+        b = strand[i, 1]
+        c = 0
+        while used[a, c] or (b >= 0 and used[b, c]):
+            c += 1
+        colour[i] = c
+        used[a, c] = True
+        if b >= 0:
+            used[b, c] = True
+        if c + 1 > n_colours:
+            n_colours = c + 1
+    return n_colours
+
+
+def colour_contacts(strand: np.ndarray, n_strands: int, s: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Order contacts by colour so that contacts of one colour share no strand.
+
+    With the arc lengths ``s`` (C, 2), contacts far from the root are coloured
+    first, so a sweep runs from the tips towards the roots (a contact near the
+    tip moves every element of its strand, one near the root only a few). On
+    the wavy sample this lowers the objective faster than root-first
+    (0.26% lower after 100 sweeps, 0.15% after 400).
+
+    Returns
+    -------
+    order : (C,) int64, contact indices colour after colour (stable within a colour)
+    bounds : (n_colours + 1,) int64, colour ``k`` is ``order[bounds[k]:bounds[k+1]]``
+    """
+    strand = np.ascontiguousarray(strand, dtype=np.int64)
+    if len(strand) == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(1, dtype=np.int64)
+    degree = np.bincount(strand[:, 0], minlength=n_strands)
+    other = strand[:, 1][strand[:, 1] >= 0]
+    degree += np.bincount(other, minlength=n_strands)
+    colour = np.empty(len(strand), dtype=np.int64)
+    if s is None:
+        visit = np.arange(len(strand), dtype=np.int64)
+    else:
+        visit = np.lexsort((np.arange(len(strand)), -np.asarray(s)[:, 0])).astype(np.int64)
+    n_colours = _greedy_colours(strand, visit, n_strands, int(2 * degree.max() + 1), colour)
+    rank = np.empty(len(strand), dtype=np.int64)
+    rank[visit] = np.arange(len(strand))
+    order = np.lexsort((rank, colour)).astype(np.int64)
+    bounds = np.searchsorted(colour[order], np.arange(n_colours + 1)).astype(np.int64)
+    return order, bounds
+
+
+def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray, mu: np.ndarray,
+                  strand: np.ndarray, n_strands: int, force_scale: float, tolerance: float = 1e-6,
+                  max_sweeps: int = 2000, check_every: int = 5, r0: np.ndarray | None = None,
+                  desaxce: bool = False, progress=None, s: np.ndarray | None = None) -> SolverResult:
+    """Solve the cone complementarity problem of ``W = H D H^T + gamma I`` and ``b``.
+
+    Parameters
+    ----------
+    rows : ContactRows, the contact Jacobian ``H`` (3C x n)
+    d : (n,) float64, the diagonal operator ``D`` (positive)
+    gamma : float, the regularisation added to ``W``'s diagonal
+    b : (C, 3) float64
+    mu : (C,) float64, friction coefficients
+    strand : (C, 2) int64, the strands each contact touches (-1: none), for the colouring
+    s : (C, 2) float64, optional, the contacts' arc lengths: sweeps then run from the tips to the roots
+    force_scale : float, N, the force the tolerance is relative to
+    tolerance : float, stop when the largest natural-map residual is below ``tolerance * force_scale``
+    r0 : (C, 3) float64, optional warm start
+    desaxce : bool, solve the De Saxce-modified (dynamic) problem instead of the convex one
+    progress : callable(sweeps, relative residual), optional, called at every residual check
+    """
+    started = time.perf_counter()
+    n_contacts = rows.n_contacts
+    r = np.zeros((n_contacts, 3)) if r0 is None else np.array(r0, dtype=np.float64, copy=True)
+    d = np.ascontiguousarray(d, dtype=np.float64)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    mu = np.ascontiguousarray(mu, dtype=np.float64)
+    if n_contacts == 0:
+        return SolverResult(r, CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started)
+    Wd = np.empty((n_contacts, 3, 3))
+    diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, gamma, Wd)
+    order, bounds = colour_contacts(strand, n_strands, s)
+    f = np.empty(rows.n_dofs)
+    _accumulate_f(rows.ptr, rows.cols, rows.vals, d, r, f)
+    per_contact = np.empty(n_contacts)
+    # local solves to a tolerance near eps^(3/4), relative to the contact's own scale
+    local_tol = np.finfo(float).eps ** 0.75
+    threads = worker_count()
+    target = tolerance * force_scale
+    history = []
+    status = MAX_ITERS
+    sweeps = 0
+    failures = 0
+
+    def sweep_colour(lo: int, hi: int) -> tuple[int, int]:
+        return _sweep(order, lo, hi, rows.ptr, rows.cols, rows.vals, d, gamma, Wd, b, mu, r, f, local_tol, desaxce)
+
+    residual = natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, per_contact)
+    history.append((0, float(residual)))
+    if residual <= target:
+        status = CONVERGED
+    while status == MAX_ITERS and sweeps < max_sweeps:
+        failures = 0
+        numerical = 0
+        for k in range(len(bounds) - 1):
+            lo, hi = int(bounds[k]), int(bounds[k + 1])
+            if threads > 1 and hi - lo >= _MIN_PARALLEL:
+                counts = []
+
+                def work(a: int, z: int) -> None:
+                    counts.append(sweep_colour(lo + a, lo + z))
+
+                run_chunks(work, hi - lo, -(-(hi - lo) // threads))
+                failures += sum(c[0] for c in counts)
+                numerical += sum(c[1] for c in counts)
+            else:
+                fc, nc = sweep_colour(lo, hi)
+                failures += fc
+                numerical += nc
+        sweeps += 1
+        if numerical:
+            status = NUMERICAL
+            break
+        if sweeps % check_every == 0 or sweeps == max_sweeps:
+            # refresh f from r so round-off of the incremental updates cannot accumulate
+            _accumulate_f(rows.ptr, rows.cols, rows.vals, d, r, f)
+            residual = natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, per_contact)
+            history.append((sweeps, float(residual)))
+            if progress is not None:
+                progress(sweeps, residual / force_scale)
+            if not np.isfinite(residual) or not np.all(np.isfinite(r)):
+                status = NUMERICAL
+            elif residual <= target:
+                status = CONVERGED
+    if history[-1][0] != sweeps:
+        _accumulate_f(rows.ptr, rows.cols, rows.vals, d, r, f)
+        residual = natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, per_contact)
+        history.append((sweeps, float(residual)))
+    return SolverResult(r, status, sweeps, float(residual), float(residual / force_scale), history,
+                        time.perf_counter() - started, len(bounds) - 1, failures)

@@ -1,0 +1,157 @@
+"""Contact Jacobian rows ``H_i`` of every contact, stored block-sparse.
+
+Contact ``i`` acts on strand A at arc length ``s_A`` and, for a hair-hair
+contact, with the opposite force on strand B at ``s_B``. Its three rows
+(normal, tangent1, tangent2) are ``H_i = C_i (J_A(s_A) - J_B(s_B))`` where
+``C_i`` is the contact frame and ``J(s)`` the Jacobian of the centerline
+point w.r.t. the strand's coordinates: non-zero only for the elements up to
+the one holding ``s`` (the rigid-downstream property), so a contact near the
+root costs a few columns and one at the tip a strand's worth.
+
+Layout: ``ptr`` (C + 1,) int64 offsets into ``cols`` (int64, a column of
+the global coordinate vector ``q``: element ``e``, component ``k`` is
+``3 e + k``) and ``vals`` ((nnz, 3) float64, the three rows' entries for that
+column). All rows of a contact share the same columns, so the diagonal block
+``W_ii = H_i D H_i^T + gamma I`` and the products ``H_i f`` and
+``H_i^T d`` are short loops over one list of columns.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse
+
+from .._jit import jit
+from ..rod.statics import point_jacobian
+
+__all__ = ["ContactRows", "contact_rows"]
+
+
+class ContactRows:
+    """Block-sparse ``H`` (3C x n): ``ptr``, ``cols``, ``vals`` as in the module docstring."""
+
+    def __init__(self, ptr: np.ndarray, cols: np.ndarray, vals: np.ndarray, n_dofs: int):
+        self.ptr = ptr
+        self.cols = cols
+        self.vals = vals
+        self.n_dofs = int(n_dofs)
+
+    @property
+    def n_contacts(self) -> int:
+        return len(self.ptr) - 1
+
+    def to_sparse(self) -> scipy.sparse.csr_matrix:
+        """The same matrix as scipy CSR (3C x n), for reference solvers and tests."""
+        counts = np.diff(self.ptr)
+        rows = (3 * np.repeat(np.arange(self.n_contacts), counts))[:, None] + np.arange(3)[None, :]
+        cols = np.repeat(self.cols[:, None], 3, axis=1)
+        return scipy.sparse.csr_matrix(
+            (self.vals.ravel(), (rows.ravel(), cols.ravel())), shape=(3 * self.n_contacts, self.n_dofs)
+        )
+
+    def matvec(self, f: np.ndarray) -> np.ndarray:
+        """``H f`` as (C, 3)."""
+        out = np.zeros((self.n_contacts, 3))
+        _rows_matvec(self.ptr, self.cols, self.vals, f, out)
+        return out
+
+    def rmatvec(self, r: np.ndarray) -> np.ndarray:
+        """``H^T r`` for ``r`` (C, 3), as (n,)."""
+        out = np.zeros(self.n_dofs)
+        _rows_rmatvec(self.ptr, self.cols, self.vals, r, out)
+        return out
+
+
+@jit
+def _rows_matvec(ptr, cols, vals, f, out):
+    for i in range(ptr.shape[0] - 1):
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for j in range(ptr[i], ptr[i + 1]):
+            fj = f[cols[j]]
+            a0 += vals[j, 0] * fj
+            a1 += vals[j, 1] * fj
+            a2 += vals[j, 2] * fj
+        out[i, 0] = a0
+        out[i, 1] = a1
+        out[i, 2] = a2
+
+
+@jit
+def _rows_rmatvec(ptr, cols, vals, r, out):
+    for i in range(ptr.shape[0] - 1):
+        for j in range(ptr[i], ptr[i + 1]):
+            out[cols[j]] += vals[j, 0] * r[i, 0] + vals[j, 1] * r[i, 1] + vals[j, 2] * r[i, 2]
+
+
+@jit
+def _side_width(offsets, length, strand, s):
+    """Columns a contact side touches: 3 x (index of the element holding s, + 1)."""
+    lo = offsets[strand]
+    hi = offsets[strand + 1]
+    start = 0.0
+    for e in range(hi - lo):
+        if s < start + length[lo + e] or e == hi - lo - 1:
+            return 3 * (e + 1)
+        start += length[lo + e]
+    return 3
+
+
+@jit
+def _count(offsets, length, strand, s, counts):
+    for i in range(strand.shape[0]):
+        c = _side_width(offsets, length, strand[i, 0], s[i, 0])
+        if strand[i, 1] >= 0:
+            c += _side_width(offsets, length, strand[i, 1], s[i, 1])
+        counts[i] = c
+
+
+@jit
+def _fill_side(root, frame0, offsets, omega, length, strand, s, frame, sign, ptr_at, cols, vals):
+    lo = offsets[strand]
+    hi = offsets[strand + 1]
+    J = np.empty((hi - lo, 3, 3))
+    e_s = point_jacobian(root[strand], frame0[strand], omega[lo:hi], length[lo:hi], s, J)
+    j = ptr_at
+    for e in range(e_s + 1):
+        for k in range(3):
+            cols[j] = 3 * (lo + e) + k
+            for row in range(3):
+                vals[j, row] = sign * (frame[row, 0] * J[e, k, 0] + frame[row, 1] * J[e, k, 1]
+                                       + frame[row, 2] * J[e, k, 2])
+            j += 1
+    return j
+
+
+@jit
+def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, vals, lo, hi):
+    for i in range(lo, hi):
+        j = _fill_side(root, frame0, offsets, omega, length, strand[i, 0], s[i, 0], frame[i], 1.0, ptr[i], cols, vals)
+        if strand[i, 1] >= 0:
+            _fill_side(root, frame0, offsets, omega, length, strand[i, 1], s[i, 1], frame[i], -1.0, j, cols, vals)
+
+
+def contact_rows(helices, contacts, run=None) -> ContactRows:
+    """Assemble ``H`` for ``contacts`` on ``helices`` (see the module docstring).
+
+    ``run(work, count)`` optionally runs ``work(lo, hi)`` over chunks of
+    contacts (on threads); each chunk writes only its own entries.
+    """
+    n_contacts = len(contacts.mu)
+    counts = np.zeros(n_contacts, dtype=np.int64)
+    _count(helices.offsets, helices.length, contacts.strand, contacts.s, counts)
+    ptr = np.zeros(n_contacts + 1, dtype=np.int64)
+    np.cumsum(counts, out=ptr[1:])
+    cols = np.empty(ptr[-1], dtype=np.int64)
+    vals = np.empty((ptr[-1], 3))
+
+    def work(lo: int, hi: int) -> None:
+        _fill(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
+              contacts.strand, contacts.s, contacts.frame, ptr, cols, vals, lo, hi)
+
+    if run is None or n_contacts == 0:
+        work(0, n_contacts)
+    else:
+        run(work, n_contacts)
+    return ContactRows(ptr, cols, vals, 3 * helices.n_elements)

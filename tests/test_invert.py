@@ -1,0 +1,320 @@
+"""The inverse problem: equilibrium, optimality conditions, a conic solver, extremes.
+
+Scenes are built by hand (strands with known shapes, contacts at known
+places), so every check is independent of contact detection:
+
+- equilibrium: the gradient of the total energy
+  ``1/2 (q - q0)^T K (q - q0) + V_g(q) - sum_i (C_i^T r_i) . x(s_i; q)``
+  (elastic + gravitational potential + the contact forces as fixed external
+  forces at their material points) vanishes at ``q``. It is taken by central
+  finite differences of the potential and of centerline positions, not from
+  the kernels that built the problem;
+- optimality: ``r`` in the Coulomb cones, ``W r + b`` in the dual cones,
+  complementarity, with ``W`` assembled densely here;
+- the same SOCQP solved by Clarabel (interior point) gives the same forces.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import FINITE_DIFFERENCE
+from hairinv.config import MaterialSettings, SolverSettings
+from hairinv.contacts import Contacts
+from hairinv.fit import Helices
+from hairinv.invert import Material, generalized_gravity, invert, stiffness, target_shape
+from hairinv.rod.helix import points_at
+from hairinv.rod.statics import gravity_potential
+from hairinv.solver.rows import contact_rows
+
+UP = np.array([0.0, 1.0, 0.0])
+# the solver's stopping tolerance in these tests, relative to a strand's weight
+TIGHT = 1e-10
+
+
+def material(**changes) -> Material:
+    return Material.from_settings(MaterialSettings(**changes), UP)
+
+
+def strands(specs) -> Helices:
+    """Helices from ``[(root, tangent, omega (N,3), length (N,)), ...]``; n1 is the up axis projected."""
+    roots, frames, omegas, lengths, offsets = [], [], [], [], [0]
+    for root, tangent, omega, length in specs:
+        t = np.asarray(tangent, float) / np.linalg.norm(tangent)
+        n1 = UP - (UP @ t) * t
+        n1 = n1 / np.linalg.norm(n1) if np.linalg.norm(n1) > 1e-8 else np.array([1.0, 0.0, 0.0])
+        frames.append(np.array([t, n1, np.cross(t, n1)]))
+        roots.append(root)
+        omegas.append(np.asarray(omega, float))
+        lengths.append(np.asarray(length, float))
+        offsets.append(offsets[-1] + len(length))
+    return Helices(np.array(roots, float), np.array(frames), np.array(offsets, np.int64),
+                   np.concatenate(lengths), np.concatenate(omegas), np.zeros((len(specs), 2)))
+
+
+def frame_from_normal(normal) -> np.ndarray:
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    t1 = np.cross(n, a)
+    t1 /= np.linalg.norm(t1)
+    return np.array([n, t1, np.cross(n, t1)])
+
+
+def point_on(helices, strand, s) -> np.ndarray:
+    a, z = helices.offsets[strand], helices.offsets[strand + 1]
+    out = np.empty((1, 3))
+    points_at(helices.root[strand], helices.frame0[strand], helices.omega[a:z], helices.length[a:z],
+              np.array([float(s)]), out)
+    return out[0]
+
+
+def make_contacts(helices, specs) -> Contacts:
+    """Contacts from ``[(strand A, s_A, strand B or -1, s_B, normal, mu), ...]``."""
+    strand = np.array([[a, b] for a, _, b, _, _, _ in specs], np.int64)
+    s = np.array([[sa, sb] for _, sa, _, sb, _, _ in specs], float)
+    point = np.array([point_on(helices, a, sa) for a, sa, _, _, _, _ in specs])
+    frame = np.array([frame_from_normal(n) for *_, n, _ in specs])
+    mu = np.array([m for *_, m in specs], float)
+    return Contacts(strand, s, point, frame, mu)
+
+
+def horizontal_strand(n=6, total=0.12, curl=0.0, root=(0.0, 0.0, 0.0)):
+    """A strand leaving its root horizontally along +x, optionally curled about the up axis."""
+    omega = np.zeros((n, 3))
+    omega[:, 1] = curl
+    return (np.array(root, float), (1.0, 0.0, 0.0), omega, np.full(n, total / n))
+
+
+def resting_scene(mu=0.3, n_contacts=3):
+    """One horizontal strand on point supports below it (a body pushing up)."""
+    helices = strands([horizontal_strand()])
+    spots = np.linspace(0.05, 0.115, n_contacts)
+    contacts = make_contacts(helices, [(0, s, -1, 0.0, UP, mu) for s in spots])
+    return helices, contacts
+
+
+def two_strand_scene(mu=0.3):
+    """Strand 1 lies across strand 0 and rests on it and on the body."""
+    helices = strands([
+        horizontal_strand(n=5, total=0.1),
+        (np.array([0.06, 0.002, -0.05]), (0.0, 0.0, 1.0), np.zeros((5, 3)), np.full(5, 0.02)),
+    ])
+    contacts = make_contacts(helices, [
+        (0, 0.08, -1, 0.0, UP, mu),
+        (0, 0.06, 1, 0.05, -UP, mu),  # strand 1 above strand 0: the normal points from B (1) to A (0)
+        (1, 0.09, -1, 0.0, (0.0, 1.0, 0.3), mu),
+    ])
+    return helices, contacts
+
+
+def solve(helices, contacts, mat=None, **solver):
+    settings = SolverSettings(**{"tolerance": TIGHT, "max_sweeps": 20000, **solver})
+    model, report = invert(helices, contacts, mat or material(), settings)
+    return model, report
+
+
+def energy_gradient(helices, contacts, model, mat, h=1e-6):
+    """d/dq of elastic + gravity potential + contact work, by central differences (see module docstring)."""
+    q = helices.omega.copy()
+    K = stiffness(helices, mat).reshape(-1, 3)
+    world = np.einsum("cji,cj->ci", contacts.frame, model.force)  # C^T r
+
+    def strand_energy(s, omega):
+        a, z = helices.offsets[s], helices.offsets[s + 1]
+        args = (helices.root[s], helices.frame0[s], omega, helices.length[a:z])
+        v = gravity_potential(*args, mat.linear_density, mat.gravity)
+        for c in range(contacts.n_contacts):
+            for side, sign in ((0, 1.0), (1, -1.0)):
+                if contacts.strand[c, side] == s:
+                    x = np.empty((1, 3))
+                    points_at(*args, np.array([contacts.s[c, side]]), x)
+                    v -= sign * world[c] @ x[0]
+        return v
+
+    grad = K * (q - model.omega_rest)
+    for s in range(helices.n_strands):
+        a, z = helices.offsets[s], helices.offsets[s + 1]
+        for e in range(z - a):
+            for k in range(3):
+                om = q[a:z].copy()
+                om[e, k] += h
+                vp = strand_energy(s, om)
+                om[e, k] -= 2 * h
+                vm = strand_energy(s, om)
+                grad[a + e, k] += (vp - vm) / (2 * h)
+    return grad, np.abs(generalized_gravity(helices, mat)).max()
+
+
+def dense_problem(helices, contacts, mat, model):
+    rows = contact_rows(helices, contacts)
+    H = rows.to_sparse().toarray()
+    K = stiffness(helices, mat)
+    d = model.target_weight.repeat(3) / K ** 2
+    F_g = generalized_gravity(helices, mat).ravel()
+    b = H @ (d * (F_g - K * (helices.omega.ravel() - model.omega_target.ravel())))
+    W = H @ (d[:, None] * H.T) + model.gamma * np.eye(len(H))
+    return W, b, H, d
+
+
+def check_optimality(W, b, r, mu, rtol):
+    """Cone, dual cone and complementarity, relative to the scale of the data."""
+    u = (W @ r.ravel() + b).reshape(-1, 3)
+    force = max(np.abs(r).max(), 1e-300)
+    speed = max(np.abs(b).max(), np.abs(W).max() * force)
+    for ri, ui, m in zip(r, u, mu):
+        assert np.hypot(ri[1], ri[2]) <= m * ri[0] + rtol * force
+        if m > 0:
+            assert np.hypot(ui[1], ui[2]) <= ui[0] / m + rtol * speed
+        else:
+            assert ui[0] >= -rtol * speed
+        assert abs(ri @ ui) <= rtol * force * speed
+
+
+@pytest.mark.parametrize("scene", [resting_scene, two_strand_scene])
+def test_equilibrium_from_an_independent_energy(scene):
+    helices, contacts = scene()
+    mat = material()
+    model, report = solve(helices, contacts, mat)
+    assert report.result.status == "CONVERGED"
+    assert report.carrying > 0  # the scene is built so that contacts carry weight
+    grad, scale = energy_gradient(helices, contacts, model, mat)
+    assert np.abs(grad).max() <= FINITE_DIFFERENCE * scale
+
+
+@pytest.mark.parametrize("scene", [resting_scene, two_strand_scene])
+@pytest.mark.parametrize("mu", [0.0, 0.3, 1e6])
+def test_optimality_conditions(scene, mu):
+    helices, contacts = scene(mu=mu)
+    mat = material()
+    model, report = solve(helices, contacts, mat)
+    assert report.result.status == "CONVERGED"
+    W, b, _, _ = dense_problem(helices, contacts, mat, model)
+    check_optimality(W, b, model.force, contacts.mu, rtol=1e-7)
+    if mu == 0.0:
+        assert np.all(model.force[:, 1:] == 0.0)
+
+
+@pytest.mark.parametrize("scene", [resting_scene, two_strand_scene])
+@pytest.mark.parametrize("mu", [0.0, 0.3, 2.0])
+def test_matches_clarabel(scene, mu):
+    """At the paper's gamma, W = H K^-2 H^T + gamma I has a condition number
+    near 1e16: forces along directions the strands cannot feel (an axial pull
+    on a straight strand) are fixed only by gamma, below any interior-point
+    tolerance. What the objective does fix is the rest shape, so compare q0
+    there; with gamma of the order of W's diagonal the forces are unique and
+    well conditioned, so compare the forces themselves."""
+    pytest.importorskip("clarabel")
+    import scipy.sparse
+
+    from hairinv.solver.reference import solve_socqp_clarabel
+
+    helices, contacts = scene(mu=mu)
+    mat = material()
+    K = stiffness(helices, mat)
+    F_g = generalized_gravity(helices, mat).ravel()
+    for gamma in (1e-3, None):
+        if gamma is None:
+            probe, _ = solve(helices, contacts, mat, max_sweeps=1)
+            W, *_ = dense_problem(helices, contacts, mat, probe)
+            gamma = float(np.mean(np.diag(W)))
+        model, report = solve(helices, contacts, mat, gamma=gamma)
+        assert report.result.status == "CONVERGED"
+        _, b, H, d = dense_problem(helices, contacts, mat, model)
+        r_ref, info = solve_socqp_clarabel(scipy.sparse.csr_matrix(H), d, gamma, b, contacts.mu, tol=1e-13)
+        q0_ref = helices.omega.ravel() - (F_g + H.T @ r_ref.ravel()) / K
+        sag = np.abs(F_g / K).max()
+        W = H @ (d[:, None] * H.T) + gamma * np.eye(len(H))
+        objective = lambda r: 0.5 * r.ravel() @ W @ r.ravel() + b @ r.ravel()  # noqa: E731
+        # never worse than the interior point, whatever its accuracy
+        assert objective(model.force) <= objective(r_ref) + 1e-12 * abs(objective(r_ref))
+        if info["status"] == "Solved":  # Clarabel may stop at AlmostSolved at condition 1e16
+            assert np.abs(model.omega_rest.ravel() - q0_ref).max() <= 1e-6 * sag
+        if gamma > 1.0:
+            assert np.abs(model.force - r_ref).max() <= 1e-6 * np.abs(r_ref).max()
+
+
+def test_no_contacts_is_the_gravity_only_inversion_exactly():
+    helices, _ = resting_scene()
+    mat = material()
+    empty = Contacts.empty()
+    model, report = solve(helices, empty, mat)
+    baseline, _ = solve(helices, None, mat, target="gravity-only")
+    K = stiffness(helices, mat)
+    expected = helices.omega.ravel() - generalized_gravity(helices, mat).ravel() / K
+    assert np.array_equal(model.omega_rest.ravel(), expected)
+    assert np.array_equal(baseline.omega_rest, model.omega_rest)
+    assert report.contacts == 0 and report.result.sweeps == 0
+
+
+def test_huge_gamma_tends_to_gravity_only_and_tiny_gamma_converges():
+    helices, contacts = resting_scene()
+    mat = material()
+    gravity_only, _ = solve(helices, None, mat, target="gravity-only")
+    # W's diagonal is about 1e13 here; with gamma far above it forces vanish as O(|b| / gamma)
+    stiff_model, _ = solve(helices, contacts, mat, gamma=1e24)
+    assert np.abs(stiff_model.force).max() < 1e-14
+    assert np.allclose(stiff_model.omega_rest, gravity_only.omega_rest, rtol=0, atol=1e-6)
+    loose, report = solve(helices, contacts, mat, gamma=1e-12)
+    assert report.result.status == "CONVERGED"
+    W, b, _, _ = dense_problem(helices, contacts, mat, loose)
+    check_optimality(W, b, loose.force, contacts.mu, rtol=1e-6)
+
+
+def test_strand_entirely_resting_on_the_body_keeps_its_shape():
+    """A straight strand on a floor with a support under every element: the
+    floor can carry nearly all of the weight, so the rest shape stays close to
+    the input where gravity-only needs a large curvature."""
+    n = 8
+    helices = strands([horizontal_strand(n=n, total=0.16)])
+    s = (np.arange(n) + 0.99) * 0.02
+    contacts = make_contacts(helices, [(0, si, -1, 0.0, UP, 0.3) for si in s])
+    mat = material()
+    # eight supports under eight elements: W is ill-conditioned (about 1e5) and
+    # Gauss-Seidel needs thousands of sweeps per decade of residual here
+    model, report = solve(helices, contacts, mat, tolerance=1e-5)
+    baseline, _ = solve(helices, None, mat, target="gravity-only")
+    assert report.result.status == "CONVERGED"
+    W, b, _, _ = dense_problem(helices, contacts, mat, model)
+    check_optimality(W, b, model.force, contacts.mu, rtol=1e-4)
+    sag_gravity_only = np.abs(baseline.omega_rest - helices.omega).max()
+    sag = np.abs(model.omega_rest - helices.omega).max()
+    assert sag_gravity_only > 10.0  # 1/m: the unsupported rod needs real curvature
+    assert sag < 2e-3 * sag_gravity_only
+    # the supports carry the weight: total normal force ~ the strand's weight
+    weight = mat.linear_density * 9.81 * 0.16
+    assert model.force[:, 0].sum() == pytest.approx(weight, rel=0.1)
+    assert report.unstable == 0
+
+
+@pytest.mark.parametrize("target", ["actual", "zero", "uniform", "tip"])
+def test_targets(target):
+    helices = strands([horizontal_strand(n=4, curl=7.0)])
+    helices.omega[:, 0] = [1.0, 2.0, 3.0, 4.0]
+    t = target_shape(helices, target)
+    expected = {"actual": helices.omega, "zero": np.zeros((4, 3)),
+                "uniform": np.tile([2.5, 7.0, 0.0], (4, 1)), "tip": np.tile([4.0, 7.0, 0.0], (4, 1))}[target]
+    assert np.allclose(t, expected)
+
+
+def test_target_zero_pulls_the_rest_shape_towards_straight():
+    """Curled strand resting on supports: with target zero the contacts are used
+    to make q0 straighter than with target actual."""
+    helices = strands([horizontal_strand(n=6, curl=-3.0)])
+    contacts = make_contacts(helices, [(0, s, -1, 0.0, UP, 0.3) for s in (0.06, 0.09, 0.115)])
+    mat = material()
+    actual, _ = solve(helices, contacts, mat, target="actual")
+    zero, _ = solve(helices, contacts, mat, target="zero")
+    assert np.linalg.norm(zero.omega_rest) < np.linalg.norm(actual.omega_rest)
+
+
+def test_unsupported_upright_strand_is_flagged_unstable():
+    """A 30 cm strand standing straight up is far past the critical height
+    (about 12 cm for a 0.1 mm hair at 4 GPa); a 3 cm one is below it."""
+    tall = strands([(np.zeros(3), UP, np.zeros((6, 3)), np.full(6, 0.05))])
+    short = strands([(np.zeros(3), UP, np.zeros((6, 3)), np.full(6, 0.005))])
+    mat = material()
+    _, tall_report = solve(tall, None, mat, target="gravity-only")
+    _, short_report = solve(short, None, mat, target="gravity-only")
+    assert tall_report.unstable == 1
+    assert short_report.unstable == 0
