@@ -346,6 +346,10 @@ def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guid
         raise RunError(f"the contact solver met a numerical error after {model.result.sweeps} sweeps "
                        f"(residual {model.result.residual:.3g} N); no output was written")
     groups = dict(scene.groups)
+    if stages.CONTACTS not in groups:  # gravity-only: the model declares no contact
+        from hairinv.contacts import Contacts
+
+        groups[stages.CONTACTS] = Contacts.empty().group(settings.contacts, scene.inputs)
     groups.pop(stages.MODEL, None)
     groups.pop(stages.FRAMES, None)
     groups[stages.MODEL] = model.group(settings_dict(settings.material, settings.solver), scene.inputs)

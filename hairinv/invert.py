@@ -325,6 +325,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     """
     validate_settings(settings)
     started = time.perf_counter()
+    declared = 0 if contacts is None else contacts.n_contacts
     if settings.target == "gravity-only" or contacts is None:
         contacts = Contacts.empty()
     q = helices.omega.ravel()
@@ -361,6 +362,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
             unstable_g = unstable
     drift = omega_rest - target
     curvature = np.hypot(omega_rest[:, 0], omega_rest[:, 1])
+    if declared != contacts.n_contacts:  # gravity-only: every declared contact carries no force
+        r = np.zeros((declared, 3))
     model = Model(omega_rest, target, weight, r, material, float(settings.gamma), settings.target, result)
     report = InvertReport(
         settings.target, contacts.n_contacts, contacts.n_body, int(carrying.sum()), result, force_scale,

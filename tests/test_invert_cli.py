@@ -1,0 +1,174 @@
+"""``hairinv detect`` and ``hairinv invert`` end to end, checked from the files they write.
+
+The model file is checked against the physics the stage-file contract states,
+recomputed here from the file alone: stiffness from the material attributes,
+the generalized gravity force and the contact Jacobians from the kernels
+(both verified against finite differences of an independent energy and of
+positions in tests/test_statics.py), assembled here contact by contact rather
+than through hairinv.solver.rows.
+
+Runtime: about 30-60 s warm (three inversions of small grooms, one on sintel).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import SAMPLES, real_path
+from hairinv import stages
+from hairinv.rod.statics import gravity_forces, point_jacobian
+from test_cli import hairinv, snapshot
+
+# The equilibrium holds by construction up to round-off of sums over a strand.
+EQUILIBRIUM = 1e-8
+# A force on its cone's boundary may leave it by round-off of the local solve.
+CONE = 1e-10
+
+
+def equilibrium_residual(path) -> tuple[float, float]:
+    """``max |K (q - q0) - F_g - H^T r|`` relative to ``max |F_g|``, and the worst cone violation."""
+    with h5py.File(path, "r") as fh:
+        h, c, m = fh["helices"], fh["contacts"], fh["model"]
+        root, frame0, offsets = h["root"][()], h["frame0"][()], h["offsets"][()]
+        length, omega = h["length"][()], h["omega"][()]
+        strand, s, frame, mu = c["strand"][()], c["s"][()], c["frame"][()], c["mu"][()]
+        q0, r = m["omega_rest"][()], m["force"][()]
+        E, G, rho, radius = (float(m.attrs[k]) for k in ("youngs_modulus", "shear_modulus", "density", "radius"))
+        gravity = np.asarray(m.attrs["gravity"], float)
+    I, J = np.pi * radius ** 4 / 4, np.pi * radius ** 4 / 2
+    K = length[:, None] * np.array([E * I, E * I, G * J])
+    lam = rho * np.pi * radius ** 2
+    F_g = np.zeros_like(omega)
+    for k in range(len(offsets) - 1):
+        a, z = offsets[k], offsets[k + 1]
+        gravity_forces(root[k], frame0[k], omega[a:z], length[a:z], lam, gravity, F_g[a:z])
+    contact = np.zeros_like(omega)
+    for i in range(len(mu)):
+        world = frame[i].T @ r[i]  # the force on A; B gets the opposite
+        for side, sign in ((0, 1.0), (1, -1.0)):
+            k = strand[i, side]
+            if k < 0:
+                continue
+            a, z = offsets[k], offsets[k + 1]
+            jac = np.empty((z - a, 3, 3))
+            point_jacobian(root[k], frame0[k], omega[a:z], length[a:z], s[i, side], jac)
+            contact[a:z] += sign * jac @ world
+    residual = K * (omega - q0) - F_g - contact
+    cone = np.hypot(r[:, 1], r[:, 2]) - mu * r[:, 0]
+    scale = np.abs(r).max() if len(r) else 1.0
+    return np.abs(residual).max() / np.abs(F_g).max(), (max(cone.max(), 0.0) / scale if len(r) else 0.0)
+
+
+@pytest.fixture(scope="module")
+def inverted(tmp_path_factory):
+    """``hairinv invert wavy.h5 body.obj --guides 30`` from curves: fit and detect run first."""
+    folder = tmp_path_factory.mktemp("invert")
+    shutil.copyfile(SAMPLES / "wavy.h5", folder / "wavy.h5")
+    shutil.copyfile(SAMPLES / "body.obj", folder / "body.obj")
+    result = hairinv(folder, "invert", "wavy.h5", "body.obj", "--guides", "30", "-o", "model.h5")
+    return folder, result
+
+
+def test_invert_runs_every_missing_stage(inverted):
+    folder, result = inverted
+    assert result.returncode == 0, result.stderr
+    out = result.stdout
+    for fragment in ("fitted 30 strands", "declared", "hair-body", "solver:", "rest shape", "wrote"):
+        assert fragment in out
+    stage = stages.read_stage(folder / "model.h5")
+    assert list(stage.groups) == ["curves", "helices", "contacts", "model"]
+    model = stage["model"]
+    assert model.attrs["target"] == "actual"
+    assert len(model["force"]) == len(stage["contacts"]["mu"]) > 0
+    assert model["residual_history"].shape[1] == 2
+    inputs = [entry["name"] for entry in model.inputs]
+    assert inputs == ["wavy.h5", "body.obj"]
+
+
+def test_inverted_model_is_an_equilibrium_inside_the_cones(inverted):
+    folder, _ = inverted
+    residual, cone = equilibrium_residual(folder / "model.h5")
+    assert residual < EQUILIBRIUM
+    assert cone < CONE
+
+
+def test_detect_then_invert_reuses_the_stages(inverted):
+    folder, _ = inverted
+    before = snapshot(folder)
+    result = hairinv(folder, "detect", "model.h5", "body.obj", "-o", "contacts.h5")
+    assert result.returncode == 0, result.stderr
+    assert "using the fitted helices" in result.stdout
+    contacts = stages.read_stage(folder / "contacts.h5")
+    assert list(contacts.groups) == ["curves", "helices", "contacts"]
+    result = hairinv(folder, "invert", "contacts.h5", "body.obj", "-o", "again.h5", "--target", "zero")
+    assert result.returncode == 0, result.stderr
+    assert "using the fitted helices" in result.stdout and "contacts in contacts.h5" in result.stdout
+    again = stages.read_stage(folder / "again.h5")
+    assert again["model"].attrs["target"] == "zero"
+    assert np.array_equal(again["contacts"]["point"], contacts["contacts"]["point"])
+    residual, cone = equilibrium_residual(folder / "again.h5")
+    assert residual < EQUILIBRIUM and cone < CONE
+    for name, data in before.items():  # nothing given was touched
+        assert (folder / name).read_bytes() == data
+
+
+def test_gravity_only_baseline(inverted):
+    folder, _ = inverted
+    result = hairinv(folder, "invert", "model.h5", "body.obj", "-o", "gravity.h5", "--target", "gravity-only")
+    assert result.returncode == 0, result.stderr
+    with h5py.File(folder / "gravity.h5", "r") as fh:
+        assert len(fh["contacts"]["mu"]) == len(fh["model"]["force"])
+        assert not np.any(fh["model"]["force"][()])
+    residual, _ = equilibrium_residual(folder / "gravity.h5")
+    assert residual < EQUILIBRIUM
+    summary = json.loads(hairinv(folder, "info", "gravity.h5", "--json").stdout)
+    assert summary["stages"].endswith("model")
+
+
+BAD = {
+    "missing body": (["invert", "wavy.h5", "nobody.obj", "-o", "out.h5"], "nobody.obj", "no such file"),
+    "body is not a mesh": (["invert", "wavy.h5", "notes.txt", "-o", "out.h5"], "notes.txt", ""),
+    "unknown target": (["invert", "wavy.h5", "body.obj", "-o", "out.h5", "--set", "solver.target=best"],
+                       "best", "target"),
+    "negative gamma": (["invert", "wavy.h5", "body.obj", "-o", "out.h5", "--gamma", "-1"], "gamma", ""),
+    "negative distance": (["detect", "wavy.h5", "body.obj", "-o", "out.h5", "--body-distance", "-0.1"],
+                          "body_distance", ""),
+    "output is the body": (["invert", "wavy.h5", "body.obj", "-o", "body.obj"], "body.obj", "input"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_input(tmp_path, case):
+    args, name, fragment = BAD[case]
+    shutil.copyfile(SAMPLES / "wavy.h5", tmp_path / "wavy.h5")
+    shutil.copyfile(SAMPLES / "body.obj", tmp_path / "body.obj")
+    (tmp_path / "notes.txt").write_text("precious\n")
+    before = snapshot(tmp_path)
+    result = hairinv(tmp_path, *args)
+    assert result.returncode == 2, (result.stdout, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and name in lines[0] and fragment in lines[0], result.stderr
+    assert "Traceback" not in result.stderr
+    assert snapshot(tmp_path) == before
+
+
+def test_sintel_end_to_end(tmp_path):
+    """The real sintel groom on its bust at 8 mm per unit (the data README's estimate)."""
+    hair = real_path("sintel", "GEO-sintel_hair_emit.001-sintel_hair.tfx")
+    body = real_path("sintel", "sintel.obj")
+    result = hairinv(tmp_path, "invert", hair, body, "--scale", "0.008", "-o", "sintel.h5",
+                     "--set", "solver.max_sweeps=300")
+    assert result.returncode == 0, result.stderr
+    assert "hair-body" in result.stdout
+    with h5py.File(tmp_path / "sintel.h5", "r") as fh:
+        assert len(fh["helices"]["offsets"]) - 1 == 228
+        n_body = int((fh["contacts"]["strand"][:, 1] < 0).sum())
+        assert n_body > 0
+        assert np.any(fh["model"]["force"][:, 0] > 0)
+    residual, cone = equilibrium_residual(tmp_path / "sintel.h5")
+    assert residual < EQUILIBRIUM and cone < CONE
