@@ -11,7 +11,7 @@ OUT    ?= out/demo
 .PHONY: demo test bench samples clean help
 
 help:
-	@echo "make demo    set up .venv, fit the sample wavy groom, print where the outputs are"
+	@echo "make demo    set up .venv, fit and invert the sample wavy groom, print where the outputs are"
 	@echo "make test    set up .venv and run the tests"
 	@echo "make bench   run the benchmarks and rewrite docs/benchmarks.md"
 	@echo "make samples regenerate samples/ (body mesh and grooms)"
@@ -25,10 +25,12 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	@mkdir -p $(OUT)
 	$(HAIRINV) fit samples/wavy.h5 -o $(OUT)/wavy.fit.h5
-	$(HAIRINV) info $(OUT)/wavy.fit.h5
+	$(HAIRINV) invert $(OUT)/wavy.fit.h5 samples/body.obj -o $(OUT)/wavy.model.h5
+	$(HAIRINV) info $(OUT)/wavy.model.h5
 	@echo
 	@echo "Outputs:"
-	@echo "  $(OUT)/wavy.fit.h5   /curves and /helices of the sample wavy groom"
+	@echo "  $(OUT)/wavy.fit.h5     /curves and /helices of the sample wavy groom"
+	@echo "  $(OUT)/wavy.model.h5   the same plus /contacts and /model: rest shape and contact forces"
 
 test: $(STAMP)
 	$(PY) -m pytest -q
