@@ -342,7 +342,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     force_scale = material.linear_density * np.linalg.norm(material.gravity) * float(strand_length.max())
     result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, helices.n_strands,
                            force_scale, settings.tolerance, settings.max_sweeps, settings.check_every,
-                           progress=progress, s=contacts.s)
+                           progress=progress, s=contacts.s, accelerate=settings.accelerate)
     if result.status not in (CONVERGED,) and not np.all(np.isfinite(result.r)):
         raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
                        f"residual {result.residual:.3g} N")

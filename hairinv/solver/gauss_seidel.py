@@ -67,6 +67,7 @@ class SolverResult:
     seconds: float = 0.0
     colours: int = 0
     local_failures: int = 0
+    restarts: int = 0
 
 
 @jit
@@ -135,6 +136,34 @@ def _sweep(order, lo, hi, ptr, cols, vals, d, gamma, Wd, b, mu, r, f, local_tol,
             c = cols[j]
             f[c] += d[c] * (vals[j, 0] * d0 + vals[j, 1] * d1 + vals[j, 2] * d2)
     return failures, numerical
+
+
+@jit
+def _objective(f, d, gamma, b, r):
+    """``1/2 r^T W r + b^T r`` from ``f = D H^T r``: ``r^T H D H^T r = sum f^2 / d``."""
+    acc = 0.0
+    for k in range(f.shape[0]):
+        acc += f[k] * f[k] / d[k]
+    reg = 0.0
+    lin = 0.0
+    for i in range(r.shape[0]):
+        for a in range(3):
+            reg += r[i, a] * r[i, a]
+            lin += b[i, a] * r[i, a]
+    return 0.5 * acc + 0.5 * gamma * reg + lin
+
+
+@jit
+def _extrapolate(x, x_prev, beta, mu, out):
+    """``out = P_K(x + beta (x - x_prev))``, contact by contact."""
+    y = np.empty(3)
+    p = np.empty(3)
+    for i in range(x.shape[0]):
+        for a in range(3):
+            y[a] = x[i, a] + beta * (x[i, a] - x_prev[i, a])
+        project_cone(y, mu[i], p)
+        for a in range(3):
+            out[i, a] = p[a]
 
 
 @jit
@@ -225,7 +254,8 @@ def colour_contacts(strand: np.ndarray, n_strands: int, s: np.ndarray | None = N
 def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray, mu: np.ndarray,
                   strand: np.ndarray, n_strands: int, force_scale: float, tolerance: float = 1e-6,
                   max_sweeps: int = 2000, check_every: int = 5, r0: np.ndarray | None = None,
-                  desaxce: bool = False, progress=None, s: np.ndarray | None = None) -> SolverResult:
+                  desaxce: bool = False, progress=None, s: np.ndarray | None = None,
+                  accelerate: bool = True) -> SolverResult:
     """Solve the cone complementarity problem of ``W = H D H^T + gamma I`` and ``b``.
 
     Parameters
@@ -242,6 +272,13 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
     r0 : (C, 3) float64, optional warm start
     desaxce : bool, solve the De Saxce-modified (dynamic) problem instead of the convex one
     progress : callable(sweeps, relative residual), optional, called at every residual check
+    accelerate : bool
+        Nesterov momentum over sweeps with an adaptive restart (O'Donoghue and
+        Candes 2015): each sweep starts from ``P_K(x_k + beta_k (x_k - x_{k-1}))``
+        and the momentum is dropped whenever a sweep raises the objective, so
+        the iterates' objective never increases. Each sweep then costs about
+        twice as much (``f`` is rebuilt for the extrapolated point) and far
+        fewer are needed on real grooms (docs/benchmarks.md).
     """
     started = time.perf_counter()
     n_contacts = rows.n_contacts
@@ -266,6 +303,13 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
     sweeps = 0
     failures = 0
 
+    f_check = np.empty(rows.n_dofs)
+
+    def _check(point: np.ndarray) -> float:
+        # f rebuilt from the point itself, so round-off of the incremental updates cannot accumulate
+        _accumulate_f(rows.ptr, rows.cols, rows.vals, d, point, f_check)
+        return natural_residuals(rows.ptr, rows.cols, rows.vals, f_check, gamma, Wd, b, mu, point, per_contact)
+
     def sweep_colour(lo: int, hi: int) -> tuple[int, int]:
         return _sweep(order, lo, hi, rows.ptr, rows.cols, rows.vals, d, gamma, Wd, b, mu, r, f, local_tol, desaxce)
 
@@ -273,6 +317,14 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
     history.append((0, float(residual)))
     if residual <= target:
         status = CONVERGED
+    # momentum state: x the last accepted iterate, r the point the next sweep starts from
+    accelerate = accelerate and not desaxce  # the De Saxce problem has no objective to guard the momentum
+    x = r.copy()
+    x_prev = r.copy()
+    fx = _objective(f, d, gamma, b, r)
+    tk = 1.0
+    restarts = 0
+    from_x = True
     while status == MAX_ITERS and sweeps < max_sweeps:
         failures = 0
         numerical = 0
@@ -295,10 +347,26 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
         if numerical:
             status = NUMERICAL
             break
-        if sweeps % check_every == 0 or sweeps == max_sweeps:
-            # refresh f from r so round-off of the incremental updates cannot accumulate
+        if accelerate:
+            fz = _objective(f, d, gamma, b, r)
+            if fz > fx and not from_x:
+                # the extrapolated start did worse than x: drop the momentum, sweep from x again
+                # (a plain sweep from x is always accepted: it cannot raise the objective beyond round-off)
+                restarts += 1
+                tk = 1.0
+                r[:] = x
+                from_x = True
+            else:
+                from_x = False
+                tn = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * tk * tk))
+                x_prev[:] = x
+                x[:] = r
+                fx = fz
+                _extrapolate(x, x_prev, (tk - 1.0) / tn, mu, r)
+                tk = tn
             _accumulate_f(rows.ptr, rows.cols, rows.vals, d, r, f)
-            residual = natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, per_contact)
+        if sweeps % check_every == 0 or sweeps == max_sweeps:
+            residual = _check(x if accelerate else r)
             history.append((sweeps, float(residual)))
             if progress is not None:
                 progress(sweeps, residual / force_scale)
@@ -306,9 +374,10 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
                 status = NUMERICAL
             elif residual <= target:
                 status = CONVERGED
+    if accelerate:
+        r = x
     if history[-1][0] != sweeps:
-        _accumulate_f(rows.ptr, rows.cols, rows.vals, d, r, f)
-        residual = natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, per_contact)
+        residual = _check(r)
         history.append((sweeps, float(residual)))
     return SolverResult(r, status, sweeps, float(residual), float(residual / force_scale), history,
-                        time.perf_counter() - started, len(bounds) - 1, failures)
+                        time.perf_counter() - started, len(bounds) - 1, failures, restarts)
