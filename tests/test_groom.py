@@ -384,8 +384,8 @@ def test_set_unknown_key_is_named(item):
 
 
 def test_set_unknown_section_is_named():
-    with pytest.raises(InputError, match=r"unknown settings section \[solver\]"):
-        config.resolve(sets=["solver.iterations=3"])
+    with pytest.raises(InputError, match=r"unknown settings section \[simulate\]"):
+        config.resolve(sets=["simulate.iterations=3"])
 
 
 @pytest.mark.parametrize("item", ["fit.tolerance=abc", "import.guides=2.5", "fit.max_elements=many", "tolerance=1"])

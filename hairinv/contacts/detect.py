@@ -1,0 +1,340 @@
+"""Contact detection: where the fitted strands touch the body and each other (paper, section 5).
+
+Every element of every strand is sampled at ``samples_per_element`` points
+along its fitted centerline, both ends included. A strand touches the body
+where a sample beyond ``root_clearance`` comes within ``body_distance`` of the
+surface or lies inside it; it touches another strand where the two
+centerlines come within ``hair_distance``. At most one contact is declared per
+element against the body and per pair of elements between strands, at the
+closest (or deepest) point, refined on the exact centerlines. An element owns
+its arc-length range ``[start, end)`` (the last element also its tip): an
+element (or pair) whose closest point is its end declares nothing there, since
+that point starts the next element, whose own closest point is at least as
+close. See docs/contacts.md for the rules and the reasons for the defaults.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import stages
+from .._parallel import run_chunks
+from ..config import ContactSettings
+from ..errors import InputError
+from ..fit import Helices
+from ._curve import element_starts, sample_elements
+from .body import REFINE_ITERATIONS, BodyMesh, element_body_contacts
+from .hair import hair_pairs, refine_pairs
+
+__all__ = ["Contacts", "DetectReport", "detect_contacts", "validate_settings", "contact_frames"]
+
+BODY = -1
+"""Side B of a body contact."""
+# Below this fraction of the contact distance the two closest points are taken as coincident and the
+# normal comes from the geometry instead (the body's pseudo-normal, or the two hair tangents).
+COINCIDENT = 1e-6
+# Strands per chunk of the body stage: the unit of the progress callback.
+CHUNK = 64
+
+
+@dataclass
+class Contacts:
+    """Declared contacts (the ``/contacts`` group, docs/stage-files.md).
+
+    Attributes
+    ----------
+    strand : (C, 2) int64
+        Strand on side A, strand on side B or -1 for the body. A is the lower index.
+    s : (C, 2) float64, m
+        Arc length of the contact along A and along B (0 for the body), from the root on the fitted helices.
+    point : (C, 3) float64, m
+        Contact point on A's centerline.
+    frame : (C, 3, 3) float64
+        Rows (normal, tangent1, tangent2), right-handed and orthonormal; the
+        normal points from B towards A (from the body surface towards the hair).
+    mu : (C,) float64
+        Coulomb friction coefficient.
+    """
+
+    strand: np.ndarray
+    s: np.ndarray
+    point: np.ndarray
+    frame: np.ndarray
+    mu: np.ndarray
+
+    @property
+    def n_contacts(self) -> int:
+        return int(len(self.mu))
+
+    @property
+    def n_body(self) -> int:
+        return int(np.count_nonzero(self.strand[:, 1] == BODY))
+
+    @property
+    def n_hair(self) -> int:
+        return self.n_contacts - self.n_body
+
+    def group(self, settings: ContactSettings, inputs: list[dict]) -> stages.Group:
+        return stages.Group(
+            stages.CONTACTS,
+            {"strand": self.strand, "s": self.s, "point": self.point, "frame": self.frame, "mu": self.mu},
+            config={"contacts": dataclasses.asdict(settings)},
+            inputs=inputs,
+        )
+
+    @classmethod
+    def from_group(cls, group: stages.Group) -> "Contacts":
+        return cls(
+            np.ascontiguousarray(group["strand"], dtype=np.int64).reshape(-1, 2),
+            np.ascontiguousarray(group["s"], dtype=np.float64).reshape(-1, 2),
+            np.ascontiguousarray(group["point"], dtype=np.float64).reshape(-1, 3),
+            np.ascontiguousarray(group["frame"], dtype=np.float64).reshape(-1, 3, 3),
+            np.ascontiguousarray(group["mu"], dtype=np.float64).reshape(-1),
+        )
+
+    @classmethod
+    def empty(cls) -> "Contacts":
+        return cls(np.zeros((0, 2), np.int64), np.zeros((0, 2)), np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0))
+
+    def subset(self, mask) -> "Contacts":
+        """The contacts selected by a boolean mask (C,) or an index array, in that order."""
+        mask = np.asarray(mask)
+        arrays = (self.strand, self.s, self.point, self.frame, self.mu)
+        return Contacts(*(np.ascontiguousarray(a[mask]) for a in arrays))
+
+
+@dataclass
+class DetectReport:
+    """Counts and figures of a detection, for the user."""
+
+    n_body: int
+    n_hair: int
+    strands_touching_body: int
+    strands_inside_body: int
+    points_inside_body: int
+    seconds: float
+    notes: list[str] = field(default_factory=list)
+    deepest_inside: float = 0.0
+    """m. Depth of the deepest sample inside the body (0 if none)."""
+
+    def lines(self) -> list[str]:
+        lines = [
+            f"declared {self.n_body + self.n_hair} contacts in {self.seconds:.2f} s: {self.n_body} hair-body "
+            f"on {self.strands_touching_body} strands, {self.n_hair} hair-hair"
+        ]
+        if self.points_inside_body:
+            lines.append(
+                f"warning: {self.points_inside_body} sample points on {self.strands_inside_body} strands lie inside "
+                f"the body (deepest {1e3 * self.deepest_inside:.2f} mm); they stay body contacts (at most one per "
+                "element, at its deepest point), with normals pushing the hair out"
+            )
+        lines += self.notes
+        return lines
+
+
+def validate_settings(settings: ContactSettings) -> None:
+    """Raise :class:`InputError` with one sentence if a contact setting is out of range."""
+    for name in ("body_distance", "hair_distance"):
+        value = getattr(settings, name)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise InputError(f"contacts.{name} must be a distance > 0 m, got {value!r}")
+    value = settings.root_clearance
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+        raise InputError(f"contacts.root_clearance must be a distance >= 0 m, got {value!r}")
+    for name in ("mu_body", "mu_hair"):
+        value = getattr(settings, name)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            raise InputError(f"contacts.{name} must be a friction coefficient >= 0, got {value!r}")
+    value = settings.samples_per_element
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 2:
+        raise InputError(f"contacts.samples_per_element must be an integer >= 2 (an element's two ends), got {value!r}")
+
+
+def _validate_helices(helices: Helices) -> None:
+    offsets = np.asarray(helices.offsets)
+    count = len(offsets) - 1
+    if offsets.ndim != 1 or count < 0 or offsets[0] != 0 or np.any(np.diff(offsets) < 0):
+        raise InputError("the helices' offsets are not a valid CSR offset array")
+    elements = int(offsets[-1])
+    shapes = {"root": (count, 3), "frame0": (count, 3, 3), "length": (elements,), "omega": (elements, 3)}
+    for name, shape in shapes.items():
+        value = np.asarray(getattr(helices, name))
+        if value.shape != shape:
+            raise InputError(f"the helices' {name} has shape {value.shape}, expected {shape}")
+        if not np.all(np.isfinite(value)):
+            raise InputError(f"the helices' {name} contains NaN or Inf")
+    if np.any(np.asarray(helices.length) <= 0):
+        raise InputError("the helices have elements of zero or negative length")
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def contact_frames(normal: np.ndarray) -> np.ndarray:
+    """Right-handed orthonormal frames (C, 3, 3) with rows (normal, tangent1, tangent2).
+
+    ``tangent1`` is the world axis least aligned with the normal, made
+    orthogonal to it (Gram-Schmidt; ties to the lowest axis), and
+    ``tangent2 = normal x tangent1``: the same normal always gives the same frame.
+    """
+    normal = _unit(np.asarray(normal, dtype=np.float64).reshape(-1, 3))
+    axis = np.zeros_like(normal)
+    axis[np.arange(len(normal)), np.argmin(np.abs(normal), axis=1)] = 1.0
+    t1 = _unit(axis - np.einsum("ij,ij->i", axis, normal)[:, None] * normal)
+    t2 = np.cross(normal, t1)
+    return np.ascontiguousarray(np.stack([normal, t1, t2], axis=1))
+
+
+def _largest_positive(v: np.ndarray) -> np.ndarray:
+    """``v`` with each row's largest-magnitude component (the first of equals) made positive."""
+    pick = np.argmax(np.abs(v), axis=1)
+    sign = np.where(v[np.arange(len(v)), pick] < 0, -1.0, 1.0)
+    return v * sign[:, None]
+
+
+def _hair_normals(point_a, point_b, tangent_a, tangent_b, dist, flat) -> np.ndarray:
+    """unit(xA - xB); where the centerlines cross (distance ~0), the tangents' cross product, oriented."""
+    normal = np.empty_like(point_a)
+    apart = dist > flat
+    normal[apart] = (point_a[apart] - point_b[apart]) / dist[apart, None]
+    if np.any(~apart):
+        cross = np.cross(tangent_a[~apart], tangent_b[~apart])
+        norm = np.linalg.norm(cross, axis=1)
+        parallel = norm < 1e-8
+        cross[parallel] = contact_frames(tangent_a[~apart][parallel])[:, 1]
+        normal[~apart] = _largest_positive(_unit(cross))
+    return normal
+
+
+def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=None) -> tuple[Contacts, DetectReport]:
+    """Declare hair-body and hair-hair contacts of fitted strands.
+
+    Parameters
+    ----------
+    helices : Helices
+        Fitted strands in metres (see :func:`hairinv.fit.fit_groom`).
+    body : trimesh.Trimesh, BodyMesh or None
+        The body in metres, in the hair's world frame; open, non-manifold
+        and multi-piece meshes are fine. None: no hair-body contacts.
+    settings : ContactSettings
+    progress : callable, optional
+        Called with a number of strands after each chunk of strands is
+        sampled and tested against the body (the calls sum to the strand
+        count); hair-hair detection follows, over all strands at once.
+
+    Returns
+    -------
+    contacts : Contacts
+        Body contacts first, sorted by (strand, s); then hair-hair contacts
+        sorted by (A, B, s along A). The same input gives the same output.
+    report : DetectReport
+    """
+    validate_settings(settings)
+    _validate_helices(helices)
+    start = time.perf_counter()
+    notes: list[str] = []
+    root = np.ascontiguousarray(helices.root, dtype=np.float64)
+    frame0 = np.ascontiguousarray(helices.frame0, dtype=np.float64)
+    offsets = np.ascontiguousarray(helices.offsets, dtype=np.int64)
+    omega = np.ascontiguousarray(helices.omega, dtype=np.float64)
+    length = np.ascontiguousarray(helices.length, dtype=np.float64)
+    count = len(offsets) - 1
+    elements = int(offsets[-1])
+    n = int(settings.samples_per_element)
+    strand_of = np.repeat(np.arange(count, dtype=np.int64), np.diff(offsets))
+    is_last = np.zeros(elements, np.int8)
+    is_last[offsets[1:][np.diff(offsets) > 0] - 1] = 1
+    xs = np.empty((elements, 3))
+    Fs = np.empty((elements, 3, 3))
+    s0 = np.empty(elements)
+    samples = np.empty((elements, n, 3))
+
+    mesh = None
+    if settings.body and body is not None:
+        mesh = body if isinstance(body, BodyMesh) else BodyMesh.from_mesh(body)
+        notes += mesh.notes
+    elif settings.body:
+        notes.append("no body mesh given: no hair-body contacts")
+    elif body is not None:
+        notes.append("contacts.body is off: the body mesh is ignored")
+    inside = np.zeros(elements, np.int64)
+    deepest = np.full(elements, np.inf)
+    has = np.zeros(elements, np.int8)
+    sigma = np.zeros(elements)
+    b_point = np.zeros((elements, 3))
+    b_normal = np.zeros((elements, 3))
+    b_sd = np.zeros(elements)
+
+    def strands_chunk(lo: int, hi: int) -> None:
+        element_starts(root, frame0, offsets, omega, length, lo, hi, xs, Fs, s0)
+        e0, e1 = int(offsets[lo]), int(offsets[hi])
+        sample_elements(xs, Fs, omega, length, e0, e1, samples)
+        if mesh is not None:
+            element_body_contacts(e0, e1, samples, xs, Fs, omega, length, s0, is_last, *mesh.tree,
+                                  float(settings.body_distance), float(settings.root_clearance),
+                                  COINCIDENT * float(settings.body_distance), REFINE_ITERATIONS, inside, deepest,
+                                  has, sigma, b_point, b_normal, b_sd)
+
+    run_chunks(strands_chunk, count, CHUNK, progress)
+
+    body_idx = np.flatnonzero(has)
+    body_part = Contacts(
+        np.stack([strand_of[body_idx], np.full(len(body_idx), BODY, np.int64)], axis=1),
+        np.stack([s0[body_idx] + sigma[body_idx], np.zeros(len(body_idx))], axis=1),
+        b_point[body_idx],
+        contact_frames(b_normal[body_idx]),
+        np.full(len(body_idx), float(settings.mu_body)),
+    )
+    body_part = body_part.subset(np.lexsort((body_part.s[:, 0], body_part.strand[:, 0])))
+
+    hair_part = Contacts.empty()
+    if settings.hair_hair and elements:
+        ea, eb, sa, sb, _close = hair_pairs(samples, omega, length, strand_of, float(settings.hair_distance))
+        pairs = len(ea)
+        pa = np.empty((pairs, 3))
+        pb = np.empty((pairs, 3))
+        ta = np.empty((pairs, 3))
+        tb = np.empty((pairs, 3))
+        dist = np.empty(pairs)
+        run_chunks(lambda lo, hi: refine_pairs(lo, hi, ea, eb, sa, sb, xs, Fs, omega, length, pa, pb, ta, tb, dist),
+                   pairs, 4096)
+        # one contact per element pair within reach; a closest point on an element's end starts the next
+        # element, whose pair with the same other element is at least as close and declares its own
+        keep = dist < settings.hair_distance
+        keep &= ~((sa == length[ea]) & (is_last[ea] == 0))
+        keep &= ~((sb == length[eb]) & (is_last[eb] == 0))
+        ea, eb, sa, sb = ea[keep], eb[keep], sa[keep], sb[keep]
+        normal = _hair_normals(pa[keep], pb[keep], ta[keep], tb[keep], dist[keep],
+                               COINCIDENT * float(settings.hair_distance))
+        hair_part = Contacts(
+            np.stack([strand_of[ea], strand_of[eb]], axis=1),
+            np.stack([s0[ea] + sa, s0[eb] + sb], axis=1),
+            np.ascontiguousarray(pa[keep]),
+            contact_frames(normal),
+            np.full(len(ea), float(settings.mu_hair)),
+        )
+        hair_part = hair_part.subset(np.lexsort((hair_part.s[:, 1], hair_part.s[:, 0], hair_part.strand[:, 1],
+                                                 hair_part.strand[:, 0])))
+
+    contacts = Contacts(*(np.ascontiguousarray(np.concatenate([a, b])) for a, b in zip(
+        (body_part.strand, body_part.s, body_part.point, body_part.frame, body_part.mu),
+        (hair_part.strand, hair_part.s, hair_part.point, hair_part.frame, hair_part.mu))))
+    inside_strands = np.bincount(strand_of, weights=inside, minlength=count) > 0 if elements else np.zeros(0, bool)
+    points_inside = int(inside.sum())
+    report = DetectReport(
+        n_body=body_part.n_contacts,
+        n_hair=hair_part.n_contacts,
+        strands_touching_body=int(len(np.unique(body_part.strand[:, 0]))),
+        strands_inside_body=int(inside_strands.sum()),
+        points_inside_body=points_inside,
+        seconds=time.perf_counter() - start,
+        notes=notes,
+        deepest_inside=float(-deepest.min()) if points_inside else 0.0,
+    )
+    return contacts, report

@@ -1,0 +1,403 @@
+"""Hair-hair proximity: spatial hashing of sampled segments, then closest points on the centerlines.
+
+Each element's samples form ``n - 1`` segments. A segment's box is its
+endpoints' box inflated by ``r = hair_distance / 2 + sag``, where ``sag`` bounds
+how far the element's arc strays from its chord (``kappa h^2 / 8`` for the
+element's centerline curvature ``kappa = |(kappa1, kappa2)|`` and sample spacing
+``h``), so two boxes that do not overlap hold no pair of centerline points
+closer than ``hair_distance``. Boxes are hashed into a uniform grid (Teschner
+et al. 2003) whose cell is about the size of a typical box; the grid keys are
+exact cell coordinates (no hash collisions), sorted, and each pair of boxes is
+tested once, in the cell holding the low corner of their overlap. Pairs on the
+same strand are never tested. The closest segment pair of each pair of
+elements is then refined on the exact centerlines (Gauss-Newton on the
+squared distance, the step solved as a segment-segment problem on the
+tangents so it stays inside the elements).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import jit
+from .._parallel import run_chunks, worker_count
+from ._curve import point_tangent
+
+__all__ = ["segment_closest", "hair_pairs"]
+
+# Grid cell over the median inflated segment box (Teschner et al. suggest about one box). CPU s of the pair
+# search on 20,000 synthetic strands x 10 elements for 0.5/0.75/1/1.5/2/3: 3.2/2.1/1.9/2.0/2.3/3.0.
+CELL_FACTOR = 1.0
+# Gauss-Newton steps of the refinement; it converges in 2-4 from the polyline solution.
+REFINE_STEPS = 12
+# The refinement stops when a step moves the arc lengths by less than this fraction of the elements' lengths
+# (3e-8 m on 3 cm elements: far below a hair's radius; the distance is then exact to its square).
+STEP_TOLERANCE = 1e-6
+# Step halvings tried before a refinement step is given up.
+HALVINGS = 8
+
+
+@jit
+def segment_closest(p1, q1, p2, q2):
+    """Closest points of segments ``p1 q1`` and ``p2 q2`` (Ericson, Real-Time Collision Detection, 5.1.9).
+
+    Returns ``(u, v, d2)``: the parameters in [0, 1] along each segment (0 and
+    1 exactly when clamped) and the squared distance. Parallel segments take
+    ``u = 0`` where the first segment's start projects inside the second.
+    """
+    d10, d11, d12 = q1[0] - p1[0], q1[1] - p1[1], q1[2] - p1[2]
+    d20, d21, d22 = q2[0] - p2[0], q2[1] - p2[1], q2[2] - p2[2]
+    r0, r1, r2 = p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2]
+    a = d10 * d10 + d11 * d11 + d12 * d12
+    e = d20 * d20 + d21 * d21 + d22 * d22
+    f = d20 * r0 + d21 * r1 + d22 * r2
+    if a <= 0.0 and e <= 0.0:
+        u = 0.0
+        v = 0.0
+    elif a <= 0.0:
+        u = 0.0
+        v = min(max(f / e, 0.0), 1.0)
+    else:
+        c = d10 * r0 + d11 * r1 + d12 * r2
+        if e <= 0.0:
+            v = 0.0
+            u = min(max(-c / a, 0.0), 1.0)
+        else:
+            b = d10 * d20 + d11 * d21 + d12 * d22
+            denom = a * e - b * b
+            # (nearly) parallel: the solution is a segment of equally close pairs; take u = 0
+            u = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-14 * a * e else 0.0
+            v = (b * u + f) / e
+            if v < 0.0:
+                v = 0.0
+                u = min(max(-c / a, 0.0), 1.0)
+            elif v > 1.0:
+                v = 1.0
+                u = min(max((b - c) / a, 0.0), 1.0)
+    x0 = p1[0] + u * d10 - p2[0] - v * d20
+    x1 = p1[1] + u * d11 - p2[1] - v * d21
+    x2 = p1[2] + u * d12 - p2[2] - v * d22
+    return u, v, x0 * x0 + x1 * x1 + x2 * x2
+
+
+@jit
+def _segment_boxes(samples, radius, lo, hi):
+    """Inflated boxes (M, 3) of the segments ``m = e (n - 1) + k`` between samples k and k + 1 of element e."""
+    n = samples.shape[1]
+    for e in range(samples.shape[0]):
+        for k in range(n - 1):
+            m = e * (n - 1) + k
+            for i in range(3):
+                a = samples[e, k, i]
+                b = samples[e, k + 1, i]
+                lo[m, i] = min(a, b) - radius[e]
+                hi[m, i] = max(a, b) + radius[e]
+
+
+@jit
+def _cell(x, origin, inv_cell):
+    return np.int64(np.floor((x - origin) * inv_cell))
+
+
+@jit
+def _count_cells(lo, hi, origin, inv_cell, counts):
+    for m in range(lo.shape[0]):
+        c = 1
+        for i in range(3):
+            c *= _cell(hi[m, i], origin[i], inv_cell) - _cell(lo[m, i], origin[i], inv_cell) + 1
+        counts[m] = c
+
+
+@jit
+def _fill_cells(lo, hi, origin, inv_cell, shift_i, shift_j, seg_bits, starts, packed):
+    """``packed[w] = key << seg_bits | m`` for every cell ``key`` that segment ``m``'s box overlaps."""
+    for m in range(lo.shape[0]):
+        i0 = _cell(lo[m, 0], origin[0], inv_cell)
+        j0 = _cell(lo[m, 1], origin[1], inv_cell)
+        k0 = _cell(lo[m, 2], origin[2], inv_cell)
+        i1 = _cell(hi[m, 0], origin[0], inv_cell)
+        j1 = _cell(hi[m, 1], origin[1], inv_cell)
+        k1 = _cell(hi[m, 2], origin[2], inv_cell)
+        w = starts[m]
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                for k in range(k0, k1 + 1):
+                    packed[w] = (((i << shift_i) | (j << shift_j) | k) << seg_bits) | m
+                    w += 1
+
+
+@jit
+def _best_per_pair(order, pair_key, dist2, first, second):
+    """Index of the closest hit of each run of equal ``pair_key`` (in ``order``); ties to the lowest segments."""
+    out = np.empty(order.shape[0], np.int64)
+    count = 0
+    x = 0
+    while x < order.shape[0]:
+        best = order[x]
+        y = x + 1
+        while y < order.shape[0] and pair_key[order[y]] == pair_key[best]:
+            h = order[y]
+            if (dist2[h] < dist2[best] or (dist2[h] == dist2[best] and (first[h] < first[best] or (
+                    first[h] == first[best] and second[h] < second[best])))):
+                best = h
+            y += 1
+        out[count] = best
+        count += 1
+        x = y
+    return out[:count]
+
+
+@jit
+def _grow(a, size):
+    out = np.empty(size, a.dtype)
+    out[:a.shape[0]] = a
+    return out
+
+
+@jit
+def _pairs_in_cells(run_start, r0, r1, keys, segs, lo, hi, radius, strand_of, samples, origin, inv_cell, shift_i,
+                    shift_j):
+    """Close segment pairs of the cells ``r0:r1``, each pair tested once (in the cell of its overlap's low corner).
+
+    Returns ``(count, first, second, d2, u, v)``: segment indices with the
+    lower strand first, squared polyline distance and segment parameters.
+    """
+    n1 = samples.shape[1] - 1
+    cap = 1024
+    first = np.empty(cap, np.int64)
+    second = np.empty(cap, np.int64)
+    dist2 = np.empty(cap)
+    pu = np.empty(cap)
+    pv = np.empty(cap)
+    count = 0
+    mask_j = (np.int64(1) << (shift_i - shift_j)) - 1
+    mask_k = (np.int64(1) << shift_j) - 1
+    for r in range(r0, r1):
+        a = run_start[r]
+        b = run_start[r + 1]
+        if b - a < 2:
+            continue
+        key = keys[a]
+        ci = key >> shift_i
+        cj = (key >> shift_j) & mask_j
+        ck = key & mask_k
+        for x in range(a, b):
+            i = segs[x]
+            ei = i // n1
+            si = strand_of[ei]
+            for y in range(x + 1, b):
+                j = segs[y]
+                ej = j // n1
+                sj = strand_of[ej]
+                if si == sj:
+                    continue
+                if (lo[i, 0] > hi[j, 0] or lo[j, 0] > hi[i, 0] or lo[i, 1] > hi[j, 1] or lo[j, 1] > hi[i, 1]
+                        or lo[i, 2] > hi[j, 2] or lo[j, 2] > hi[i, 2]):
+                    continue
+                if (_cell(max(lo[i, 0], lo[j, 0]), origin[0], inv_cell) != ci
+                        or _cell(max(lo[i, 1], lo[j, 1]), origin[1], inv_cell) != cj
+                        or _cell(max(lo[i, 2], lo[j, 2]), origin[2], inv_cell) != ck):
+                    continue
+                if si < sj:
+                    sa, sb = i, j
+                    ea, eb = ei, ej
+                else:
+                    sa, sb = j, i
+                    ea, eb = ej, ei
+                ka = sa - ea * n1
+                kb = sb - eb * n1
+                u, v, d2 = segment_closest(samples[ea, ka], samples[ea, ka + 1], samples[eb, kb], samples[eb, kb + 1])
+                limit = radius[ea] + radius[eb]
+                if d2 >= limit * limit:
+                    continue
+                if count == cap:
+                    cap *= 2
+                    first = _grow(first, cap)
+                    second = _grow(second, cap)
+                    dist2 = _grow(dist2, cap)
+                    pu = _grow(pu, cap)
+                    pv = _grow(pv, cap)
+                first[count] = sa
+                second[count] = sb
+                dist2[count] = d2
+                pu[count] = u
+                pv[count] = v
+                count += 1
+    return count, first[:count], second[:count], dist2[:count], pu[:count], pv[:count]
+
+
+@jit
+def _distance_at(ea, a, eb, b, xs, Fs, omega, xa, ta, xb, tb, R, P, Q):
+    point_tangent(xs[ea], Fs[ea], omega[ea], a, R, P, Q, xa, ta)
+    point_tangent(xs[eb], Fs[eb], omega[eb], b, R, P, Q, xb, tb)
+    return np.sqrt((xa[0] - xb[0]) ** 2 + (xa[1] - xb[1]) ** 2 + (xa[2] - xb[2]) ** 2)
+
+
+@jit
+def refine_pairs(lo, hi, elem_a, elem_b, sigma_a, sigma_b, xs, Fs, omega, length, point_a, point_b, tangent_a,
+                 tangent_b, dist):
+    """Closest points of the centerlines of element pairs ``lo:hi``, from the polyline solution.
+
+    Each step solves the segment-segment problem between the tangent lines
+    at the current points, spanning each element's arc-length range, so the
+    new arc lengths stay in ``[0, length]`` (exactly the bound when clamped);
+    a step that does not reduce the distance is halved, at most HALVINGS times.
+
+    ``sigma_a``, ``sigma_b`` (P,) are updated in place; ``point_*``,
+    ``tangent_*`` (P, 3) and ``dist`` (P,) are written.
+    """
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    xa = np.empty(3)
+    xb = np.empty(3)
+    ta = np.empty(3)
+    tb = np.empty(3)
+    ya = np.empty(3)
+    yb = np.empty(3)
+    sa_ = np.empty(3)
+    sb_ = np.empty(3)
+    p1 = np.empty(3)
+    q1 = np.empty(3)
+    p2 = np.empty(3)
+    q2 = np.empty(3)
+    for p in range(lo, hi):
+        ea = elem_a[p]
+        eb = elem_b[p]
+        la = length[ea]
+        lb = length[eb]
+        a = sigma_a[p]
+        b = sigma_b[p]
+        d = _distance_at(ea, a, eb, b, xs, Fs, omega, xa, ta, xb, tb, R, P, Q)
+        for _ in range(REFINE_STEPS):
+            for i in range(3):
+                p1[i] = xa[i] - a * ta[i]
+                q1[i] = xa[i] + (la - a) * ta[i]
+                p2[i] = xb[i] - b * tb[i]
+                q2[i] = xb[i] + (lb - b) * tb[i]
+            u, v, _d2 = segment_closest(p1, q1, p2, q2)
+            na = la if u >= 1.0 else u * la
+            nb = lb if v >= 1.0 else v * lb
+            if na == a and nb == b:
+                break
+            accepted = False
+            for _h in range(HALVINGS):
+                dn = _distance_at(ea, na, eb, nb, xs, Fs, omega, ya, sa_, yb, sb_, R, P, Q)
+                if dn < d:
+                    accepted = True
+                    break
+                na = 0.5 * (a + na)
+                nb = 0.5 * (b + nb)
+            if not accepted:
+                break
+            moved = abs(na - a) + abs(nb - b)
+            a = na
+            b = nb
+            d = dn
+            for i in range(3):
+                xa[i] = ya[i]
+                xb[i] = yb[i]
+                ta[i] = sa_[i]
+                tb[i] = sb_[i]
+            if moved <= STEP_TOLERANCE * (la + lb):
+                break
+        sigma_a[p] = a
+        sigma_b[p] = b
+        dist[p] = d
+        for i in range(3):
+            point_a[p, i] = xa[i]
+            point_b[p, i] = xb[i]
+            tangent_a[p, i] = ta[i]
+            tangent_b[p, i] = tb[i]
+
+
+def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, strand_of: np.ndarray,
+               hair_distance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """Closest segment pair of every pair of elements (on different strands) whose polylines may be close.
+
+    Parameters
+    ----------
+    samples : (E, n, 3) float64, m, centerline samples of every element
+    omega : (E, 3) float64, 1/m
+    length : (E,) float64, m
+    strand_of : (E,) int64, strand of each element
+    hair_distance : float, m
+
+    Returns
+    -------
+    elem_a, elem_b : (P,) int64, element pairs, ``strand_of[elem_a] < strand_of[elem_b]``, sorted
+    sigma_a, sigma_b : (P,) float64, m, arc lengths along the elements of the closest polyline points
+    close : int, segment pairs found within reach (before keeping one per element pair)
+    """
+    count, n = samples.shape[0], samples.shape[1]
+    n1 = n - 1
+    spacing = length / n1
+    kappa = np.hypot(omega[:, 0], omega[:, 1])
+    sag = np.minimum(kappa * spacing**2 / 8.0, 0.5 * spacing)
+    radius = np.ascontiguousarray(0.5 * hair_distance + sag)
+    segments = count * n1
+    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0), 0)
+    if segments == 0 or len(np.unique(strand_of)) < 2:
+        return empty
+    lo = np.empty((segments, 3))
+    hi = np.empty((segments, 3))
+    _segment_boxes(samples, radius, lo, hi)
+    origin = lo.min(axis=0)
+    extent = hi.max(axis=0) - origin
+    # Cell about a typical box (Teschner et al.): a box then spans 1-2 cells per axis.
+    cell = max(CELL_FACTOR * float(np.median(np.max(hi - lo, axis=1))), hair_distance)
+    # key = (i, j, k) packed with just the bits the grid needs, and the segment index below it: one plain
+    # sort of int64 instead of an argsort (measured 5x faster, gathers included, on 6.6 million entries).
+    # A grid too fine to pack (strands metres apart) is coarsened: slower, never wrong.
+    seg_bits = max(1, int(segments - 1).bit_length())
+    while True:
+        inv_cell = 1.0 / cell
+        dims = np.floor(extent * inv_cell).astype(np.int64) + 1  # as _cell computes the largest index
+        bits = [max(1, int(d - 1).bit_length()) for d in dims]
+        if sum(bits) + seg_bits <= 63:
+            break
+        cell *= 2.0
+    shift_j, shift_i = bits[2], bits[1] + bits[2]
+    cells = np.empty(segments, np.int64)
+    _count_cells(lo, hi, origin, inv_cell, cells)
+    starts = np.concatenate([[0], np.cumsum(cells)]).astype(np.int64)
+    packed = np.empty(starts[-1], np.int64)
+    _fill_cells(lo, hi, origin, inv_cell, shift_i, shift_j, seg_bits, starts, packed)
+    packed.sort()
+    keys = packed >> seg_bits
+    segs = packed & ((np.int64(1) << seg_bits) - 1)
+    del packed
+    run_start = np.concatenate([[0], np.flatnonzero(np.diff(keys)) + 1, [len(keys)]]).astype(np.int64)
+    # chunks of cells with about equal work (pairs per cell), so threads finish together
+    size = np.diff(run_start).astype(np.float64)
+    work = np.cumsum(size * (size - 1) / 2 + 1)
+    chunks = max(1, min(len(size), 8 * worker_count()))
+    bounds = np.searchsorted(work, work[-1] * np.arange(1, chunks) / chunks, side="right")
+    bounds = np.unique(np.concatenate([[0], bounds, [len(size)]])).astype(np.int64)
+    results: dict[int, tuple] = {}
+
+    def pairs_chunk(lo_c: int, hi_c: int) -> None:
+        for c in range(lo_c, hi_c):
+            results[c] = _pairs_in_cells(run_start, bounds[c], bounds[c + 1], keys, segs, lo, hi, radius,
+                                         strand_of, samples, origin, inv_cell, shift_i, shift_j)
+
+    run_chunks(pairs_chunk, len(bounds) - 1, 1)
+    parts = [results[c] for c in range(len(bounds) - 1)]
+    first = np.concatenate([p[1] for p in parts])
+    second = np.concatenate([p[2] for p in parts])
+    dist2 = np.concatenate([p[3] for p in parts])
+    pu = np.concatenate([p[4] for p in parts])
+    pv = np.concatenate([p[5] for p in parts])
+    if len(first) == 0:
+        return empty
+    ea = first // n1
+    eb = second // n1
+    pair_key = ea * count + eb
+    # the closest segment pair of each element pair; ties to the lowest segments
+    keep = _best_per_pair(np.argsort(pair_key, kind="stable"), pair_key, dist2, first, second)
+    sigma_a = np.minimum((first[keep] - ea[keep] * n1 + pu[keep]) * spacing[ea[keep]], length[ea[keep]])
+    sigma_b = np.minimum((second[keep] - eb[keep] * n1 + pv[keep]) * spacing[eb[keep]], length[eb[keep]])
+    # a clamped end of the last segment is exactly the element's end
+    sigma_a = np.where((first[keep] - ea[keep] * n1 == n1 - 1) & (pu[keep] >= 1.0), length[ea[keep]], sigma_a)
+    sigma_b = np.where((second[keep] - eb[keep] * n1 == n1 - 1) & (pv[keep] >= 1.0), length[eb[keep]], sigma_b)
+    return ea[keep], eb[keep], sigma_a, sigma_b, len(first)

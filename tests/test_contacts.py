@@ -1,0 +1,487 @@
+"""Contact detection against geometry known in closed form, a brute-force reference and real data.
+
+Strands are built directly as super-helices (straight lines, circular arcs,
+tight helices) so the expected contact arc lengths, points and normals are
+known analytically; bodies are planes, boxes and icospheres from trimesh.
+Runtime: about 4 s with a warm numba cache (the sintel fit and trimesh's closest points are most of it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import trimesh
+
+from conftest import SAMPLES, real_path
+from hairinv import stages
+from hairinv.config import ContactSettings, FitSettings, ImportSettings
+from hairinv.contacts import BODY, BodyMesh, Contacts, DetectReport, detect_contacts
+from hairinv.errors import InputError
+from hairinv.fit import Helices, fit_groom
+from hairinv.groom import load_body, load_groom
+from hairinv.rod.helix import frames_at, points_at
+
+# Refined contact positions: golden-section / Gauss-Newton on float64 geometry of size ~0.1 m;
+# the arc length at a quadratic minimum is resolved to about sqrt(eps) of the distance scale.
+POSITION = 1e-7
+# Distances and normals of exact geometry (planes, box faces, straight lines): round-off.
+EXACT = 1e-12
+# Frames: orthonormality and handedness to round-off.
+FRAME = 1e-12
+# An icosphere of 4 subdivisions (5120 faces) departs from its sphere by < 0.1 % of the radius, and its facet
+# normals from the radial direction by < 3 degrees.
+FACET_COS = np.cos(np.radians(3.0))
+
+SETTINGS = ContactSettings()
+HAIR_ONLY = dataclasses.replace(SETTINGS, body=False)
+BODY_ONLY = dataclasses.replace(SETTINGS, hair_hair=False, root_clearance=0.0)
+
+
+def frame_with_tangent(t, n2=None) -> np.ndarray:
+    """Rows (t, n1, n2), right-handed; ``n2`` as given (made orthogonal) or any."""
+    t = np.asarray(t, float) / np.linalg.norm(t)
+    if n2 is None:
+        a = np.eye(3)[np.argmin(np.abs(t))]
+        n2 = a - a.dot(t) * t
+    n2 = np.asarray(n2, float) - np.dot(n2, t) * t
+    n2 /= np.linalg.norm(n2)
+    n1 = np.cross(n2, t)
+    return np.array([t, n1, n2])
+
+
+def helices(strands) -> Helices:
+    """``strands``: list of (root, frame0, omega (N, 3), length (N,))."""
+    root = np.array([s[0] for s in strands], float)
+    frame0 = np.array([s[1] for s in strands], float)
+    omega = np.concatenate([np.asarray(s[2], float).reshape(-1, 3) for s in strands])
+    length = np.concatenate([np.asarray(s[3], float).ravel() for s in strands])
+    offsets = np.concatenate([[0], np.cumsum([len(np.ravel(s[3])) for s in strands])]).astype(np.int64)
+    return Helices(root, frame0, offsets, length, omega, np.zeros((len(strands), 2)))
+
+
+def straight(root, direction, length, elements):
+    return (np.asarray(root, float), frame_with_tangent(direction), np.zeros((elements, 3)),
+            np.full(elements, length / elements))
+
+
+def plane(height=0.0, size=1.0) -> trimesh.Trimesh:
+    """The open square y = height, |x|, |z| < size, normal +y (two triangles)."""
+    v = np.array([[-size, height, -size], [size, height, -size], [size, height, size], [-size, height, size]])
+    return trimesh.Trimesh(v, [[0, 2, 1], [0, 3, 2]], process=False)
+
+
+def assert_frames(contacts: Contacts):
+    f = contacts.frame
+    np.testing.assert_allclose(np.einsum("cij,ckj->cik", f, f), np.broadcast_to(np.eye(3), f.shape), atol=FRAME)
+    np.testing.assert_allclose(np.linalg.det(f), 1.0, atol=FRAME)
+
+
+def points_on(h: Helices, strand: int, s) -> np.ndarray:
+    """Centerline points of a strand at arc lengths ``s``, by the rod module (independently of detection)."""
+    a, b = h.offsets[strand], h.offsets[strand + 1]
+    s = np.atleast_1d(np.asarray(s, float))
+    out = np.empty((len(s), 3))
+    points_at(h.root[strand], h.frame0[strand], h.omega[a:b], h.length[a:b], s, out)
+    return out
+
+
+# --- hair-body ---------------------------------------------------------------------------------------------------
+
+def arc_over_plane(h_low: float, radius=0.05, theta0=0.6, elements=3):
+    """A circular arc in the x-y plane whose lowest point (0, h_low, 0) is at arc length radius * theta0."""
+    center = np.array([0.0, radius + h_low, 0.0])
+    root = center + radius * np.array([-np.sin(theta0), -np.cos(theta0), 0.0])
+    t0 = np.array([np.cos(theta0), -np.sin(theta0), 0.0])
+    # omega = (kappa, 0, 0) bends the tangent towards -n2: n2 points away from the centre
+    F = frame_with_tangent(t0, n2=root - center)
+    total = 2 * radius * theta0
+    return (root, F, np.tile([1.0 / radius, 0.0, 0.0], (elements, 1)), np.full(elements, total / elements)), center
+
+
+def test_arc_above_a_plane_touches_at_its_lowest_point():
+    radius, theta0, h_low = 0.05, 0.6, 0.002
+    strand, center = arc_over_plane(h_low, radius, theta0)
+    h = helices([strand])
+    contacts, report = detect_contacts(h, plane(), BODY_ONLY)
+    # element 1 holds the lowest point; element 0 is closest at its end, the joint with element 1, which is not
+    # element 0's to declare; element 2 is closest at its start (phi = 0.2 rad), 3 mm above the plane
+    assert contacts.n_contacts == 2 and contacts.n_body == 2 and contacts.n_hair == 0
+    np.testing.assert_array_equal(contacts.strand, [[0, BODY], [0, BODY]])
+    s_low = radius * theta0
+    s_start2 = 2 * radius * theta0 * 2 / 3
+    np.testing.assert_allclose(contacts.s[:, 0], [s_low, s_start2], rtol=0, atol=POSITION)
+    np.testing.assert_array_equal(contacts.s[:, 1], 0.0)
+    phi = s_start2 / radius - theta0
+    expected = [[0.0, h_low, 0.0], [radius * np.sin(phi), radius + h_low - radius * np.cos(phi), 0.0]]
+    np.testing.assert_allclose(contacts.point, expected, rtol=0, atol=POSITION)
+    np.testing.assert_allclose(contacts.frame[:, 0], [[0, 1, 0], [0, 1, 0]], rtol=0, atol=EXACT)
+    np.testing.assert_array_equal(contacts.mu, SETTINGS.mu_body)
+    assert_frames(contacts)
+    assert report.points_inside_body == 0 and report.strands_touching_body == 1
+
+
+def test_arc_beyond_the_body_distance_gives_nothing():
+    strand, _ = arc_over_plane(SETTINGS.body_distance * 1.01)
+    contacts, report = detect_contacts(helices([strand]), plane(), BODY_ONLY)
+    assert contacts.n_contacts == 0 and report.n_body == 0
+
+
+def test_strand_passing_a_box_edge_gets_the_edge_normal():
+    """Closest to the edge x = y = 0.1 of a cube: the normal is the edge's bisector, not a face normal."""
+    d = 0.001
+    direction = np.array([1.0, -1.0, 0.0]) / np.sqrt(2)
+    closest = np.array([0.1, 0.1, 0.02]) + d * np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    strand = straight(closest - 0.03 * direction, direction, 0.06, 3)
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
+    contacts, _ = detect_contacts(helices([strand]), box, BODY_ONLY)
+    assert contacts.n_contacts == 1
+    assert contacts.s[0, 0] == pytest.approx(0.03, abs=POSITION)
+    np.testing.assert_allclose(contacts.point[0], closest, rtol=0, atol=POSITION)
+    # the normal turns by (error in s) / d along the strand
+    np.testing.assert_allclose(contacts.frame[0, 0], [np.sqrt(0.5), np.sqrt(0.5), 0.0], rtol=0, atol=POSITION / d)
+
+
+def test_one_body_contact_per_element_and_none_within_the_root_clearance():
+    """A straight strand 1 mm above a plane, all along: every element touches, once, beyond the clearance."""
+    elements = 6
+    strand = straight([-0.1, 0.001, 0.0], [1.0, 0.0, 0.0], 0.12, elements)
+    settings = dataclasses.replace(SETTINGS, hair_hair=False, root_clearance=0.025)
+    contacts, _ = detect_contacts(helices([strand]), plane(), settings)
+    element = np.floor(contacts.s[:, 0] / 0.02 + 1e-9).astype(int)
+    # element 0 (0-2 cm) lies within the 2.5 cm clearance; element 1 starts within it
+    np.testing.assert_array_equal(element, [1, 2, 3, 4, 5])
+    assert np.all(contacts.s[:, 0] >= settings.root_clearance)
+    np.testing.assert_allclose(contacts.point[:, 1], 0.001, rtol=0, atol=EXACT)
+    np.testing.assert_allclose(contacts.frame[:, 0], np.tile([0.0, 1.0, 0.0], (5, 1)), rtol=0, atol=EXACT)
+
+
+def test_strand_half_inside_a_sphere_is_counted_and_pushed_outwards():
+    """A chord 5 cm under the top of a sphere of 10 cm: the depth grows monotonically to the middle, so the
+    elements before the middle are deepest at their ends (not theirs to declare) and the contacts are the
+    middle (x = 0, start of element 4) and the start of element 5 (x = 5 cm)."""
+    radius = 0.1
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=radius)
+    elements, n = 8, SETTINGS.samples_per_element
+    strand = straight([-0.2, 0.05, 0.0], [1.0, 0.0, 0.0], 0.4, elements)
+    h = helices([strand])
+    contacts, report = detect_contacts(h, sphere, BODY_ONLY)
+    # the samples an element owns: all but its last, which is the next element's first; the tip
+    s = np.linspace(0.0, 0.4, elements * (n - 1) + 1)
+    inside = sphere.contains(points_on(h, 0, s))  # ray test on the closed icosphere: independent of ours
+    assert inside.sum() > 10
+    assert report.points_inside_body == inside.sum()
+    assert report.strands_inside_body == 1
+    assert any("inside the body" in line for line in report.lines())
+    # the deepest point of a chord of the faceted sphere is within a facet (~7 mm) of the sphere's
+    np.testing.assert_allclose(contacts.s[:, 0], [0.2, 0.25], rtol=0, atol=1e-3)
+    np.testing.assert_allclose(contacts.point, [[0.0, 0.05, 0.0], [0.05, 0.05, 0.0]], rtol=0, atol=1e-3)
+    assert np.all(sphere.contains(contacts.point))
+    # outward: the radial direction, up to the facets' tilt
+    radial = contacts.point / np.linalg.norm(contacts.point, axis=1, keepdims=True)
+    assert np.all(np.einsum("ij,ij->i", contacts.frame[:, 0], radial) > FACET_COS)
+    assert report.deepest_inside == pytest.approx(0.05, rel=2e-3)
+    # pushing along the normal by the depth reaches the surface
+    depth = radius - np.linalg.norm(contacts.point, axis=1)
+    pushed = contacts.point + depth[:, None] * contacts.frame[:, 0]
+    np.testing.assert_allclose(np.linalg.norm(pushed, axis=1), radius, rtol=2e-3)
+    assert_frames(contacts)
+
+
+def test_past_an_open_boundary_nothing_is_inside():
+    """A box open at the bottom (a bust cut at the chest): below the hole is outside; inside, the walls push out."""
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
+    open_box = trimesh.Trimesh(box.vertices, box.faces[box.face_normals[:, 1] > -0.5], process=False)
+    assert not open_box.is_watertight  # trimesh's contains cannot answer here
+    below = straight([-0.05, -0.12, 0.0], [1.0, 0.0, 0.0], 0.1, 2)  # under the hole, 2 cm below the rim
+    through = straight([-0.03, 0.07, -0.153], [0.0, 0.0, 1.0], 0.3, 6)  # through the box, 3 cm under its top
+    h = helices([below, through])
+    contacts, report = detect_contacts(h, open_box, BODY_ONLY)
+    assert set(contacts.strand[:, 0]) == {1}
+    assert report.strands_inside_body == 1
+    # inside, samples with |z| < 7 cm are 3 cm deep (nearest the top) and |z| < 10 cm are inside
+    s = np.linspace(0.0, 0.3, 6 * 7 + 1)
+    assert report.points_inside_body == np.count_nonzero(np.abs(s - 0.153) < 0.1)
+    assert report.deepest_inside == pytest.approx(0.03, abs=EXACT)
+    plateau = np.abs(contacts.point[:, 2]) < 0.07
+    assert plateau.sum() == 4  # elements 1-4, at their first sample on the plateau
+    np.testing.assert_allclose(contacts.frame[plateau, 0], np.tile([0.0, 1.0, 0.0], (4, 1)), atol=EXACT)
+    # element 5 starts 3 mm inside the wall z = 0.1 and leaves through it: pushed out through that wall
+    np.testing.assert_allclose(contacts.point[~plateau], [[-0.03, 0.07, 0.097]], atol=EXACT)
+    np.testing.assert_allclose(contacts.frame[~plateau, 0], [[0.0, 0.0, 1.0]], atol=EXACT)
+
+
+def test_several_pieces_a_non_manifold_fin_and_an_inside_out_piece():
+    """Two cubes apart (one inside out) and a fin on an edge of the first: each gets its analytic contact."""
+    a = trimesh.creation.box(extents=(0.1, 0.1, 0.1))
+    b = trimesh.creation.box(extents=(0.1, 0.1, 0.1))
+    b.apply_translation([0.5, 0.0, 0.0])
+    b.invert()
+    # the fin shares the cube's edge y = z = 0.05 (three faces on one edge: non-manifold) and sticks out along +z
+    fin_v = np.array([[-0.05, 0.05, 0.05], [0.05, 0.05, 0.05], [0.0, 0.05, 0.15]])
+    vertices = np.concatenate([a.vertices, b.vertices, fin_v])
+    faces = np.concatenate([a.faces, b.faces + 8, [[16, 17, 18]]])
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    prepared = BodyMesh.from_mesh(mesh)
+    assert any("inward" in note for note in prepared.notes)
+    over_a = straight([-0.02, 0.052, -0.03], [0.0, 0.0, -1.0], 0.02, 1)  # 2 mm over the top of cube a
+    inside_b = straight([0.48, 0.03, -0.01], [0.0, 0.0, 1.0], 0.02, 1)  # in cube b, 2 cm under its top
+    h = helices([over_a, inside_b])
+    contacts, report = detect_contacts(h, prepared, BODY_ONLY)
+    assert list(contacts.strand[:, 0]) == [0, 1]
+    np.testing.assert_allclose(contacts.frame[0, 0], [0.0, 1.0, 0.0], atol=EXACT)
+    np.testing.assert_allclose(contacts.frame[1, 0], [0.0, 1.0, 0.0], atol=EXACT)
+    assert report.strands_inside_body == 1 and report.points_inside_body == SETTINGS.samples_per_element
+
+
+# --- hair-hair ---------------------------------------------------------------------------------------------------
+
+def crossing(offset):
+    """Strand 0 along y at x = 0.013, z = offset; strand 1 along x at z = 0; they cross over (0.013, 0, 0)."""
+    s0 = straight([0.013, -0.041, offset], [0.0, 1.0, 0.0], 0.1, 4)
+    s1 = straight([-0.05, 0.0, 0.0], [1.0, 0.0, 0.0], 0.1, 4)
+    return helices([s0, s1])
+
+
+def test_crossing_strands_touch_once_at_the_analytic_closest_points():
+    offset = 0.0005
+    contacts, report = detect_contacts(crossing(offset), None, HAIR_ONLY)
+    assert contacts.n_contacts == 1 and contacts.n_hair == 1 and report.n_hair == 1
+    np.testing.assert_array_equal(contacts.strand, [[0, 1]])
+    np.testing.assert_allclose(contacts.s, [[0.041, 0.063]], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(contacts.point, [[0.013, 0.0, offset]], rtol=0, atol=EXACT)
+    np.testing.assert_allclose(contacts.frame[0, 0], [0.0, 0.0, 1.0], rtol=0, atol=EXACT)  # from B (z = 0) to A
+    np.testing.assert_array_equal(contacts.mu, SETTINGS.mu_hair)
+    assert_frames(contacts)
+
+
+def test_a_stray_strand_far_away_changes_nothing():
+    """A strand 10,000 km off (a units mistake) makes the grid too fine to key: it is coarsened, not wrong."""
+    h = crossing(0.0005)
+    far = helices([(h.root[i], h.frame0[i], h.omega[4 * i:4 * i + 4], h.length[4 * i:4 * i + 4]) for i in range(2)]
+                  + [straight([1e7, 1e7, 1e7], [0.0, 1.0, 0.0], 0.1, 4)])
+    near, _ = detect_contacts(h, None, HAIR_ONLY)
+    both, _ = detect_contacts(far, None, HAIR_ONLY)
+    for name in ("strand", "s", "point", "frame"):
+        np.testing.assert_array_equal(getattr(both, name), getattr(near, name))
+
+
+def test_crossing_strands_beyond_the_distance_do_not_touch():
+    contacts, _ = detect_contacts(crossing(SETTINGS.hair_distance * 1.01), None, HAIR_ONLY)
+    assert contacts.n_contacts == 0
+
+
+def test_intersecting_strands_take_the_normal_from_their_tangents():
+    contacts, _ = detect_contacts(crossing(0.0), None, HAIR_ONLY)
+    assert contacts.n_contacts == 1
+    # t_A x t_B = y x x = -z, oriented so that its largest component is positive
+    np.testing.assert_allclose(contacts.frame[0, 0], [0.0, 0.0, 1.0], rtol=0, atol=EXACT)
+    assert_frames(contacts)
+
+
+@pytest.mark.parametrize("shift", [0.0, 0.0125, 0.004])
+def test_parallel_strands_touch_at_most_once_per_element_pair(shift):
+    gap = 0.0005
+    a = straight([0.0, 0.0, 0.0], [0.0, -1.0, 0.0], 0.1, 4)
+    b = straight([gap, -shift, 0.0], [0.0, -1.0, 0.0], 0.1, 4)
+    h = helices([a, b])
+    contacts, _ = detect_contacts(h, None, HAIR_ONLY)
+    elements = np.minimum(np.floor(contacts.s / 0.025 + 1e-9).astype(int), 3)
+    pairs = {tuple(e) for e in elements}
+    assert len(pairs) == contacts.n_contacts
+    overlapping = {(i, j) for i in range(4) for j in range(4)
+                   if max(0.025 * i, 0.025 * j + shift) <= min(0.025 * (i + 1), 0.025 * (j + 1) + shift)}
+    assert pairs <= overlapping
+    if shift == 0.0:
+        assert pairs == {(0, 0), (1, 1), (2, 2), (3, 3)}  # the joints belong to the next pair
+    xb = np.concatenate([points_on(h, 1, s) for s in contacts.s[:, 1]])
+    np.testing.assert_allclose(np.linalg.norm(contacts.point - xb, axis=1), gap, rtol=0, atol=EXACT)
+    np.testing.assert_allclose(contacts.frame[:, 0], np.tile([-1.0, 0.0, 0.0], (len(xb), 1)), atol=EXACT)
+
+
+def tight_helix(turns_radius=0.002, pitch=0.0006):
+    """(kappa, tau) of a helix of the given radius and pitch: consecutive turns ``pitch`` apart."""
+    k = 1.0 / (turns_radius**2 + (pitch / (2 * np.pi)) ** 2)
+    return turns_radius * k, pitch * k / (2 * np.pi)
+
+
+def test_a_strand_never_contacts_itself():
+    kappa, tau = tight_helix()
+    omega = np.tile([kappa, 0.0, tau], (6, 1))
+    length = np.full(6, 0.01)
+    whole = helices([(np.zeros(3), np.eye(3), omega, length)])
+    contacts, _ = detect_contacts(whole, None, HAIR_ONLY)
+    assert contacts.n_contacts == 0
+    # the same curve cut in two strands (2 mm of it left out between them): its turns 0.6 mm apart now touch
+    x = np.empty((1, 3))
+    F = np.empty((1, 3, 3))
+    frames_at(np.zeros(3), np.eye(3), omega, length, np.array([0.032]), x, F)
+    halves = helices([(np.zeros(3), np.eye(3), omega[:3], length[:3]), (x[0], F[0], omega[3:], [0.008, 0.01, 0.01])])
+    contacts, _ = detect_contacts(halves, None, HAIR_ONLY)
+    assert contacts.n_hair > 0
+    np.testing.assert_array_equal(contacts.strand, np.tile([0, 1], (contacts.n_contacts, 1)))
+    xb = np.concatenate([points_on(halves, 1, s) for s in contacts.s[:, 1]])
+    distance = np.linalg.norm(contacts.point - xb, axis=1)
+    assert np.all(distance < SETTINGS.hair_distance)
+    np.testing.assert_allclose(distance, 0.0006, rtol=0.02)  # the pitch, up to the helix's slant
+
+
+def segment_distances(p1, q1, p2, q2):
+    """Closest points of segment pairs, vectorised (Ericson 5.1.9): (d, u, v)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = np.einsum("...i,...i", d1, d1)
+    e = np.einsum("...i,...i", d2, d2)
+    f = np.einsum("...i,...i", d2, r)
+    c = np.einsum("...i,...i", d1, r)
+    b = np.einsum("...i,...i", d1, d2)
+    denom = a * e - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(denom > 1e-14 * a * e, np.clip((b * f - c * e) / denom, 0.0, 1.0), 0.0)
+        v = (b * u + f) / e
+        u = np.where(v < 0, np.clip(-c / a, 0, 1), np.where(v > 1, np.clip((b - c) / a, 0, 1), u))
+    v = np.clip(v, 0.0, 1.0)
+    d = np.linalg.norm(p1 + u[..., None] * d1 - p2 - v[..., None] * d2, axis=-1)
+    return d, u, v
+
+
+def test_hashed_hair_pairs_agree_with_brute_force(rng):
+    """Every pair of elements on different strands, by brute force on 24 segments per element."""
+    strands = []
+    for _ in range(20):
+        root = rng.uniform(-0.003, 0.003, 3)
+        t = np.array([0.0, -1.0, 0.0]) + rng.normal(scale=0.3, size=3)
+        strands.append((root, frame_with_tangent(t), rng.normal(scale=40.0, size=(5, 3)), np.full(5, 0.01)))
+    h = helices(strands)
+    contacts, _ = detect_contacts(h, None, HAIR_ONLY)
+    m, hd = 24, SETTINGS.hair_distance
+    elems = [(i, e) for i in range(h.n_strands) for e in range(5)]
+    fine = {(i, e): points_on(h, i, 0.01 * e + np.linspace(0.0, 0.01, m + 1)) for i, e in elems}
+    fine = {k: np.vstack([v[:-1], points_on(h, k[0], [0.01 * (k[1] + 1)])]) for k, v in fine.items()}
+    close, ambiguous = set(), set()
+    for i, ea in elems:
+        for j, eb in elems:
+            if j <= i:
+                continue
+            A, B = fine[(i, ea)], fine[(j, eb)]
+            if np.min(np.linalg.norm(A[:, None] - B[None], axis=2)) > hd + 0.01 / m:
+                continue
+            d, u, v = segment_distances(A[:-1, None], A[1:, None], B[None, :-1], B[None, 1:])
+            ka, kb = np.unravel_index(np.argmin(d), d.shape)
+            end_a = ka == m - 1 and u[ka, kb] == 1.0 and ea < 4
+            end_b = kb == m - 1 and v[ka, kb] == 1.0 and eb < 4
+            if abs(d[ka, kb] - hd) < 2e-5 or (ka >= m - 2 and ea < 4) or (kb >= m - 2 and eb < 4):
+                ambiguous.add((i, ea, j, eb))
+            elif d[ka, kb] < hd and not end_a and not end_b:
+                close.add((i, ea, j, eb))
+    found = {(a, int(min(sa // 0.01 + 1e-9, 4)), b, int(min(sb // 0.01 + 1e-9, 4)))
+             for (a, b), (sa, sb) in zip(contacts.strand, contacts.s)}
+    assert len(close) > 30
+    assert found - ambiguous == close
+
+
+# --- the whole pipeline on samples and real data ------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def wavy():
+    groom, _ = load_groom(SAMPLES / "wavy.h5", ImportSettings(guides=40, seed=3))
+    h, _ = fit_groom(groom, FitSettings())
+    return h, load_body(SAMPLES / "body.obj", 1.0)
+
+
+def check_geometry(h: Helices, body, contacts: Contacts, settings: ContactSettings, report: DetectReport):
+    """Independent checks of declared contacts: distances by trimesh and by the rod module, normals, frames."""
+    assert_frames(contacts)
+    body_rows = contacts.strand[:, 1] == BODY
+    assert np.all(contacts.s[body_rows, 0] >= settings.root_clearance)
+    if body_rows.any():
+        closest, distance, _ = trimesh.proximity.closest_point(body, contacts.point[body_rows])
+        reach = max(settings.body_distance, report.deepest_inside)
+        assert np.all(distance <= reach + 1e-5)  # trimesh's closest point is off by up to 1e-5 m at times
+        # the normal leads to a closest surface point (towards it inside, away from it outside; which of
+        # several equally close points, as inside a crease, is not compared)
+        apart = distance > 1e-4
+        p, n, d = contacts.point[body_rows][apart], contacts.frame[body_rows, 0][apart], distance[apart, None]
+        _, back_out, _ = trimesh.proximity.closest_point(body, p - d * n)
+        _, back_in, _ = trimesh.proximity.closest_point(body, p + d * n)
+        assert np.all(np.minimum(back_out, back_in) < 2e-5)
+    hair = ~body_rows
+    assert np.all(contacts.strand[hair, 0] < contacts.strand[hair, 1])
+    xb = np.array([points_on(h, b, s)[0] for b, s in zip(contacts.strand[hair, 1], contacts.s[hair, 1])]).reshape(-1, 3)
+    xa = np.array([points_on(h, a, s)[0] for a, s in zip(contacts.strand[hair, 0], contacts.s[hair, 0])]).reshape(-1, 3)
+    np.testing.assert_allclose(xa, contacts.point[hair], rtol=0, atol=1e-12)
+    gap = np.linalg.norm(xa - xb, axis=1)
+    assert np.all(gap < settings.hair_distance)
+    apart = gap > 1e-6
+    np.testing.assert_allclose(contacts.frame[hair, 0][apart], (xa - xb)[apart] / gap[apart, None], atol=1e-9)
+    # the documented order: body first by (strand, s), then hair by (A, B, s_A)
+    assert np.all(np.diff(body_rows.astype(int)) <= 0)
+    keys = np.lexsort((contacts.s[body_rows, 0], contacts.strand[body_rows, 0]))
+    np.testing.assert_array_equal(keys, np.arange(body_rows.sum()))
+    keys = np.lexsort((contacts.s[hair, 0], contacts.strand[hair, 1], contacts.strand[hair, 0]))
+    np.testing.assert_array_equal(keys, np.arange(hair.sum()))
+
+
+def test_sample_groom_geometry_and_determinism(wavy, monkeypatch):
+    h, body = wavy
+    contacts, report = detect_contacts(h, body, SETTINGS)
+    assert report.n_body > 0 and report.n_hair > 0
+    assert (report.n_body, report.n_hair) == (contacts.n_body, contacts.n_hair)
+    check_geometry(h, body, contacts, SETTINGS, report)
+    monkeypatch.setenv("HAIRINV_THREADS", "1")
+    again, _ = detect_contacts(h, body, SETTINGS)
+    for name in ("strand", "s", "point", "frame", "mu"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(contacts, name))
+
+
+def test_switches_and_missing_body(wavy):
+    h, body = wavy
+    none, report = detect_contacts(h, None, SETTINGS)
+    assert none.n_body == 0 and none.n_hair > 0
+    assert any("no body mesh" in line for line in report.lines())
+    off, report = detect_contacts(h, body, dataclasses.replace(SETTINGS, body=False))
+    assert off.n_body == 0 and any("ignored" in line for line in report.lines())
+    done = []
+    no_hair, _ = detect_contacts(h, body, dataclasses.replace(SETTINGS, hair_hair=False), progress=done.append)
+    assert no_hair.n_hair == 0 and no_hair.n_body > 0
+    assert sum(done) == h.n_strands
+
+
+def test_group_round_trip(wavy, tmp_path):
+    h, body = wavy
+    contacts, _ = detect_contacts(h, body, SETTINGS)
+    inputs = [{"name": "x.h5", "sha256": "0" * 64}]
+    for c, name in ((contacts, "full.h5"), (Contacts.empty(), "empty.h5")):
+        path = stages.write_stage(tmp_path / name, [c.group(SETTINGS, inputs)], "detect")
+        read = stages.read_stage(path)
+        group = read[stages.CONTACTS]
+        assert group.config == {"contacts": dataclasses.asdict(SETTINGS)}
+        assert group.inputs == inputs
+        back = Contacts.from_group(group)
+        for field in ("strand", "s", "point", "frame", "mu"):
+            np.testing.assert_array_equal(getattr(back, field), getattr(c, field))
+            assert getattr(back, field).dtype == getattr(c, field).dtype
+    half = contacts.subset(contacts.strand[:, 1] == BODY)
+    assert half.n_contacts == contacts.n_body and half.n_hair == 0
+
+
+@pytest.mark.parametrize("change", [
+    {"body_distance": 0.0}, {"hair_distance": -1e-3}, {"hair_distance": float("nan")}, {"samples_per_element": 1},
+    {"mu_hair": -0.1}, {"mu_body": float("inf")}, {"root_clearance": -1.0},
+])
+def test_invalid_settings_are_refused(change):
+    with pytest.raises(InputError, match=f"contacts.{next(iter(change))}"):
+        detect_contacts(crossing(0.0), None, dataclasses.replace(SETTINGS, **change))
+
+
+def test_real_sintel_with_its_body():
+    hair = real_path("sintel", "GEO-sintel_hair_emit.001-sintel_hair.tfx")
+    scale = 0.008  # ≈0.8 cm per unit (shared/data/real/README.md)
+    groom, _ = load_groom(hair, ImportSettings(scale=scale))
+    h, _ = fit_groom(groom, FitSettings(tolerance=5e-4))
+    body = load_body(real_path("sintel", "sintel.obj"), scale)
+    contacts, report = detect_contacts(h, body, SETTINGS)
+    print("\n".join(report.lines()))
+    assert report.n_body > 50 and report.n_hair > 20
+    assert 0 < report.strands_inside_body < 0.1 * h.n_strands  # README: 2 % of strands have a vertex inside
+    check_geometry(h, body, contacts, SETTINGS, report)
