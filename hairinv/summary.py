@@ -55,7 +55,37 @@ def summarise(stage: stages.StageFile) -> dict:
             "fit_error_mean_mm": _stats(g["fit_error"][:, 0], 1e3),
             "fit_error_max_mm": _stats(g["fit_error"][:, 1], 1e3),
         }
-    for name in (stages.CONTACTS, stages.MODEL, stages.FRAMES):
+    if stages.CONTACTS in stage:
+        g = stage[stages.CONTACTS]
+        strand = g["strand"]
+        body = strand[:, 1] < 0
+        out["groups"]["contacts"] = {
+            "contacts": int(len(strand)),
+            "hair_body": int(body.sum()),
+            "hair_hair": int((~body).sum()),
+            "strands_touching_body": int(len(np.unique(strand[body, 0]))),
+            "mu": _stats(g["mu"], digits=3),
+        }
+    if stages.MODEL in stage:
+        g = stage[stages.MODEL]
+        rest, target, force = g["omega_rest"], g["omega_target"], g["force"]
+        drift = np.linalg.norm(rest - target, axis=1)
+        normal = force[:, 0] if len(force) else np.zeros(0)
+        out["groups"]["model"] = {
+            "target": g.attrs.get("target", ""),
+            "status": g.attrs.get("status", ""),
+            "sweeps": int(g.attrs.get("iterations", 0)),
+            "residual_N": float(g.attrs.get("residual", 0.0)),
+            "relative_residual": float(g.attrs.get("relative_residual", 0.0)),
+            "solve_seconds": round(float(g.attrs.get("seconds", 0.0)), 3),
+            "rest_curvature_1_per_m": _stats(np.hypot(rest[:, 0], rest[:, 1]), digits=3),
+            "drift_from_target_1_per_m": _stats(drift, digits=3),
+            "contacts_carrying_force": int((normal > 0).sum()),
+            "normal_force_N": _stats(normal, digits=9),
+            "youngs_modulus_Pa": float(g.attrs.get("youngs_modulus", 0.0)),
+            "radius_m": float(g.attrs.get("radius", 0.0)),
+        }
+    for name in (stages.FRAMES,):
         if name in stage:
             g = stage[name]
             out["groups"][name] = {key: list(value.shape) for key, value in g.datasets.items()}
