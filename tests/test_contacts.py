@@ -35,7 +35,8 @@ FRAME = 1e-12
 FACET_COS = np.cos(np.radians(3.0))
 
 SETTINGS = ContactSettings()
-HAIR_ONLY = dataclasses.replace(SETTINGS, body=False)
+# hair-hair geometry tests: no root clearance, so element pairs at the roots count like any other
+HAIR_ONLY = dataclasses.replace(SETTINGS, body=False, root_clearance=0.0)
 BODY_ONLY = dataclasses.replace(SETTINGS, hair_hair=False, root_clearance=0.0)
 
 
@@ -485,3 +486,17 @@ def test_real_sintel_with_its_body():
     assert report.n_body > 50 and report.n_hair > 20
     assert 0 < report.strands_inside_body < 0.1 * h.n_strands  # README: 2 % of strands have a vertex inside
     check_geometry(h, body, contacts, SETTINGS, report)
+
+
+def test_no_hair_hair_contact_between_two_roots():
+    """Neighbouring roots 0.5 mm apart, strands diverging: their only close
+    points lie within root_clearance of both (clamped) roots, so no contact;
+    with a zero clearance the same pair is declared."""
+    a = straight((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), 0.06, 3)
+    b = straight((0.0, 0.0005, 0.0), (1.0, 1.0, 0.0), 0.06, 3)
+    settings = ContactSettings(body=False, hair_distance=1e-3, root_clearance=5e-3)
+    contacts, report = detect_contacts(helices([a, b]), None, settings)
+    assert contacts.n_hair == 0
+    assert any("root_clearance" in note for note in report.notes)
+    loose, _ = detect_contacts(helices([a, b]), None, dataclasses.replace(settings, root_clearance=0.0))
+    assert loose.n_hair == 1 and np.all(loose.s[0] < 1e-3)

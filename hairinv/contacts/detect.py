@@ -309,6 +309,13 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         keep = dist < settings.hair_distance
         keep &= ~((sa == length[ea]) & (is_last[ea] == 0))
         keep &= ~((sb == length[eb]) & (is_last[eb] == 0))
+        # both points within root_clearance of their clamped roots: no coordinate moves either
+        # point, the contact only makes W singular there (its forces would be fixed by gamma alone)
+        near_roots = keep & (s0[ea] + sa < settings.root_clearance) & (s0[eb] + sb < settings.root_clearance)
+        if near_roots.any():
+            notes.append(f"hair-hair: {int(near_roots.sum())} contacts between two strands within "
+                         f"root_clearance ({1e3 * settings.root_clearance:g} mm) of both roots were not declared")
+        keep &= ~near_roots
         ea, eb, sa, sb = ea[keep], eb[keep], sa[keep], sb[keep]
         normal = _hair_normals(pa[keep], pb[keep], ta[keep], tb[keep], dist[keep],
                                COINCIDENT * float(settings.hair_distance))
