@@ -33,7 +33,7 @@ from .contacts import Contacts
 from .errors import InputError, RunError
 from .fit import Helices
 from .rod.statics import gravity_forces
-from .solver.gauss_seidel import CONVERGED, SolverResult, solve_cone_qp
+from .solver.gauss_seidel import CONVERGED, SolverResult, solve_cone_qp, split_strands
 from .solver.rows import ContactRows, contact_rows
 
 __all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness", "generalized_gravity",
@@ -342,7 +342,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     force_scale = material.linear_density * np.linalg.norm(material.gravity) * float(strand_length.max())
     result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, helices.n_strands,
                            force_scale, settings.tolerance, settings.max_sweeps, settings.check_every,
-                           progress=progress, s=contacts.s, accelerate=settings.accelerate)
+                           progress=progress, s=contacts.s, accelerate=settings.accelerate,
+                           part_of=split_strands(helices.root, contacts.strand))
     if result.status not in (CONVERGED,) and not np.all(np.isfinite(result.r)):
         raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
                        f"residual {result.residual:.3g} N")

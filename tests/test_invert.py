@@ -318,3 +318,26 @@ def test_unsupported_upright_strand_is_flagged_unstable():
     _, short_report = solve(short, None, mat, target="gravity-only")
     assert tall_report.unstable == 1
     assert short_report.unstable == 0
+
+
+def test_results_do_not_depend_on_the_thread_count(monkeypatch):
+    """Two halves of the strands are swept at once; the order of the updates,
+    and so every bit of the answer, is the same on one thread or two."""
+    specs = [horizontal_strand(n=5, total=0.1, root=(0.0, 0.0, 0.002 * k)) for k in range(8)]
+    helices = strands(specs)
+    down = (0.0, 1.0, -0.2)
+    contacts = make_contacts(helices, [(k, 0.08, -1, 0.0, UP, 0.3) for k in range(8)]
+                             + [(k, 0.06, k + 1, 0.055, down, 0.3) for k in range(7)])
+    from hairinv.solver.gauss_seidel import split_strands, sweep_plan
+
+    part_of = split_strands(helices.root, contacts.strand)
+    order, halves, colours = sweep_plan(contacts.strand, helices.n_strands, contacts.s, part_of)
+    assert len(halves) == 2 and sorted(order) == list(range(contacts.n_contacts))
+    touched = [set(contacts.strand[order[lo:hi]].ravel()) - {-1} for lo, hi in halves]
+    assert not touched[0] & touched[1]
+    answers = []
+    for threads in ("1", "2"):
+        monkeypatch.setenv("HAIRINV_THREADS", threads)
+        model, report = solve(helices, contacts, material(), max_sweeps=50)
+        answers.append(model.force)
+    assert np.array_equal(answers[0], answers[1])

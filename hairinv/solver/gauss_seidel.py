@@ -6,10 +6,15 @@ Solves ``K_mu ∋ r_i ⟂ (W r + b)_i ∈ K*_mu`` for every contact ``i`` with
 ``(W r)_i = H_i f + gamma r_i`` and updating ``r_i`` by ``d`` adds
 ``D H_i^T d`` to ``f``. A sweep costs O(nnz(H)).
 
-Contacts that share no strand are given the same colour; a sweep visits
-the colours in order, and the contacts of one colour touch disjoint parts of
-``f``, so they may run on several threads with results that do not depend
-on the thread count.
+Parallel sweeps with deterministic results: the strands are split in two
+halves by the position of their roots (balanced by contact count). The
+contacts inside one half touch only that half's part of ``f`` and ``r``,
+so the two halves are swept at the same time on two threads; the contacts
+between the halves follow, coloured so that contacts sharing no strand get
+the same colour (a large colour is again split over threads). The order
+of the updates does not depend on the number of threads, so neither do the
+results. On ruby short (29,118 contacts) 11 % of the contacts join the two
+halves.
 
 The stop test is the natural map ``|r_i - P_K(r_i - (W r + b)_i / rho_i)|``
 with ``rho_i = trace(W_ii) / 3``: a force, in newtons, zero exactly at the
@@ -25,11 +30,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._jit import jit
-from .._parallel import run_chunks, worker_count
+from concurrent.futures import ThreadPoolExecutor
+
+from threadpoolctl import threadpool_limits
+
+from .._parallel import worker_count
 from .local import NUMERICAL_ERROR, project_cone, solve_contact
 from .rows import ContactRows
 
-__all__ = ["CONVERGED", "MAX_ITERS", "NUMERICAL", "SolverResult", "colour_contacts", "solve_cone_qp"]
+__all__ = ["CONVERGED", "MAX_ITERS", "NUMERICAL", "SolverResult", "colour_contacts", "solve_cone_qp",
+           "split_strands", "sweep_plan"]
 
 CONVERGED = "CONVERGED"
 MAX_ITERS = "MAX_ITERS"
@@ -251,11 +261,60 @@ def colour_contacts(strand: np.ndarray, n_strands: int, s: np.ndarray | None = N
     return order, bounds
 
 
+def split_strands(roots: np.ndarray, strand: np.ndarray) -> np.ndarray:
+    """Two halves of the strands, (S,) int64 in {0, 1}, split across the roots' longest extent
+    so that each half holds about as many contacts."""
+    n_strands = len(roots)
+    part = np.zeros(n_strands, dtype=np.int64)
+    if n_strands < 2 or len(strand) == 0:
+        return part
+    axis = int(np.argmax(np.ptp(roots, axis=0)))
+    by_position = np.argsort(roots[:, axis], kind="stable")
+    load = np.bincount(strand[:, 0], minlength=n_strands).astype(np.float64)
+    load += np.bincount(strand[:, 1][strand[:, 1] >= 0], minlength=n_strands)
+    cumulative = np.cumsum(load[by_position])
+    split = int(np.searchsorted(cumulative, 0.5 * cumulative[-1])) + 1
+    part[by_position[split:]] = 1
+    return part
+
+
+def sweep_plan(strand: np.ndarray, n_strands: int, s: np.ndarray | None = None,
+               part_of: np.ndarray | None = None) -> tuple[np.ndarray, list, np.ndarray]:
+    """The order of the updates in a sweep.
+
+    Returns
+    -------
+    order : (C,) int64, contact indices in update order
+    halves : list of (lo, hi), ranges of ``order`` that may run at the same time (each on one thread,
+        tips first along each strand)
+    colours : (k + 1,) int64, the remaining range ``order[colours[0]:]`` split by colour
+    """
+    strand = np.ascontiguousarray(strand, dtype=np.int64)
+    count = len(strand)
+    if part_of is None or count == 0:
+        order, halves, bounds = sweep_plan(strand, n_strands, s, part_of)
+        return order, [], bounds
+    side_b = np.where(strand[:, 1] >= 0, strand[:, 1], strand[:, 0])
+    pa, pb = part_of[strand[:, 0]], part_of[side_b]
+    tips_first = np.arange(count) if s is None else np.lexsort((np.arange(count), -np.asarray(s)[:, 0]))
+    pieces, halves, start = [], [], 0
+    for half in (0, 1):
+        inside = tips_first[(pa[tips_first] == half) & (pb[tips_first] == half)]
+        pieces.append(inside)
+        halves.append((start, start + len(inside)))
+        start += len(inside)
+    across = np.flatnonzero(pa != pb)
+    sub_order, sub_bounds = colour_contacts(strand[across], n_strands, None if s is None else np.asarray(s)[across])
+    pieces.append(across[sub_order])
+    order = np.concatenate(pieces).astype(np.int64)
+    return order, [h for h in halves if h[1] > h[0]], (sub_bounds + start).astype(np.int64)
+
+
 def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray, mu: np.ndarray,
                   strand: np.ndarray, n_strands: int, force_scale: float, tolerance: float = 1e-6,
                   max_sweeps: int = 2000, check_every: int = 5, r0: np.ndarray | None = None,
                   desaxce: bool = False, progress=None, s: np.ndarray | None = None,
-                  accelerate: bool = True) -> SolverResult:
+                  accelerate: bool = True, part_of: np.ndarray | None = None) -> SolverResult:
     """Solve the cone complementarity problem of ``W = H D H^T + gamma I`` and ``b``.
 
     Parameters
@@ -267,6 +326,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
     mu : (C,) float64, friction coefficients
     strand : (C, 2) int64, the strands each contact touches (-1: none), for the colouring
     s : (C, 2) float64, optional, the contacts' arc lengths: sweeps then run from the tips to the roots
+    part_of : (S,) int64, optional, two halves of the strands (:func:`split_strands`) swept at once
     force_scale : float, N, the force the tolerance is relative to
     tolerance : float, stop when the largest natural-map residual is below ``tolerance * force_scale``
     r0 : (C, 3) float64, optional warm start
@@ -290,7 +350,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
         return SolverResult(r, CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started)
     Wd = np.empty((n_contacts, 3, 3))
     diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, gamma, Wd)
-    order, bounds = colour_contacts(strand, n_strands, s)
+    order, halves, bounds = sweep_plan(strand, n_strands, s, part_of)
     f = np.empty(rows.n_dofs)
     _accumulate_f(rows.ptr, rows.cols, rows.vals, d, r, f)
     per_contact = np.empty(n_contacts)
@@ -325,55 +385,71 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
     tk = 1.0
     restarts = 0
     from_x = True
-    while status == MAX_ITERS and sweeps < max_sweeps:
-        failures = 0
-        numerical = 0
-        for k in range(len(bounds) - 1):
-            lo, hi = int(bounds[k]), int(bounds[k + 1])
-            if threads > 1 and hi - lo >= _MIN_PARALLEL:
-                counts = []
-
-                def work(a: int, z: int) -> None:
-                    counts.append(sweep_colour(lo + a, lo + z))
-
-                run_chunks(work, hi - lo, -(-(hi - lo) // threads))
-                failures += sum(c[0] for c in counts)
-                numerical += sum(c[1] for c in counts)
+    pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
+    limits = threadpool_limits(limits=1, user_api="blas")  # the kernels' own threads, not BLAS's
+    try:
+        while status == MAX_ITERS and sweeps < max_sweeps:
+            failures = 0
+            numerical = 0
+            if len(halves) == 2 and pool is not None:
+                futures = [pool.submit(sweep_colour, lo, hi) for lo, hi in halves]
+                for future in futures:
+                    fc, nc = future.result()
+                    failures += fc
+                    numerical += nc
             else:
-                fc, nc = sweep_colour(lo, hi)
-                failures += fc
-                numerical += nc
-        sweeps += 1
-        if numerical:
-            status = NUMERICAL
-            break
-        if accelerate:
-            fz = _objective(f, d, gamma, b, r)
-            if fz > fx and not from_x:
-                # the extrapolated start did worse than x: drop the momentum, sweep from x again
-                # (a plain sweep from x is always accepted: it cannot raise the objective beyond round-off)
-                restarts += 1
-                tk = 1.0
-                r[:] = x
-                from_x = True
-            else:
-                from_x = False
-                tn = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * tk * tk))
-                x_prev[:] = x
-                x[:] = r
-                fx = fz
-                _extrapolate(x, x_prev, (tk - 1.0) / tn, mu, r)
-                tk = tn
-            _accumulate_f(rows.ptr, rows.cols, rows.vals, d, r, f)
-        if sweeps % check_every == 0 or sweeps == max_sweeps:
-            residual = _check(x if accelerate else r)
-            history.append((sweeps, float(residual)))
-            if progress is not None:
-                progress(sweeps, residual / force_scale)
-            if not np.isfinite(residual) or not np.all(np.isfinite(r)):
+                for lo, hi in halves:
+                    fc, nc = sweep_colour(lo, hi)
+                    failures += fc
+                    numerical += nc
+            for k in range(len(bounds) - 1):
+                lo, hi = int(bounds[k]), int(bounds[k + 1])
+                if pool is not None and hi - lo >= _MIN_PARALLEL:
+                    step = -(-(hi - lo) // threads)
+                    futures = [pool.submit(sweep_colour, a, min(hi, a + step)) for a in range(lo, hi, step)]
+                    for future in futures:
+                        fc, nc = future.result()
+                        failures += fc
+                        numerical += nc
+                else:
+                    fc, nc = sweep_colour(lo, hi)
+                    failures += fc
+                    numerical += nc
+            sweeps += 1
+            if numerical:
                 status = NUMERICAL
-            elif residual <= target:
-                status = CONVERGED
+                break
+            if accelerate:
+                fz = _objective(f, d, gamma, b, r)
+                if fz > fx and not from_x:
+                    # the extrapolated start did worse than x: drop the momentum, sweep from x again
+                    # (a plain sweep from x is always accepted: it cannot raise the objective beyond round-off)
+                    restarts += 1
+                    tk = 1.0
+                    r[:] = x
+                    from_x = True
+                else:
+                    from_x = False
+                    tn = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * tk * tk))
+                    x_prev[:] = x
+                    x[:] = r
+                    fx = fz
+                    _extrapolate(x, x_prev, (tk - 1.0) / tn, mu, r)
+                    tk = tn
+                _accumulate_f(rows.ptr, rows.cols, rows.vals, d, r, f)
+            if sweeps % check_every == 0 or sweeps == max_sweeps:
+                residual = _check(x if accelerate else r)
+                history.append((sweeps, float(residual)))
+                if progress is not None:
+                    progress(sweeps, residual / force_scale)
+                if not np.isfinite(residual) or not np.all(np.isfinite(r)):
+                    status = NUMERICAL
+                elif residual <= target:
+                    status = CONVERGED
+    finally:
+        limits.restore_original_limits()
+        if pool is not None:
+            pool.shutdown()
     if accelerate:
         r = x
     if history[-1][0] != sweeps:
