@@ -292,7 +292,7 @@ def sweep_plan(strand: np.ndarray, n_strands: int, s: np.ndarray | None = None,
     strand = np.ascontiguousarray(strand, dtype=np.int64)
     count = len(strand)
     if part_of is None or count == 0:
-        order, halves, bounds = sweep_plan(strand, n_strands, s, part_of)
+        order, bounds = colour_contacts(strand, n_strands, s)
         return order, [], bounds
     side_b = np.where(strand[:, 1] >= 0, strand[:, 1], strand[:, 0])
     pa, pb = part_of[strand[:, 0]], part_of[side_b]
