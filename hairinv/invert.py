@@ -302,6 +302,8 @@ def validate_settings(settings: SolverSettings) -> None:
         raise InputError(f"solver.gamma must be > 0 (it makes the problem strictly convex), got {settings.gamma}")
     if not settings.tolerance > 0:
         raise InputError(f"solver.tolerance must be > 0, got {settings.tolerance}")
+    if settings.max_seconds < 0:
+        raise InputError(f"solver.max_seconds must be >= 0 (0: no limit), got {settings.max_seconds}")
     if settings.max_sweeps < 1 or settings.check_every < 1:
         raise InputError("solver.max_sweeps and solver.check_every must be >= 1")
 
@@ -343,7 +345,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, helices.n_strands,
                            force_scale, settings.tolerance, settings.max_sweeps, settings.check_every,
                            progress=progress, s=contacts.s, accelerate=settings.accelerate,
-                           part_of=split_strands(helices.root, contacts.strand))
+                           part_of=split_strands(helices.root, contacts.strand),
+                           max_seconds=settings.max_seconds)
     if result.status not in (CONVERGED,) and not np.all(np.isfinite(result.r)):
         raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
                        f"residual {result.residual:.3g} N")
@@ -375,7 +378,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     if result.status != CONVERGED:
         report.notes.append(
             f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "
-            f"(tolerance {settings.tolerance:g}); raise solver.max_sweeps or the tolerance")
+            f"(tolerance {settings.tolerance:g}); the model is an exact equilibrium, but its forces are not yet the "
+            "best ones: raise solver.max_sweeps (or solver.max_seconds) or the tolerance")
     return model, report
 
 

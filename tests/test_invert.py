@@ -341,3 +341,11 @@ def test_results_do_not_depend_on_the_thread_count(monkeypatch):
         model, report = solve(helices, contacts, material(), max_sweeps=50)
         answers.append(model.force)
     assert np.array_equal(answers[0], answers[1])
+
+
+def test_time_budget_stops_at_the_next_check():
+    helices, contacts = resting_scene()
+    model, report = solve(helices, contacts, material(), max_seconds=1e-9, check_every=3)
+    assert report.result.status == "MAX_ITERS" and report.result.sweeps == 3
+    grad, scale = energy_gradient(helices, contacts, model, material())
+    assert np.abs(grad).max() <= FINITE_DIFFERENCE * scale  # still an exact equilibrium

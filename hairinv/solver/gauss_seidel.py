@@ -314,7 +314,8 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
                   strand: np.ndarray, n_strands: int, force_scale: float, tolerance: float = 1e-6,
                   max_sweeps: int = 2000, check_every: int = 5, r0: np.ndarray | None = None,
                   desaxce: bool = False, progress=None, s: np.ndarray | None = None,
-                  accelerate: bool = True, part_of: np.ndarray | None = None) -> SolverResult:
+                  accelerate: bool = True, part_of: np.ndarray | None = None,
+                  max_seconds: float = 0.0) -> SolverResult:
     """Solve the cone complementarity problem of ``W = H D H^T + gamma I`` and ``b``.
 
     Parameters
@@ -327,6 +328,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
     strand : (C, 2) int64, the strands each contact touches (-1: none), for the colouring
     s : (C, 2) float64, optional, the contacts' arc lengths: sweeps then run from the tips to the roots
     part_of : (S,) int64, optional, two halves of the strands (:func:`split_strands`) swept at once
+    max_seconds : float, stop (MAX_ITERS) once this much time has passed, checked with the residual; 0: no limit
     force_scale : float, N, the force the tolerance is relative to
     tolerance : float, stop when the largest natural-map residual is below ``tolerance * force_scale``
     r0 : (C, 3) float64, optional warm start
@@ -446,6 +448,8 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
                     status = NUMERICAL
                 elif residual <= target:
                     status = CONVERGED
+                elif max_seconds > 0 and time.perf_counter() - started > max_seconds:
+                    break
     finally:
         limits.restore_original_limits()
         if pool is not None:
