@@ -107,6 +107,19 @@ def _accumulate_f(ptr, cols, vals, d, r, f):
         f[k] *= d[k]
 
 
+@jit(inline="always")
+def _contact_u(i, ptr, cols, vals, f, gamma, b, r, u):
+    """``u = (W r + b)_i = H_i f + gamma r_i + b_i`` with ``f = D H^T r``."""
+    u[0] = b[i, 0] + gamma * r[i, 0]
+    u[1] = b[i, 1] + gamma * r[i, 1]
+    u[2] = b[i, 2] + gamma * r[i, 2]
+    for j in range(ptr[i], ptr[i + 1]):
+        fj = f[cols[j]]
+        u[0] += vals[j, 0] * fj
+        u[1] += vals[j, 1] * fj
+        u[2] += vals[j, 2] * fj
+
+
 @jit
 def _sweep(order, lo, hi, ptr, cols, vals, d, gamma, Wd, b, mu, r, f, local_tol, desaxce):
     """Update the contacts ``order[lo:hi]`` one after the other; returns (failures, numerical errors)."""
@@ -117,15 +130,7 @@ def _sweep(order, lo, hi, ptr, cols, vals, d, gamma, Wd, b, mu, r, f, local_tol,
     numerical = 0
     for t in range(lo, hi):
         i = order[t]
-        # u = (W r + b)_i = H_i f + gamma r_i + b_i
-        u[0] = b[i, 0] + gamma * r[i, 0]
-        u[1] = b[i, 1] + gamma * r[i, 1]
-        u[2] = b[i, 2] + gamma * r[i, 2]
-        for j in range(ptr[i], ptr[i + 1]):
-            fj = f[cols[j]]
-            u[0] += vals[j, 0] * fj
-            u[1] += vals[j, 1] * fj
-            u[2] += vals[j, 2] * fj
+        _contact_u(i, ptr, cols, vals, f, gamma, b, r, u)
         # local problem W_ii r_i + bl with the other contacts frozen
         for a in range(3):
             bl[a] = u[a] - (Wd[i, a, 0] * r[i, 0] + Wd[i, a, 1] * r[i, 1] + Wd[i, a, 2] * r[i, 2])
@@ -188,14 +193,7 @@ def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, out):
     p = np.empty(3)
     worst = 0.0
     for i in range(ptr.shape[0] - 1):
-        u[0] = b[i, 0] + gamma * r[i, 0]
-        u[1] = b[i, 1] + gamma * r[i, 1]
-        u[2] = b[i, 2] + gamma * r[i, 2]
-        for j in range(ptr[i], ptr[i + 1]):
-            fj = f[cols[j]]
-            u[0] += vals[j, 0] * fj
-            u[1] += vals[j, 1] * fj
-            u[2] += vals[j, 2] * fj
+        _contact_u(i, ptr, cols, vals, f, gamma, b, r, u)
         rho = (Wd[i, 0, 0] + Wd[i, 1, 1] + Wd[i, 2, 2]) / 3.0
         for a in range(3):
             x[a] = r[i, a] - u[a] / rho
