@@ -271,13 +271,19 @@ class InvertReport:
 
     def lines(self) -> list[str]:
         r = self.result
-        lines = [
-            f"inverted {self.strands} strands (target {self.target}) with {self.contacts} contacts "
-            f"({self.body_contacts} body, {self.contacts - self.body_contacts} hair-hair); "
-            f"{self.carrying} carry force",
-            f"solver: {r.status} after {r.sweeps} sweeps in {r.seconds:.2f} s ({r.colours} colours); "
-            f"residual {r.residual:.3g} N = {r.relative_residual:.2g} of the heaviest strand's weight "
-            f"({self.force_scale:.3g} N)",
+        if self.contacts == 0:
+            lines = [f"inverted {self.strands} strands (target {self.target}) without contacts: "
+                     "q0 = q - K^-1 F_g, the gravity-only inversion"]
+        else:
+            lines = [
+                f"inverted {self.strands} strands (target {self.target}) with {self.contacts} contacts "
+                f"({self.body_contacts} body, {self.contacts - self.body_contacts} hair-hair); "
+                f"{self.carrying} carry force",
+                f"solver: {r.status} after {r.sweeps} sweeps in {r.seconds:.2f} s; "
+                f"residual {r.residual:.3g} N = {r.relative_residual:.2g} of the heaviest strand's weight "
+                f"({self.force_scale:.3g} N)",
+            ]
+        lines += [
             f"rest shape: rms drift from the target {self.drift_rms:.4g} 1/m, "
             f"largest rest curvature {self.max_rest_curvature:.4g} 1/m",
         ]
@@ -286,7 +292,7 @@ class InvertReport:
                          f"(a simulation may let them fall away from the input shape)")
         else:
             lines.append("every strand rests in a stable equilibrium")
-        if self.target != "gravity-only":
+        if self.contacts:
             lines.append(f"for comparison, the gravity-only inversion leaves {self.unstable_gravity_only} "
                          "strands unstable")
         lines += self.notes
