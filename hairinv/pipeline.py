@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import formats, stages
-from .config import Settings
+from .config import ImportSettings, Settings
 from .contacts import Contacts, detect_contacts
 from .errors import InputError
 from .fit import Helices, fit_groom
@@ -89,6 +89,11 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
             groups[stages.HELICES] = stage[stages.HELICES]
             lines.append(f"using the fitted helices in {style.name} ({helices.n_strands} strands, "
                          f"{helices.n_elements} elements)")
+            changed = [k for k, v in dataclasses.asdict(settings.import_).items()
+                       if v != getattr(ImportSettings(), k)]
+            if changed:
+                lines.append(f"note: {style.name} is already fitted, so the import settings "
+                             f"({', '.join(changed)}) do not apply; fit the raw curves to change them")
         else:
             helices = None
         stored_contacts = stage[stages.CONTACTS] if stages.CONTACTS in stage else None
