@@ -22,8 +22,15 @@ OK, FAILED, BAD_INPUT = 0, 1, 2
 
 
 def _say(ctx_obj, line: str) -> None:
-    if not ctx_obj.get("quiet"):
+    if ctx_obj.get("quiet"):
+        return
+    try:
         click.echo(line)
+    except BrokenPipeError:
+        # the reader went away (``hairinv ... | head``): stop printing, finish the job
+        ctx_obj["quiet"] = True
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
 
 
 def handle_errors(fn):

@@ -172,3 +172,20 @@ def test_sintel_end_to_end(tmp_path):
         assert np.any(fh["model"]["force"][:, 0] > 0)
     residual, cone = equilibrium_residual(tmp_path / "sintel.h5")
     assert residual < EQUILIBRIUM and cone < CONE
+
+
+def test_output_piped_into_a_closed_reader_still_writes_the_file(inverted):
+    """``hairinv detect ... | head -1``: the reader leaves early; the job still finishes."""
+    import subprocess
+    import sys
+
+    from test_cli import ENV
+
+    folder, _ = inverted
+    proc = subprocess.Popen([sys.executable, "-m", "hairinv_cli.main", "detect", "model.h5", "body.obj",
+                             "-o", "piped.h5"], cwd=folder, env=ENV, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # nobody reads: every print meets a broken pipe
+    _, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err
+    assert stages.read_stage(folder / "piped.h5").last_stage == "contacts"
