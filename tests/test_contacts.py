@@ -35,8 +35,8 @@ FRAME = 1e-12
 FACET_COS = np.cos(np.radians(3.0))
 
 SETTINGS = ContactSettings()
-# hair-hair geometry tests: no root clearance, so element pairs at the roots count like any other
-HAIR_ONLY = dataclasses.replace(SETTINGS, body=False, root_clearance=0.0)
+# hair-hair geometry tests: no root clearance and no cap per element, so every element pair within reach counts
+HAIR_ONLY = dataclasses.replace(SETTINGS, body=False, root_clearance=0.0, max_hair_per_element=0)
 BODY_ONLY = dataclasses.replace(SETTINGS, hair_hair=False, root_clearance=0.0)
 
 
@@ -500,3 +500,22 @@ def test_no_hair_hair_contact_between_two_roots():
     assert any("root_clearance" in note for note in report.notes)
     loose, _ = detect_contacts(helices([a, b]), None, dataclasses.replace(settings, root_clearance=0.0))
     assert loose.n_hair == 1 and np.all(loose.s[0] < 1e-3)
+
+
+def test_hair_contacts_per_element_are_capped_closest_first():
+    """Nine parallel strands 0.2 mm apart: without a limit each element touches
+    every neighbour within reach; with a cap of 2 each element keeps its two
+    closest (the adjacent strands)."""
+    strands = [straight((0.0, 0.0, 2e-4 * k), (1.0, 0.0, 0.0), 0.04, 2) for k in range(9)]
+    h = helices(strands)
+    free, _ = detect_contacts(h, None, dataclasses.replace(HAIR_ONLY, max_hair_per_element=0))
+    capped, report = detect_contacts(h, None, dataclasses.replace(HAIR_ONLY, max_hair_per_element=2))
+    per_element = lambda c: np.bincount(  # noqa: E731
+        np.concatenate([2 * c.strand[:, 0] + (c.s[:, 0] >= 0.02), 2 * c.strand[:, 1] + (c.s[:, 1] >= 0.02)]),
+        minlength=18)
+    assert per_element(free).max() > 2
+    assert per_element(capped).max() <= 2
+    assert capped.n_hair < free.n_hair
+    gap = np.abs(capped.strand[:, 0] - capped.strand[:, 1])
+    assert np.all(gap == 1)  # the closest neighbours, 0.2 mm away
+    assert any("max_hair_per_element" in note for note in report.notes)

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import stages
+from .._jit import jit
 from .._parallel import run_chunks
 from ..config import ContactSettings
 from ..errors import InputError
@@ -150,6 +151,9 @@ def validate_settings(settings: ContactSettings) -> None:
         value = getattr(settings, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
             raise InputError(f"contacts.{name} must be a friction coefficient >= 0, got {value!r}")
+    if not isinstance(settings.max_hair_per_element, int) or settings.max_hair_per_element < 0:
+        raise InputError("contacts.max_hair_per_element must be an integer >= 0 (0: no limit), "
+                         f"got {settings.max_hair_per_element!r}")
     value = settings.samples_per_element
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 2:
         raise InputError(f"contacts.samples_per_element must be an integer >= 2 (an element's two ends), got {value!r}")
@@ -210,6 +214,23 @@ def _hair_normals(point_a, point_b, tangent_a, tangent_b, dist, flat) -> np.ndar
         cross[parallel] = contact_frames(tangent_a[~apart][parallel])[:, 1]
         normal[~apart] = _largest_positive(_unit(cross))
     return normal
+
+
+@jit
+def _closest_per_element(ea, eb, dist, keep, cap, elements, out):
+    """Greedy, closest first: keep a pair while both of its elements have fewer than ``cap`` contacts."""
+    count = np.zeros(elements, dtype=np.int64)
+    order = np.argsort(dist, kind="mergesort")
+    for t in range(order.shape[0]):
+        k = order[t]
+        if not keep[k]:
+            continue
+        if count[ea[k]] < cap and count[eb[k]] < cap:
+            count[ea[k]] += 1
+            count[eb[k]] += 1
+            out[k] = True
+        else:
+            out[k] = False
 
 
 def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=None) -> tuple[Contacts, DetectReport]:
@@ -316,6 +337,14 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
             notes.append(f"hair-hair: {int(near_roots.sum())} contacts between two strands within "
                          f"root_clearance ({1e3 * settings.root_clearance:g} mm) of both roots were not declared")
         keep &= ~near_roots
+        if settings.max_hair_per_element > 0:
+            capped = keep.copy()
+            _closest_per_element(ea, eb, dist, keep, int(settings.max_hair_per_element), elements, capped)
+            if (keep & ~capped).any():
+                notes.append(f"hair-hair: kept the {settings.max_hair_per_element} closest contacts per element "
+                             f"(contacts.max_hair_per_element); {int((keep & ~capped).sum())} farther ones "
+                             "were not declared")
+            keep = capped
         ea, eb, sa, sb = ea[keep], eb[keep], sa[keep], sb[keep]
         normal = _hair_normals(pa[keep], pb[keep], ta[keep], tb[keep], dist[keep],
                                COINCIDENT * float(settings.hair_distance))
