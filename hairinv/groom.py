@@ -268,15 +268,17 @@ def load_groom(path, settings: ImportSettings, body_size_native: float | None = 
     return groom, report
 
 
-def load_body(path, scale: float, flip: str = ""):
+def load_body(path, scale: float, flip: str = "", mesh=None):
     """Read a body mesh and bring it to metres with the hair's scale.
+
+    ``mesh``, if given, is the file already read with :func:`formats.read_mesh`.
 
     Returns
     -------
     trimesh.Trimesh
         Triangles in metres, in the same world frame as the hair.
     """
-    mesh = formats.read_mesh(path)
+    mesh = formats.read_mesh(path) if mesh is None else mesh
     vertices = _flip(np.array(mesh.vertices, dtype=np.float64), flip, path) * scale
     mesh = mesh.copy()
     mesh.vertices = vertices

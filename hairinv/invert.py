@@ -166,16 +166,18 @@ def _gravity_hessian_chunk(root, frame0, offsets, omega, length, lam, gravity, l
                 hess[base + i * m + j] = -(fp[i // 3, i % 3] - fm[i // 3, i % 3]) / (2.0 * h)
 
 
-def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None,
-              contacts: Contacts | None, r: np.ndarray | None, carrying: np.ndarray | None) -> np.ndarray:
-    """Which strands sit in an unstable equilibrium, (S,) bool.
+def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None = None,
+              contacts: Contacts | None = None, carrying: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Which strands sit in an unstable equilibrium: (with their supports, without), each (S,) bool.
 
     The Hessian of the total energy at ``q`` is ``K + d^2 V_g / dq^2``
     (independent of ``q0``). A strand is stable if it is positive definite on
     the directions that keep the points of its force-carrying contacts in
     place (the supports; the other strand of a hair-hair contact is held
     fixed). The gravity Hessian is taken by central differences of ``F_g``,
-    accurate to about 1e-8 relative: enough to tell a sign.
+    accurate to about 1e-8 relative: enough to tell a sign. The second mask
+    ignores the supports (the gravity-only inversion's stability: the
+    Hessian does not depend on ``q0``), from the same Hessian.
     """
     S = helices.n_strands
     counts = 3 * np.diff(helices.offsets)
@@ -204,6 +206,7 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
                 block[:, cols[mask] - lo] = vals[mask].T
                 support.setdefault(int(side), []).append(block)
     unstable = np.zeros(S, dtype=bool)
+    free = np.zeros(S, dtype=bool)
     for s in range(S):
         m = counts[s]
         k = stiff[3 * helices.offsets[s]:3 * helices.offsets[s + 1]]
@@ -212,16 +215,15 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
         # scale by K^-1/2 so the test reads "eigenvalue of I + K^-1/2 V'' K^-1/2 below zero"
         scale = 1.0 / np.sqrt(k)
         A = scale[:, None] * A * scale[None, :] + np.eye(m)
+        free[s] = np.linalg.eigvalsh(A)[0] < -1e-6
+        unstable[s] = free[s]
         if s in support:
             C = np.vstack(support[s]) * scale[None, :]
             _, sv, vt = np.linalg.svd(C)
             rank = int((sv > 1e-10 * max(sv.max(), 1e-300)).sum())
             Z = vt[rank:].T
-            if Z.shape[1] == 0:
-                continue
-            A = Z.T @ A @ Z
-        unstable[s] = np.linalg.eigvalsh(A)[0] < -1e-6
-    return unstable
+            unstable[s] = Z.shape[1] > 0 and np.linalg.eigvalsh(Z.T @ A @ Z)[0] < -1e-6
+    return unstable, free
 
 
 @dataclass
@@ -364,12 +366,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     carrying = r[:, 0] > settings.tolerance * force_scale if len(r) else np.zeros(0, bool)
     unstable = unstable_g = 0
     if check_stability:
-        unstable_mask = stability(helices, material, stiff, rows, contacts, r, carrying)
-        unstable = int(unstable_mask.sum())
-        if contacts.n_contacts and carrying.any():
-            unstable_g = int(stability(helices, material, stiff, None, None, None, None).sum())
-        else:
-            unstable_g = unstable
+        supported, free = stability(helices, material, stiff, rows, contacts, carrying)
+        unstable, unstable_g = int(supported.sum()), int(free.sum())
     drift = omega_rest - target
     curvature = np.hypot(omega_rest[:, 0], omega_rest[:, 1])
     if declared != contacts.n_contacts:  # gravity-only: every declared contact carries no force

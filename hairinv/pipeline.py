@@ -49,11 +49,6 @@ class Scene:
     lines: list = field(default_factory=list)
 
 
-def _native_body_size(body_path) -> float:
-    mesh = formats.read_mesh(body_path)
-    return float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))
-
-
 def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Scene:
     """Read ``style`` (raw curves or a stage file) and ``body`` and bring them to the contact stage.
 
@@ -75,6 +70,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         inputs.append(stages.file_record(body))
     lines: list[str] = []
     groups: dict = {}
+    native = formats.read_mesh(body) if body is not None else None  # read once: units guess and contacts
     if stages.is_stage_file(style):
         stage = stages.read_stage(style)
         if stages.CURVES not in stage:
@@ -102,7 +98,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
             groom, report = load_groom(style, settings.import_)
             lines += report.lines()
     else:
-        size = _native_body_size(body) if body is not None else None
+        size = float(np.linalg.norm(np.ptp(np.asarray(native.vertices), axis=0))) if native is not None else None
         groom, report = load_groom(style, settings.import_, body_size_native=size)
         lines += report.lines()
         groups[stages.CURVES] = groom.curves_group(settings.import_, inputs[:1])
@@ -118,7 +114,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
                 bar.close()
         lines += fit_report.lines()
         groups[stages.HELICES] = helices.group(settings.fit, inputs[:1])
-    mesh = load_body(body, scale, flip) if body is not None else None
+    mesh = load_body(body, scale, flip, native) if body is not None else None
     scene = Scene(groups, helices, up, None, mesh, inputs, lines)
     if not contacts:
         return scene
