@@ -82,7 +82,7 @@ class SolverResult:
 
 @jit
 def diagonal_blocks(ptr, cols, vals, d, gamma, out):
-    """``W_ii = H_i D H_i^T + gamma I`` of every contact, (C, 3, 3)."""
+    """``W_ii = H_i D H_i^T + gamma_i I`` of every contact, (C, 3, 3); ``gamma`` is (C,)."""
     for i in range(ptr.shape[0] - 1):
         for a in range(3):
             for c in range(3):
@@ -93,7 +93,7 @@ def diagonal_blocks(ptr, cols, vals, d, gamma, out):
                 for c in range(3):
                     out[i, a, c] += vals[j, a] * dj * vals[j, c]
         for a in range(3):
-            out[i, a, a] += gamma
+            out[i, a, a] += gamma[i]
 
 
 @jit
@@ -109,10 +109,10 @@ def _accumulate_f(ptr, cols, vals, d, r, f):
 
 @jit(inline="always")
 def _contact_u(i, ptr, cols, vals, f, gamma, b, r, u):
-    """``u = (W r + b)_i = H_i f + gamma r_i + b_i`` with ``f = D H^T r``."""
-    u[0] = b[i, 0] + gamma * r[i, 0]
-    u[1] = b[i, 1] + gamma * r[i, 1]
-    u[2] = b[i, 2] + gamma * r[i, 2]
+    """``u = (W r + b)_i = H_i f + gamma_i r_i + b_i`` with ``f = D H^T r``."""
+    u[0] = b[i, 0] + gamma[i] * r[i, 0]
+    u[1] = b[i, 1] + gamma[i] * r[i, 1]
+    u[2] = b[i, 2] + gamma[i] * r[i, 2]
     for j in range(ptr[i], ptr[i + 1]):
         fj = f[cols[j]]
         u[0] += vals[j, 0] * fj
@@ -163,9 +163,9 @@ def _objective(f, d, gamma, b, r):
     lin = 0.0
     for i in range(r.shape[0]):
         for a in range(3):
-            reg += r[i, a] * r[i, a]
+            reg += gamma[i] * r[i, a] * r[i, a]
             lin += b[i, a] * r[i, a]
-    return 0.5 * acc + 0.5 * gamma * reg + lin
+    return 0.5 * acc + 0.5 * reg + lin
 
 
 @jit
@@ -182,10 +182,14 @@ def _extrapolate(x, x_prev, beta, mu, out):
 
 
 @jit
-def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, out):
+def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, desaxce, velocity, out):
     """Per-contact natural-map residual ``|r_i - P_K(r_i - u_i / rho_i)|`` in force units.
 
     ``u = H f + gamma r + b`` with ``f = D H^T r``; ``rho_i = trace(W_ii) / 3``.
+    With ``desaxce``, ``u`` is the De Saxce velocity ``u + mu |u_T| e_N``. With
+    ``velocity``, the residual is ``rho_i`` times the above, in velocity units
+    (dynamics: a contact whose ``W_ii`` is large turns a small impulse error into
+    a large velocity one).
     Returns the largest value (NaN if any is not finite).
     """
     u = np.empty(3)
@@ -194,11 +198,15 @@ def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, out):
     worst = 0.0
     for i in range(ptr.shape[0] - 1):
         _contact_u(i, ptr, cols, vals, f, gamma, b, r, u)
+        if desaxce:
+            u[0] += mu[i] * np.sqrt(u[1] * u[1] + u[2] * u[2])
         rho = (Wd[i, 0, 0] + Wd[i, 1, 1] + Wd[i, 2, 2]) / 3.0
         for a in range(3):
             x[a] = r[i, a] - u[a] / rho
         project_cone(x, mu[i], p)
         e = np.sqrt((r[i, 0] - p[0]) ** 2 + (r[i, 1] - p[1]) ** 2 + (r[i, 2] - p[2]) ** 2)
+        if velocity:
+            e *= rho
         out[i] = e
         if not (e <= worst):  # also catches NaN
             worst = e
@@ -308,26 +316,27 @@ def sweep_plan(strand: np.ndarray, n_strands: int, s: np.ndarray | None = None,
     return order, [h for h in halves if h[1] > h[0]], (sub_bounds + start).astype(np.int64)
 
 
-def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray, mu: np.ndarray,
+def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np.ndarray,
                   strand: np.ndarray, n_strands: int, force_scale: float, tolerance: float = 1e-6,
                   max_sweeps: int = 2000, check_every: int = 5, r0: np.ndarray | None = None,
                   desaxce: bool = False, progress=None, s: np.ndarray | None = None,
                   accelerate: bool = True, part_of: np.ndarray | None = None,
-                  max_seconds: float = 0.0) -> SolverResult:
+                  max_seconds: float = 0.0, velocity: bool = False) -> SolverResult:
     """Solve the cone complementarity problem of ``W = H D H^T + gamma I`` and ``b``.
 
     Parameters
     ----------
     rows : ContactRows, the contact Jacobian ``H`` (3C x n)
     d : (n,) float64, the diagonal operator ``D`` (positive)
-    gamma : float, the regularisation added to ``W``'s diagonal
+    gamma : float or (C,) float64, the regularisation added to ``W``'s diagonal (one per contact)
     b : (C, 3) float64
     mu : (C,) float64, friction coefficients
     strand : (C, 2) int64, the strands each contact touches (-1: none), for the colouring
     s : (C, 2) float64, optional, the contacts' arc lengths: sweeps then run from the tips to the roots
     part_of : (S,) int64, optional, two halves of the strands (:func:`split_strands`) swept at once
     max_seconds : float, stop (MAX_ITERS) once this much time has passed, checked with the residual; 0: no limit
-    force_scale : float, N, the force the tolerance is relative to
+    force_scale : float, N, the force the tolerance is relative to (with ``velocity``: a velocity, m/s)
+    velocity : bool, measure the residual in velocity units (see :func:`natural_residuals`)
     tolerance : float, stop when the largest natural-map residual is below ``tolerance * force_scale``
     r0 : (C, 3) float64, optional warm start
     desaxce : bool, solve the De Saxce-modified (dynamic) problem instead of the convex one
@@ -348,6 +357,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
     mu = np.ascontiguousarray(mu, dtype=np.float64)
     if n_contacts == 0:
         return SolverResult(r, CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started)
+    gamma = np.ascontiguousarray(np.broadcast_to(np.asarray(gamma, dtype=np.float64), (n_contacts,)))
     Wd = np.empty((n_contacts, 3, 3))
     diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, gamma, Wd)
     order, halves, bounds = sweep_plan(strand, n_strands, s, part_of)
@@ -368,12 +378,13 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray,
     def _check(point: np.ndarray) -> float:
         # f rebuilt from the point itself, so round-off of the incremental updates cannot accumulate
         _accumulate_f(rows.ptr, rows.cols, rows.vals, d, point, f_check)
-        return natural_residuals(rows.ptr, rows.cols, rows.vals, f_check, gamma, Wd, b, mu, point, per_contact)
+        return natural_residuals(rows.ptr, rows.cols, rows.vals, f_check, gamma, Wd, b, mu, point, desaxce,
+                                 velocity, per_contact)
 
     def sweep_colour(lo: int, hi: int) -> tuple[int, int]:
         return _sweep(order, lo, hi, rows.ptr, rows.cols, rows.vals, d, gamma, Wd, b, mu, r, f, local_tol, desaxce)
 
-    residual = natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, per_contact)
+    residual = natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, desaxce, velocity, per_contact)
     history.append((0, float(residual)))
     if residual <= target:
         status = CONVERGED
