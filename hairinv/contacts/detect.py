@@ -60,6 +60,14 @@ class Contacts:
         normal points from B towards A (from the body surface towards the hair).
     mu : (C,) float64
         Coulomb friction coefficient.
+    gap : (C,) float64 or None, m
+        Distance at detection: signed distance from the body surface (negative
+        inside) or between the two centerlines. None for files written before
+        it was stored.
+    element : (C, 2) int64 or None
+        Element (global index) holding each side, -1 for the body; at most one
+        contact per element (body) or element pair (hair-hair), so it names
+        the contact from one detection to the next. Not stored in files.
     """
 
     strand: np.ndarray
@@ -67,6 +75,8 @@ class Contacts:
     point: np.ndarray
     frame: np.ndarray
     mu: np.ndarray
+    gap: np.ndarray | None = None
+    element: np.ndarray | None = None
 
     @property
     def n_contacts(self) -> int:
@@ -81,9 +91,12 @@ class Contacts:
         return self.n_contacts - self.n_body
 
     def group(self, settings: ContactSettings, inputs: list[dict]) -> stages.Group:
+        data = {"strand": self.strand, "s": self.s, "point": self.point, "frame": self.frame, "mu": self.mu}
+        if self.gap is not None:
+            data["gap"] = self.gap
         return stages.Group(
             stages.CONTACTS,
-            {"strand": self.strand, "s": self.s, "point": self.point, "frame": self.frame, "mu": self.mu},
+            data,
             config={"contacts": dataclasses.asdict(settings)},
             inputs=inputs,
         )
@@ -96,17 +109,21 @@ class Contacts:
             np.ascontiguousarray(group["point"], dtype=np.float64).reshape(-1, 3),
             np.ascontiguousarray(group["frame"], dtype=np.float64).reshape(-1, 3, 3),
             np.ascontiguousarray(group["mu"], dtype=np.float64).reshape(-1),
+            np.ascontiguousarray(group["gap"], dtype=np.float64).reshape(-1) if "gap" in group.datasets else None,
         )
 
     @classmethod
     def empty(cls) -> "Contacts":
-        return cls(np.zeros((0, 2), np.int64), np.zeros((0, 2)), np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0))
+        return cls(np.zeros((0, 2), np.int64), np.zeros((0, 2)), np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0),
+                   np.zeros(0), np.zeros((0, 2), np.int64))
 
     def subset(self, mask) -> "Contacts":
         """The contacts selected by a boolean mask (C,) or an index array, in that order."""
         mask = np.asarray(mask)
         arrays = (self.strand, self.s, self.point, self.frame, self.mu)
-        return Contacts(*(np.ascontiguousarray(a[mask]) for a in arrays))
+        gap = None if self.gap is None else np.ascontiguousarray(self.gap[mask])
+        element = None if self.element is None else np.ascontiguousarray(self.element[mask])
+        return Contacts(*(np.ascontiguousarray(a[mask]) for a in arrays), gap, element)
 
 
 @dataclass
@@ -311,6 +328,8 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         b_point[body_idx],
         contact_frames(b_normal[body_idx]),
         np.full(len(body_idx), float(settings.mu_body)),
+        b_sd[body_idx],
+        np.stack([body_idx, np.full(len(body_idx), BODY, np.int64)], axis=1),
     )
     body_part = body_part.subset(np.lexsort((body_part.s[:, 0], body_part.strand[:, 0])))
 
@@ -354,13 +373,17 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
             np.ascontiguousarray(pa[keep]),
             contact_frames(normal),
             np.full(len(ea), float(settings.mu_hair)),
+            dist[keep],
+            np.stack([ea, eb], axis=1),
         )
         hair_part = hair_part.subset(np.lexsort((hair_part.s[:, 1], hair_part.s[:, 0], hair_part.strand[:, 1],
                                                  hair_part.strand[:, 0])))
 
     contacts = Contacts(*(np.ascontiguousarray(np.concatenate([a, b])) for a, b in zip(
-        (body_part.strand, body_part.s, body_part.point, body_part.frame, body_part.mu),
-        (hair_part.strand, hair_part.s, hair_part.point, hair_part.frame, hair_part.mu))))
+        (body_part.strand, body_part.s, body_part.point, body_part.frame, body_part.mu, body_part.gap,
+         body_part.element),
+        (hair_part.strand, hair_part.s, hair_part.point, hair_part.frame, hair_part.mu, hair_part.gap,
+         hair_part.element))))
     inside_strands = np.bincount(strand_of, weights=inside, minlength=count) > 0 if elements else np.zeros(0, bool)
     points_inside = int(inside.sum())
     report = DetectReport(
