@@ -1,0 +1,704 @@
+"""Inertia of super-helices: mass matrix, node Jacobians and velocity-product terms.
+
+A strand's kinetic energy is the centerline's translational energy plus the
+rotational energy of its cross-sections,
+
+    K = 1/2 lam int |x_dot|^2 ds
+      + 1/2 rho int (I (W.n1)^2 + I (W.n2)^2 + 2 I (W.t)^2) ds,
+
+with ``lam = rho pi r^2`` (kg/m), ``I = pi r^4 / 4`` and ``W`` the world
+angular velocity of the material frame ``(t, n1, n2)``. With ``rot = rho I``
+(kg m) the rotational density is ``rot (|W|^2 + (W.t)^2)``. Both integrals
+are taken by Gauss-Legendre quadrature, ``order`` nodes per element: node
+``e * order + j`` sits at ``sigma = gx[j] length[e]`` in element ``e`` and
+carries the weight ``gw[j] length[e]`` (m). At every node
+
+    x_dot = J q_dot,    W = T q_dot,
+
+where ``q = omega.ravel()`` (column ``3 e + k`` is ``omega[e, k]``), ``J``
+(3 x 3N, m^2) and ``T`` (3 x 3N, m) built like
+:func:`hairinv.rod.statics.point_jacobian`: an element upstream of the node
+moves it rigidly about that element's end (``J = dx_end + dth x r``, ``T =
+dth_end``), its own element moves it by the derivatives at ``sigma``, and
+elements downstream do not move it. Then
+
+    M = sum_nodes w (lam J^T J + rot T^T (1 + t t^T) T)      (kg m^4)
+
+is exactly the Hessian of the quadrature of ``K``, and the equations of motion
+``d/dt dK/dq_dot - dK/dq = f`` read ``M q_ddot = f + b`` with the
+velocity-product (Coriolis, centripetal, gyroscopic) force
+
+    b = -sum_nodes w (lam J^T a0 + T^T (I_w al0 + W x I_w W)),   I_w = rot (1 + t t^T),
+
+where ``a0`` and ``al0`` are the node's linear and angular accelerations at
+``q_ddot = 0`` (the "J-dot q_dot" terms). They come from central second
+differences of the chain along ``q_dot``, Richardson-extrapolated
+(:func:`node_bias_accelerations`), accurate to a few 1e-9 of the largest
+node acceleration; everything else is closed form, exact to round-off.
+Generalized forces are in J m (work per unit curvature), like
+:func:`hairinv.rod.statics.gravity_forces`, whose ``(N, 3)`` layout is the
+``(3N,)`` vectors here reshaped.
+
+Two evaluations of the same sums:
+
+- from the node Jacobians (:func:`strand_nodes`, :func:`mass_from_nodes`,
+  :func:`node_forces_to_generalized`): the definitions, O(N^2 m) storage
+  and O(N^3 m) work for ``M``;
+- as a composite rigid body (:func:`strand_mass`, :func:`strand_node_loads`,
+  :func:`strand_bias_forces`): an upstream element ``a`` moves every later
+  node by the rigid twist ``x_dot = E_a + Th_a x`` (``Th_a = dth_end``,
+  ``E_a = dx_end - Th_a x x_{a+1}``, positions relative to the root), so
+  the nodes after element ``b`` act through their spatial inertia
+  (``sum w``, ``sum w x``, ``sum w x x^T``, ``sum w I_w``, suffix sums) and
+  their loads through one resultant force and moment. ``M`` then costs
+  O(N^2 + N m) and a generalized force O(N m), like ``gravity_forces``.
+
+Quadrature accuracy: ``M`` is the exact Hessian of the *quadrature* of
+``K``, so it is symmetric, positive semi-definite and consistent with ``b``
+at any order; against the exact integral its error ``||M_m - M|| / ||M||``
+depends on the largest element angle ``theta = |omega_e| length_e`` (measured
+over random strands of 1-7 elements):
+
+    theta (rad)    0.5      1.0      1.5      2.0      3.0
+    4 nodes        1e-7     1e-6     7e-6     2e-5     1e-4
+    6 nodes        3e-14    7e-12    2e-10    2e-9     6e-8
+
+Relative to ``v^T M v`` itself the error can be larger along the weak twist
+directions (whose energy is ~1e-6 of the bending ones).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from .._jit import jit
+from ..rod.helix import _advance, chain, element_derivatives
+
+__all__ = [
+    "gauss_nodes",
+    "strand_nodes",
+    "mass_from_nodes",
+    "strand_mass",
+    "node_forces_to_generalized",
+    "node_torques_to_generalized",
+    "strand_node_loads",
+    "node_bias_accelerations",
+    "strand_bias_forces",
+    "inertia_terms",
+]
+
+# Largest rotation angle |h q_dot_e| length_e of any element in the second
+# differences of node_bias_accelerations. After Richardson extrapolation the
+# truncation is ~angle^4 and the round-off ~eps / angle^2: they balance near
+# eps^(1/6) ~ 1e-2 (measured: ~1e-9 of the largest acceleration).
+_BIAS_ANGLE = 1e-2
+
+
+def gauss_nodes(order: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes and weights on ``[0, 1]``.
+
+    Parameters
+    ----------
+    order : int
+        Nodes per element; exact for polynomials of degree ``2 order - 1``.
+
+    Returns
+    -------
+    gx, gw : (order,) float64
+        Node positions (fraction of the element) and weights, ``sum gw = 1``.
+    """
+    gx, gw = _gauss_nodes(int(order))
+    return gx.copy(), gw.copy()
+
+
+@functools.lru_cache(maxsize=None)
+def _gauss_nodes(order):
+    # leggauss costs ~0.1 ms (an eigenvalue problem): computed once per order
+    if order < 1:
+        raise ValueError(f"quadrature order must be at least 1, got {order}")
+    x, w = np.polynomial.legendre.leggauss(order)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+@jit
+def strand_nodes(root, frame0, omega, length, gx, gw, x_out, F_out, w_out, J_out, T_out):
+    """Quadrature nodes of one strand with their Jacobians.
+
+    Parameters
+    ----------
+    root : (3,) float64, m
+    frame0 : (3, 3) float64, rows (t, n1, n2)
+    omega : (N, 3) float64, (kappa1, kappa2, tau), 1/m
+    length : (N,) float64, m
+    gx, gw : (m,) float64
+        Nodes and weights on ``[0, 1]`` (:func:`gauss_nodes`).
+    x_out : (N m, 3) float64, out
+        Node positions, m. Node ``e m + j`` is at ``gx[j] length[e]`` in element ``e``.
+    F_out : (N m, 3, 3) float64, out
+        Material frames at the nodes (rows t, n1, n2).
+    w_out : (N m,) float64, out
+        Quadrature weights ``gw[j] length[e]``, m.
+    J_out : (N m, 3, 3N) float64, out
+        ``J_out[n, :, 3 e + k]`` is d x_n / d omega[e, k] in world coordinates, m^2;
+        zero for the elements after the node's.
+    T_out : (N m, 3, 3N) float64, out
+        ``T_out[n, :, 3 e + k]`` is the world rotation vector of the node's
+        frame per unit omega[e, k], m; zero for the elements after the node's.
+    """
+    n = omega.shape[0]
+    m = gx.shape[0]
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    chain(root, frame0, omega, length, xs, Fs)
+    # whole-element derivatives: what every node downstream of e sees
+    Dx = np.empty((n, 3, 3))
+    Dth = np.empty((n, 3, 3))
+    for e in range(n):
+        element_derivatives(omega[e], length[e], Fs[e], Dx[e], Dth[e])
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    dx = np.empty((3, 3))
+    dth = np.empty((3, 3))
+    J_out[:, :, :] = 0.0
+    T_out[:, :, :] = 0.0
+    for e in range(n):
+        for j in range(m):
+            node = e * m + j
+            sigma = gx[j] * length[e]
+            w_out[node] = gw[j] * length[e]
+            _advance(xs[e], Fs[e], omega[e], sigma, x_out[node], F_out[node], R, P, Q)
+            for a in range(e):
+                r0 = x_out[node, 0] - xs[a + 1, 0]
+                r1 = x_out[node, 1] - xs[a + 1, 1]
+                r2 = x_out[node, 2] - xs[a + 1, 2]
+                for k in range(3):
+                    c = 3 * a + k
+                    J_out[node, 0, c] = Dx[a, k, 0] + Dth[a, k, 1] * r2 - Dth[a, k, 2] * r1
+                    J_out[node, 1, c] = Dx[a, k, 1] + Dth[a, k, 2] * r0 - Dth[a, k, 0] * r2
+                    J_out[node, 2, c] = Dx[a, k, 2] + Dth[a, k, 0] * r1 - Dth[a, k, 1] * r0
+                    for i in range(3):
+                        T_out[node, i, c] = Dth[a, k, i]
+            element_derivatives(omega[e], sigma, Fs[e], dx, dth)
+            for k in range(3):
+                for i in range(3):
+                    J_out[node, i, 3 * e + k] = dx[k, i]
+                    T_out[node, i, 3 * e + k] = dth[k, i]
+
+
+@jit
+def mass_from_nodes(F, w, J, T, lam, rot, out):
+    """Mass matrix ``sum_n w_n (lam J_n^T J_n + rot T_n^T (1 + t_n t_n^T) T_n)``.
+
+    The definition, for node data at hand; :func:`strand_mass` gives the same
+    matrix in O(N^2) instead of O(N^3 m).
+
+    Parameters
+    ----------
+    F, w, J, T : node frames, weights and Jacobians of :func:`strand_nodes`
+        (node ``n`` belongs to element ``n // m``, whose columns end at ``3 (e + 1)``).
+    lam : float64
+        Linear density ``rho pi r^2``, kg/m.
+    rot : float64
+        Cross-section rotational density ``rho pi r^4 / 4``, kg m; may be 0.
+    out : (3N, 3N) float64, out
+        Symmetric mass matrix, kg m^4.
+    """
+    nodes = J.shape[0]
+    ncols = J.shape[2]
+    m = nodes // (ncols // 3)
+    tT = np.empty(ncols)
+    out[:, :] = 0.0
+    for node in range(nodes):
+        end = 3 * (node // m + 1)
+        wl = w[node] * lam
+        wr = w[node] * rot
+        for i in range(end):
+            tT[i] = F[node, 0, 0] * T[node, 0, i] + F[node, 0, 1] * T[node, 1, i] + F[node, 0, 2] * T[node, 2, i]
+        for i in range(end):
+            a0 = wl * J[node, 0, i]
+            a1 = wl * J[node, 1, i]
+            a2 = wl * J[node, 2, i]
+            b0 = wr * T[node, 0, i]
+            b1 = wr * T[node, 1, i]
+            b2 = wr * T[node, 2, i]
+            bt = wr * tT[i]
+            for j in range(i, end):
+                out[i, j] += (a0 * J[node, 0, j] + a1 * J[node, 1, j] + a2 * J[node, 2, j]
+                              + b0 * T[node, 0, j] + b1 * T[node, 1, j] + b2 * T[node, 2, j] + bt * tT[j])
+    for i in range(ncols):
+        for j in range(i):
+            out[i, j] = out[j, i]
+
+
+@jit
+def node_forces_to_generalized(J, f, out):
+    """Generalized force ``sum_n J_n^T f_n`` of point forces at the nodes.
+
+    Parameters
+    ----------
+    J : (nodes, 3, 3N) float64, m^2 (:func:`strand_nodes`)
+    f : (nodes, 3) float64
+        World force at each node, N (already multiplied by the weight and any
+        density the caller wants: a field ``g`` gives ``f_n = lam w_n g``).
+    out : (3N,) float64, out
+        J m; ``out.reshape(N, 3)`` has the layout of ``omega``.
+
+    See :func:`strand_node_loads` for the same sum in O(N m) without ``J``.
+    """
+    out[:] = 0.0
+    for node in range(J.shape[0]):
+        for c in range(J.shape[2]):
+            out[c] += J[node, 0, c] * f[node, 0] + J[node, 1, c] * f[node, 1] + J[node, 2, c] * f[node, 2]
+
+
+@jit
+def node_torques_to_generalized(T, torque, out):
+    """Generalized force ``sum_n T_n^T torque_n`` of point torques at the nodes.
+
+    Parameters
+    ----------
+    T : (nodes, 3, 3N) float64, m (:func:`strand_nodes`)
+    torque : (nodes, 3) float64, world torques, N m
+    out : (3N,) float64, out, J m
+    """
+    out[:] = 0.0
+    for node in range(T.shape[0]):
+        for c in range(T.shape[2]):
+            out[c] += T[node, 0, c] * torque[node, 0] + T[node, 1, c] * torque[node, 1] + T[node, 2, c] * torque[node, 2]
+
+
+@jit
+def _kinematics(frame0, omega, length, gx, xs, Fs, Th, E, x, F, dX, dTh):
+    """Chain, element twists and node data of one strand, positions relative to the root.
+
+    ``Th[e, k]`` and ``E[e, k]``: the rigid twist of everything after element
+    ``e`` per unit ``omega[e, k]`` (a point ``x`` moves by ``E + Th x x``).
+    ``x``, ``F``: node positions and frames; ``dX``, ``dTh``: the node's
+    derivatives w.r.t. its own element's omega (rows k).
+    """
+    n = omega.shape[0]
+    m = gx.shape[0]
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    chain(np.zeros(3), frame0, omega, length, xs, Fs)
+    for e in range(n):
+        element_derivatives(omega[e], length[e], Fs[e], E[e], Th[e])
+        p0 = xs[e + 1, 0]
+        p1 = xs[e + 1, 1]
+        p2 = xs[e + 1, 2]
+        for k in range(3):
+            # E = dx_end - Th x p_end
+            E[e, k, 0] -= Th[e, k, 1] * p2 - Th[e, k, 2] * p1
+            E[e, k, 1] -= Th[e, k, 2] * p0 - Th[e, k, 0] * p2
+            E[e, k, 2] -= Th[e, k, 0] * p1 - Th[e, k, 1] * p0
+        for j in range(m):
+            node = e * m + j
+            sigma = gx[j] * length[e]
+            _advance(xs[e], Fs[e], omega[e], sigma, x[node], F[node], R, P, Q)
+            element_derivatives(omega[e], sigma, Fs[e], dX[node], dTh[node])
+
+
+@jit
+def strand_mass(root, frame0, omega, length, gx, gw, lam, rot, out):
+    """Mass matrix of one strand as a composite rigid body, kg m^4.
+
+    The same ``M`` as :func:`mass_from_nodes` (to round-off) without the
+    node Jacobians, in O(N^2 + N m). Block ``(a, b)``, ``a < b``, is
+    ``S_a^T (I_b S_b + L_b)`` with ``S`` the element twists ``(Th, E)``,
+    ``I_b`` the spatial inertia of the nodes after element ``b`` and ``L_b``
+    the momentum (moment, force) of ``b``'s own nodes per unit ``omega_b``;
+    block ``(b, b)`` is ``S_b^T I_b S_b`` plus the own nodes' terms.
+    Positions are taken relative to the root, so the cancellation in
+    ``S^T I S`` costs at most ~(strand length / tail length)^2 eps.
+
+    Parameters
+    ----------
+    root : (3,) float64, m
+        Unused (``M`` does not depend on it); every strand kernel takes it.
+    frame0, omega, length, gx, gw : as :func:`strand_nodes`
+    lam : float64
+        Linear density ``rho pi r^2``, kg/m.
+    rot : float64
+        Cross-section rotational density ``rho pi r^4 / 4``, kg m; 0 drops
+        the rotational energy.
+    out : (3N, 3N) float64, out
+        Symmetric mass matrix.
+
+    Notes
+    -----
+    ``M`` is positive definite when ``rot > 0``. With ``rot = 0`` it is
+    singular exactly when some twist moves no point: the twist of a straight
+    element whose downstream strand lies on its axis (a perfectly straight
+    tail), to round-off.
+    """
+    n = omega.shape[0]
+    m = gx.shape[0]
+    nodes = n * m
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    Th = np.empty((n, 3, 3))
+    E = np.empty((n, 3, 3))
+    x = np.empty((nodes, 3))
+    F = np.empty((nodes, 3, 3))
+    dX = np.empty((nodes, 3, 3))
+    dTh = np.empty((nodes, 3, 3))
+    _kinematics(frame0, omega, length, gx, xs, Fs, Th, E, x, F, dX, dTh)
+    out[:, :] = 0.0
+    # composite of the nodes after element b: sum w, sum w x, sum w x x^T, sum w (1 + t t^T)
+    c0 = 0.0
+    c1 = np.zeros(3)
+    c2 = np.zeros((3, 3))
+    cI = np.zeros((3, 3))
+    IS = np.empty((3, 6))  # (moment, force) of the composite per unit omega[b, k]
+    L = np.empty((3, 6))  # the same plus b's own nodes
+    for b in range(n - 1, -1, -1):
+        tr = c2[0, 0] + c2[1, 1] + c2[2, 2]
+        for k in range(3):
+            t0 = Th[b, k, 0]
+            t1 = Th[b, k, 1]
+            t2 = Th[b, k, 2]
+            e0 = E[b, k, 0]
+            e1 = E[b, k, 1]
+            e2 = E[b, k, 2]
+            # moment: lam (tr c2 - c2) Th + rot cI Th + lam c1 x E
+            for i in range(3):
+                IS[k, i] = (lam * (tr * Th[b, k, i] - (c2[i, 0] * t0 + c2[i, 1] * t1 + c2[i, 2] * t2))
+                            + rot * (cI[i, 0] * t0 + cI[i, 1] * t1 + cI[i, 2] * t2))
+            IS[k, 0] += lam * (c1[1] * e2 - c1[2] * e1)
+            IS[k, 1] += lam * (c1[2] * e0 - c1[0] * e2)
+            IS[k, 2] += lam * (c1[0] * e1 - c1[1] * e0)
+            # force: lam (c0 E + Th x c1)
+            IS[k, 3] = lam * (c0 * e0 + t1 * c1[2] - t2 * c1[1])
+            IS[k, 4] = lam * (c0 * e1 + t2 * c1[0] - t0 * c1[2])
+            IS[k, 5] = lam * (c0 * e2 + t0 * c1[1] - t1 * c1[0])
+        L[:, :] = IS
+        base = 3 * b
+        for j in range(m):
+            node = b * m + j
+            wn = gw[j] * length[b]
+            wl = wn * lam
+            wr = wn * rot
+            tx = F[node, 0, 0]
+            ty = F[node, 0, 1]
+            tz = F[node, 0, 2]
+            for k in range(3):
+                dx0 = dX[node, k, 0]
+                dx1 = dX[node, k, 1]
+                dx2 = dX[node, k, 2]
+                tk = tx * dTh[node, k, 0] + ty * dTh[node, k, 1] + tz * dTh[node, k, 2]
+                # own momentum: moment x w lam dX + w rot I_w dTh, force w lam dX
+                L[k, 0] += wl * (x[node, 1] * dx2 - x[node, 2] * dx1) + wr * (dTh[node, k, 0] + tx * tk)
+                L[k, 1] += wl * (x[node, 2] * dx0 - x[node, 0] * dx2) + wr * (dTh[node, k, 1] + ty * tk)
+                L[k, 2] += wl * (x[node, 0] * dx1 - x[node, 1] * dx0) + wr * (dTh[node, k, 2] + tz * tk)
+                L[k, 3] += wl * dx0
+                L[k, 4] += wl * dx1
+                L[k, 5] += wl * dx2
+                for l in range(k, 3):
+                    tl = tx * dTh[node, l, 0] + ty * dTh[node, l, 1] + tz * dTh[node, l, 2]
+                    out[base + k, base + l] += (
+                        wl * (dx0 * dX[node, l, 0] + dx1 * dX[node, l, 1] + dx2 * dX[node, l, 2])
+                        + wr * (dTh[node, k, 0] * dTh[node, l, 0] + dTh[node, k, 1] * dTh[node, l, 1]
+                                + dTh[node, k, 2] * dTh[node, l, 2] + tk * tl))
+        for k in range(3):
+            for l in range(k, 3):
+                acc = 0.0
+                for i in range(3):
+                    acc += Th[b, k, i] * IS[l, i] + E[b, k, i] * IS[l, 3 + i]
+                out[base + k, base + l] += acc
+                out[base + l, base + k] = out[base + k, base + l]
+        for a in range(b):
+            for k in range(3):
+                for l in range(3):
+                    acc = 0.0
+                    for i in range(3):
+                        acc += Th[a, k, i] * L[l, i] + E[a, k, i] * L[l, 3 + i]
+                    out[3 * a + k, base + l] = acc
+                    out[base + l, 3 * a + k] = acc
+        # element b joins the composite
+        for j in range(m):
+            node = b * m + j
+            wn = gw[j] * length[b]
+            c0 += wn
+            for i in range(3):
+                c1[i] += wn * x[node, i]
+                ti = F[node, 0, i]
+                for r in range(3):
+                    c2[i, r] += wn * x[node, i] * x[node, r]
+                    cI[i, r] += wn * ti * F[node, 0, r]
+                cI[i, i] += wn
+
+
+@jit
+def _project_loads(Th, E, x, dX, dTh, m, f, torque, out):
+    """``out = sum_n J_n^T f_n + T_n^T torque_n`` by suffix sums of the resultant (O(N m))."""
+    n = Th.shape[0]
+    force = np.zeros(3)
+    moment = np.zeros(3)  # about the root
+    for b in range(n - 1, -1, -1):
+        for k in range(3):
+            acc = 0.0
+            for i in range(3):
+                acc += Th[b, k, i] * moment[i] + E[b, k, i] * force[i]
+            for j in range(m):
+                node = b * m + j
+                for i in range(3):
+                    acc += dX[node, k, i] * f[node, i] + dTh[node, k, i] * torque[node, i]
+            out[3 * b + k] = acc
+        for j in range(m):
+            node = b * m + j
+            moment[0] += x[node, 1] * f[node, 2] - x[node, 2] * f[node, 1] + torque[node, 0]
+            moment[1] += x[node, 2] * f[node, 0] - x[node, 0] * f[node, 2] + torque[node, 1]
+            moment[2] += x[node, 0] * f[node, 1] - x[node, 1] * f[node, 0] + torque[node, 2]
+            for i in range(3):
+                force[i] += f[node, i]
+
+
+@jit
+def strand_node_loads(root, frame0, omega, length, gx, f, torque, out):
+    """Generalized force of point forces and torques at the nodes, O(N m), J m.
+
+    ``out = sum_n J_n^T f_n + T_n^T torque_n`` (as :func:`node_forces_to_generalized`
+    plus :func:`node_torques_to_generalized`) without the Jacobians: the
+    loads after element ``b`` enter through their resultant force and moment.
+
+    Parameters
+    ----------
+    root : (3,) float64, m; unused (the result does not depend on it)
+    frame0, omega, length, gx : as :func:`strand_nodes`
+    f : (N m, 3) float64
+        World force at each node, N (weights and densities included).
+    torque : (N m, 3) float64
+        World torque at each node, N m.
+    out : (3N,) float64, out
+    """
+    n = omega.shape[0]
+    m = gx.shape[0]
+    nodes = n * m
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    Th = np.empty((n, 3, 3))
+    E = np.empty((n, 3, 3))
+    x = np.empty((nodes, 3))
+    F = np.empty((nodes, 3, 3))
+    dX = np.empty((nodes, 3, 3))
+    dTh = np.empty((nodes, 3, 3))
+    _kinematics(frame0, omega, length, gx, xs, Fs, Th, E, x, F, dX, dTh)
+    _project_loads(Th, E, x, dX, dTh, m, f, torque, out)
+
+
+@jit
+def _node_poses(frame0, omega, length, gx, xs, Fs, x_out, F_out):
+    """Node positions relative to the root and node frames (root at the origin)."""
+    n = omega.shape[0]
+    m = gx.shape[0]
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    chain(np.zeros(3), frame0, omega, length, xs, Fs)
+    for e in range(n):
+        for j in range(m):
+            _advance(xs[e], Fs[e], omega[e], gx[j] * length[e], x_out[e * m + j], F_out[e * m + j], R, P, Q)
+
+
+@jit
+def _rotation_log(A, B):
+    """World rotation vector of ``A^T B`` (takes frame ``B`` to frame ``A``; rows are axes)."""
+    # entry (i, j) of A^T B is sum_k A[k, i] B[k, j]
+    r01 = A[0, 0] * B[0, 1] + A[1, 0] * B[1, 1] + A[2, 0] * B[2, 1]
+    r10 = A[0, 1] * B[0, 0] + A[1, 1] * B[1, 0] + A[2, 1] * B[2, 0]
+    r02 = A[0, 0] * B[0, 2] + A[1, 0] * B[1, 2] + A[2, 0] * B[2, 2]
+    r20 = A[0, 2] * B[0, 0] + A[1, 2] * B[1, 0] + A[2, 2] * B[2, 0]
+    r12 = A[0, 1] * B[0, 2] + A[1, 1] * B[1, 2] + A[2, 1] * B[2, 2]
+    r21 = A[0, 2] * B[0, 1] + A[1, 2] * B[1, 1] + A[2, 2] * B[2, 1]
+    trace = 0.0
+    for i in range(3):
+        trace += A[0, i] * B[0, i] + A[1, i] * B[1, i] + A[2, i] * B[2, i]
+    s0 = 0.5 * (r21 - r12)
+    s1 = 0.5 * (r02 - r20)
+    s2 = 0.5 * (r10 - r01)
+    sn = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    if sn == 0.0:
+        return 0.0, 0.0, 0.0
+    f = np.arctan2(sn, 0.5 * (trace - 1.0)) / sn
+    return f * s0, f * s1, f * s2
+
+
+@jit
+def _second_difference(xp, Fp, xm, Fm, x0, F0, h, a_out, alpha_out):
+    """Central second differences of node positions and frames at step ``h``."""
+    inv = 1.0 / (h * h)
+    for node in range(x0.shape[0]):
+        for i in range(3):
+            a_out[node, i] = ((xp[node, i] - x0[node, i]) + (xm[node, i] - x0[node, i])) * inv
+        p0, p1, p2 = _rotation_log(Fp[node], F0[node])
+        m0, m1, m2 = _rotation_log(Fm[node], F0[node])
+        alpha_out[node, 0] = (p0 + m0) * inv
+        alpha_out[node, 1] = (p1 + m1) * inv
+        alpha_out[node, 2] = (p2 + m2) * inv
+
+
+@jit
+def node_bias_accelerations(root, frame0, omega, length, velocity, gx, a_out, alpha_out):
+    """Node accelerations at zero generalized acceleration ("J-dot q_dot").
+
+    ``a0 = d^2/dh^2 x_n(omega + h v)`` and the angular ``al0 = d/dh W_n`` at
+    ``h = 0``, by central second differences of the chain along ``v``,
+
+        D(h)  = (x(q + h v) - 2 x(q) + x(q - h v)) / h^2       = a0  + c h^2 + O(h^4),
+        Da(h) = (phi(q + h v) + phi(q - h v)) / h^2            = al0 + c' h^2 + O(h^4),
+
+    with ``phi(q')`` the world rotation vector taking the node frame at ``q``
+    to the one at ``q'`` (``phi(h) = W h + al0 h^2 / 2 + O(h^3)``), then
+    Richardson-extrapolated: ``a0 = (4 D(h/2) - D(h)) / 3``. The step turns
+    no element by more than ``max_e |h v_e| length_e = 1e-2`` rad.
+    Truncation (~angle^4) and round-off (~eps / angle^2) both stay near 1e-9
+    of the largest node acceleration of the strand (a few 1e-9 for ``al0``);
+    a plain second difference is at best ~4e-8 (at ~3e-4 rad). The
+    round-off floor is ~2e-12 ``(max_e |v_e| length_e)^2`` (rad/s^2; times
+    the strand length for ``a0``), visible only where ``al0`` nearly cancels
+    (a near-straight element bending about a fixed axis). Positions
+    are differenced relative to the root (which ``q`` does not move), so the
+    strand's distance from the origin costs no accuracy. Both are exactly
+    zero when ``v = 0``. Cost: five chain evaluations, O(N m).
+
+    Parameters
+    ----------
+    root : (3,) float64, m; unused (positions are taken relative to it)
+    frame0 : (3, 3) float64, rows (t, n1, n2)
+    omega : (N, 3) float64, 1/m
+    length : (N,) float64, m
+    velocity : (N, 3) float64
+        ``q_dot = d omega / dt``, 1/(m s).
+    gx : (m,) float64, nodes on ``[0, 1]``
+    a_out : (N m, 3) float64, out, m/s^2
+    alpha_out : (N m, 3) float64, out, rad/s^2
+    """
+    n = omega.shape[0]
+    nodes = n * gx.shape[0]
+    big = 0.0
+    for e in range(n):
+        ve = np.sqrt(velocity[e, 0] ** 2 + velocity[e, 1] ** 2 + velocity[e, 2] ** 2) * length[e]
+        if ve > big:
+            big = ve
+    if big == 0.0:
+        a_out[:, :] = 0.0
+        alpha_out[:, :] = 0.0
+        return
+    h = _BIAS_ANGLE / big
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    x0 = np.empty((nodes, 3))
+    F0 = np.empty((nodes, 3, 3))
+    xp = np.empty((nodes, 3))
+    Fp = np.empty((nodes, 3, 3))
+    xm = np.empty((nodes, 3))
+    Fm = np.empty((nodes, 3, 3))
+    a_half = np.empty((nodes, 3))
+    alpha_half = np.empty((nodes, 3))
+    _node_poses(frame0, omega, length, gx, xs, Fs, x0, F0)
+    _node_poses(frame0, omega + h * velocity, length, gx, xs, Fs, xp, Fp)
+    _node_poses(frame0, omega - h * velocity, length, gx, xs, Fs, xm, Fm)
+    _second_difference(xp, Fp, xm, Fm, x0, F0, h, a_out, alpha_out)
+    _node_poses(frame0, omega + 0.5 * h * velocity, length, gx, xs, Fs, xp, Fp)
+    _node_poses(frame0, omega - 0.5 * h * velocity, length, gx, xs, Fs, xm, Fm)
+    _second_difference(xp, Fp, xm, Fm, x0, F0, 0.5 * h, a_half, alpha_half)
+    for node in range(nodes):
+        for i in range(3):
+            a_out[node, i] = (4.0 * a_half[node, i] - a_out[node, i]) / 3.0
+            alpha_out[node, i] = (4.0 * alpha_half[node, i] - alpha_out[node, i]) / 3.0
+
+
+@jit
+def strand_bias_forces(root, frame0, omega, length, velocity, gx, gw, lam, rot, out):
+    """Velocity-product generalized force ``b`` of one strand (``M q_ddot = f + b``), J m.
+
+    ``b = -sum_n w_n (lam J_n^T a_n + T_n^T (I_w al_n + W_n x I_w W_n))`` with
+    ``a_n, al_n`` from :func:`node_bias_accelerations`, ``W_n = T_n q_dot``
+    and ``I_w = rot (1 + t_n t_n^T)``; O(N m) after the accelerations.
+
+    Parameters
+    ----------
+    root, frame0, omega, length, gx, gw : as :func:`strand_nodes` (root unused)
+    velocity : (N, 3) float64, ``d omega / dt``, 1/(m s)
+    lam : float64, kg/m
+    rot : float64, kg m
+    out : (3N,) float64, out
+    """
+    n = omega.shape[0]
+    m = gx.shape[0]
+    nodes = n * m
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    Th = np.empty((n, 3, 3))
+    E = np.empty((n, 3, 3))
+    x = np.empty((nodes, 3))
+    F = np.empty((nodes, 3, 3))
+    dX = np.empty((nodes, 3, 3))
+    dTh = np.empty((nodes, 3, 3))
+    _kinematics(frame0, omega, length, gx, xs, Fs, Th, E, x, F, dX, dTh)
+    a = np.empty((nodes, 3))
+    alpha = np.empty((nodes, 3))
+    node_bias_accelerations(root, frame0, omega, length, velocity, gx, a, alpha)
+    f = np.empty((nodes, 3))
+    torque = np.zeros((nodes, 3))
+    Wup = np.zeros(3)  # angular velocity of the frames after the elements so far
+    for e in range(n):
+        for j in range(m):
+            node = e * m + j
+            wn = gw[j] * length[e]
+            for i in range(3):
+                f[node, i] = -wn * lam * a[node, i]
+            if rot != 0.0:
+                W0 = Wup[0]
+                W1 = Wup[1]
+                W2 = Wup[2]
+                for k in range(3):
+                    W0 += dTh[node, k, 0] * velocity[e, k]
+                    W1 += dTh[node, k, 1] * velocity[e, k]
+                    W2 += dTh[node, k, 2] * velocity[e, k]
+                t0 = F[node, 0, 0]
+                t1 = F[node, 0, 1]
+                t2 = F[node, 0, 2]
+                ta = t0 * alpha[node, 0] + t1 * alpha[node, 1] + t2 * alpha[node, 2]
+                tW = t0 * W0 + t1 * W1 + t2 * W2
+                # I_w al + W x I_w W, with I_w W = rot (W + t (t.W)): W x I_w W = rot (t.W) W x t
+                torque[node, 0] = -wn * rot * (alpha[node, 0] + t0 * ta + tW * (W1 * t2 - W2 * t1))
+                torque[node, 1] = -wn * rot * (alpha[node, 1] + t1 * ta + tW * (W2 * t0 - W0 * t2))
+                torque[node, 2] = -wn * rot * (alpha[node, 2] + t2 * ta + tW * (W0 * t1 - W1 * t0))
+        for k in range(3):
+            for i in range(3):
+                Wup[i] += Th[e, k, i] * velocity[e, k]
+    _project_loads(Th, E, x, dX, dTh, m, f, torque, out)
+
+
+def inertia_terms(root, frame0, omega, length, velocity, lam, rot, order=4):
+    """Mass matrix and velocity-product force of one strand: ``M q_ddot = f + b``.
+
+    Parameters
+    ----------
+    root : (3,) m;  frame0 : (3, 3) rows (t, n1, n2)
+    omega : (N, 3) 1/m;  length : (N,) m;  velocity : (N, 3) 1/(m s)
+    lam : float, kg/m;  rot : float, kg m
+    order : int, Gauss nodes per element
+
+    Returns
+    -------
+    M : (3N, 3N) float64, kg m^4
+    b : (3N,) float64, J m
+    """
+    root = np.ascontiguousarray(root, dtype=np.float64)
+    frame0 = np.ascontiguousarray(frame0, dtype=np.float64)
+    omega = np.ascontiguousarray(omega, dtype=np.float64)
+    length = np.ascontiguousarray(length, dtype=np.float64)
+    velocity = np.ascontiguousarray(velocity, dtype=np.float64)
+    gx, gw = gauss_nodes(order)
+    n = omega.shape[0]
+    M = np.empty((3 * n, 3 * n))
+    strand_mass(root, frame0, omega, length, gx, gw, float(lam), float(rot), M)
+    b = np.empty(3 * n)
+    strand_bias_forces(root, frame0, omega, length, velocity, gx, gw, float(lam), float(rot), b)
+    return M, b
