@@ -364,6 +364,145 @@ def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guid
     _say(obj, f"wrote {output}")
 
 
+class StepProgress:
+    """A bar of simulated time steps, on a terminal only."""
+
+    def __init__(self, total: int, enabled: bool):
+        self.bar = None
+        if enabled and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc="simulate", unit="step", leave=False, file=sys.stderr)
+
+    def __call__(self) -> None:
+        if self.bar is not None:
+            self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _body_of(stage, model_path: Path):
+    """The body file a model was inverted against, from its provenance, if it is still where it was."""
+    from hairinv import stages
+    from hairinv.errors import InputError
+
+    records = stage[stages.CONTACTS].inputs if stages.CONTACTS in stage else []
+    if len(records) < 2:
+        return None
+    record = records[-1]
+    path = Path(record.get("path", ""))
+    if not path.is_absolute():
+        path = model_path.parent / path
+    if not path.exists() or stages.sha256_file(path) != record.get("sha256"):
+        raise InputError(f"was inverted against the body {record.get('name')!r}, which is not at "
+                         f"{record.get('path')!r} any more (or has changed); give the body file as the second "
+                         "argument", model_path)
+    return path
+
+
+@main.command()
+@click.argument("model", type=click.Path(path_type=Path))
+@click.argument("body", type=click.Path(path_type=Path), required=False)
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
+              help="Output stage file [default: ./<name>.frames.h5].")
+@click.option("--scene", "scene_name", default="still", show_default=True, metavar="NAME|FILE.toml",
+              help="What the body does: still, motion, remove-body, trim, or a scene file (docs/scenes.md).")
+@click.option("--init", "init", type=click.Choice(["inverted", "naive", "gravity-only"]), default="inverted",
+              show_default=True,
+              help="Rest shape: the inverted model's, the input shape itself (naive), or the contact-free "
+                   "inversion (gravity-only), for comparison.")
+@click.option("--seconds", type=float, default=None, help="Simulated time, s [default: the scene's].")
+@click.option("--fps", type=float, default=None, help="Frames written per second [default: the scene's].")
+@settings_options
+@click.pass_obj
+@handle_errors
+def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, config_file, sets):
+    """Simulate an inverted MODEL under a scene and write its frames.
+
+    MODEL is a stage file written by `hairinv invert`. BODY is the body mesh
+    in the hairstyle's original units; without it, the body the model was
+    inverted against is used if it is still where it was. Writes the model's
+    groups and /frames; each frame's contacts, solver residual, energies and
+    largest displacement are printed as it is done.
+    """
+    import dataclasses
+
+    from hairinv import config, stages
+    from hairinv.contacts import Contacts
+    from hairinv.dynamics.run import run_scene
+    from hairinv.dynamics.scene import Scene
+    from hairinv.dynamics.simulate import validate_settings
+    from hairinv.errors import InputError, RunError
+    from hairinv.fit import Helices
+    from hairinv.groom import load_body
+
+    if not model.exists():
+        raise InputError("no such file", model)
+    if body is not None and not body.exists():
+        raise InputError("no such file", body)
+    if not stages.is_stage_file(model):
+        raise InputError("is not a hairinv stage file: run `hairinv invert` on the hairstyle first", model)
+    stage = stages.read_stage(model)
+    for name in (stages.CURVES, stages.HELICES, stages.MODEL):
+        if name not in stage:
+            raise InputError(f"has no /{name} group: run `hairinv invert` on it first", model)
+    scene = Scene.load(scene_name)
+    output = output or _default_output(model, "frames")
+    stages.check_output_path(output, inputs=[model, body])
+    settings = config.resolve(quality, config_file, sets)
+    # contacts as the model declared them, so the first step meets the inverted contacts again;
+    # --config and --set may still change them
+    stored = stage[stages.CONTACTS].config.get("contacts", {}) if stages.CONTACTS in stage else {}
+    contact_settings = config.apply(config.Settings(), {"contacts": stored}, str(model)).contacts
+    user = {}
+    if config_file is not None:
+        user.update(config.load_toml(config_file).get("contacts", {}))
+    user.update(config.parse_set(sets).get("contacts", {}))
+    if user:
+        contact_settings = config.apply(dataclasses.replace(settings, contacts=contact_settings),
+                                        {"contacts": user}, "settings").contacts
+    settings = dataclasses.replace(settings, contacts=contact_settings)
+    validate_settings(settings.dynamics)
+    curves = stage[stages.CURVES]
+    helices = Helices.from_group(stage[stages.HELICES])
+    contacts = Contacts.from_group(stage[stages.CONTACTS]) if stages.CONTACTS in stage else None
+    body = body if body is not None else _body_of(stage, model)
+    mesh = None
+    if body is not None:
+        scale = float(curves.attrs.get("scale_to_m", 1.0))
+        flip = str(curves.config.get("import", {}).get("flip", ""))
+        mesh = load_body(body, scale, flip)
+        _say(obj, f"body: {body}")
+    elif scene.body != "removed":
+        _say(obj, "no body: only hair-hair contacts")
+    _say(obj, f"scene {scene.name}: {scene.description}" if scene.description else f"scene {scene.name}")
+    run_seconds = scene.seconds if seconds is None else seconds
+    run_fps = scene.fps if fps is None else fps
+    steps = max(1, round(1.0 / (run_fps * settings.dynamics.time_step))) * max(0, round(run_seconds * run_fps))
+    bar = StepProgress(steps, obj["progress"])
+    try:
+        frames = run_scene(helices, stage[stages.MODEL], contacts, mesh, scene, settings, init=init,
+                           seconds=seconds, fps=fps, on_frame=lambda log: _say(obj, log.line()), on_step=bar)
+    except FloatingPointError as exc:
+        raise RunError(f"the simulation diverged ({exc}); no output was written; try a smaller "
+                       "dynamics.time_step") from None
+    finally:
+        bar.close()
+    last = frames.log[-1]
+    _say(obj, f"simulated {last.time:g} s in {sum(f.seconds for f in frames.log):.1f} s; largest displacement "
+              f"{1e3 * max(f.displacement for f in frames.log):.3f} mm")
+    groups = {name: stage[name] for name in (stages.CURVES, stages.HELICES, stages.CONTACTS, stages.MODEL)
+              if name in stage}
+    inputs = [stages.file_record(model)] + ([stages.file_record(body)] if body is not None else [])
+    cfg = {"dynamics": dataclasses.asdict(settings.dynamics), "contacts": dataclasses.asdict(settings.contacts),
+           "scene": scene.name, "init": init}
+    groups[stages.FRAMES] = frames.group(cfg, inputs)
+    stages.write_stage(output, list(groups.values()), "simulate")
+    _say(obj, f"wrote {output}")
+
+
 @main.command()
 @click.argument("file", type=click.Path(path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")

@@ -136,6 +136,35 @@ class SolverSettings:
 
 
 @dataclass(frozen=True)
+class DynamicsSettings:
+    """Time stepping of ``simulate`` (docs/dynamics.md)."""
+
+    time_step: float = 0.01
+    """s. Step of the linearly implicit Euler integrator; four steps per 1/25 s frame. It is stable at any
+    step (the stiffness enters implicitly); smaller steps resolve fast motion and contact better."""
+    damping: float = 0.01
+    """s. Internal viscous damping of the rod, proportional to its stiffness: D = damping * K. It damps
+    the fast bending modes (period under 0.1 s) within a few oscillations and the slow swing barely."""
+    air_damping: float = 1.0
+    """1/s. Air drag per unit mass against the strand's velocity in the world: hair set swinging settles
+    in a few seconds, as real hair does."""
+    body_thickness: float = 2e-3
+    """m. How close a strand may come to the body once a new contact appears there. Contacts of the
+    inverted model keep the distance they had, so a still groom stays exactly where it was."""
+    hair_thickness: float = 5e-4
+    """m. The same for new hair-hair contacts: the closest two centerlines may come."""
+    push_speed: float = 0.05
+    """m/s. Largest speed at which a strand found closer than its thickness is pushed back out."""
+    tolerance: float = 1e-6
+    """Contact solve stops when every contact's velocity error (the natural-map residual times the
+    contact's own Delassus scale) is below this fraction of g h, the speed gravity adds in one step."""
+    max_sweeps: int = 200
+    """Largest number of Gauss-Seidel sweeps per step (warm started from the previous step)."""
+    quadrature: int = 4
+    """Gauss-Legendre points per element for the mass matrix and the inertial forces."""
+
+
+@dataclass(frozen=True)
 class Settings:
     """All settings of a run, one section per stage."""
 
@@ -144,6 +173,7 @@ class Settings:
     material: MaterialSettings = field(default_factory=MaterialSettings)
     contacts: ContactSettings = field(default_factory=ContactSettings)
     solver: SolverSettings = field(default_factory=SolverSettings)
+    dynamics: DynamicsSettings = field(default_factory=DynamicsSettings)
 
     def to_dict(self) -> dict:
         return {_section_name(f.name): dataclasses.asdict(getattr(self, f.name)) for f in dataclasses.fields(self)}

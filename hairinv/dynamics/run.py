@@ -1,0 +1,217 @@
+"""Run a scene on an inverted model and collect its frames (``hairinv simulate``).
+
+The model file gives the groom (``/helices``), the contacts and forces it was
+inverted with (``/contacts``, ``/model``) and the material. The scene says
+what the body does; the initialisation says which rest shape the strands
+get: ``inverted`` (the model's), ``naive`` (the input shape itself, as a
+simulator that ignores gravity would take it) or ``gravity-only`` (the
+contact-free inversion, ``q0 = q - K^-1 F_g``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import stages
+from ..config import Settings
+from ..contacts.body import BodyMesh
+from ..contacts.detect import Contacts
+from ..errors import InputError
+from ..fit import Helices
+from ..invert import Material, generalized_gravity, material_from_group, stiffness
+from ..rod.helix import points_at
+from .scene import Scene, trim_helices
+from .simulate import Motion, Simulation, StepReport
+
+__all__ = ["INITS", "Frames", "FrameLog", "initial_rest", "run_scene"]
+
+INITS = ("inverted", "naive", "gravity-only")
+
+
+@dataclass
+class FrameLog:
+    """One output frame: what the steps since the previous frame did."""
+
+    index: int
+    time: float
+    contacts: int
+    n_body: int
+    sweeps: int
+    relative_residual: float
+    unconverged_steps: int
+    kinetic: float
+    elastic: float
+    displacement: float
+    """m, the largest distance of a strand point from where it started, in the body frame."""
+    seconds: float
+
+    def line(self) -> str:
+        return (f"frame {self.index:4d}  t {self.time:6.3f} s  contacts {self.contacts:6d} (body {self.n_body:5d})  "
+                f"sweeps {self.sweeps:4d}  residual {self.relative_residual:8.2e}  kinetic {self.kinetic:9.3e} J  "
+                f"elastic {self.elastic:9.3e} J  moved {1e3 * self.displacement:8.3f} mm  {self.seconds:6.2f} s")
+
+
+@dataclass
+class Frames:
+    """A simulation's frames (the ``/frames`` group) and its log."""
+
+    time: np.ndarray
+    omega: np.ndarray
+    root: np.ndarray
+    frame0: np.ndarray
+    body_transform: np.ndarray
+    log: list = field(default_factory=list)
+    helices: Helices | None = None
+    trimmed: bool = False
+    body_removed: bool = False
+    attrs: dict = field(default_factory=dict)
+
+    def group(self, config: dict, inputs: list[dict]) -> stages.Group:
+        data = {"time": self.time, "omega": self.omega, "root": self.root, "frame0": self.frame0,
+                "body_transform": self.body_transform,
+                "displacement": np.array([f.displacement for f in self.log]),
+                "kinetic_energy": np.array([f.kinetic for f in self.log]),
+                "elastic_energy": np.array([f.elastic for f in self.log]),
+                "contact_count": np.array([f.contacts for f in self.log], dtype=np.int64),
+                "solver_residual": np.array([f.relative_residual for f in self.log])}
+        if self.trimmed:
+            data["offsets"] = self.helices.offsets
+            data["length"] = self.helices.length
+        attrs = dict(self.attrs)
+        attrs.update(body_removed=self.body_removed, trimmed=self.trimmed)
+        return stages.Group(stages.FRAMES, data, attrs=attrs, config=config, inputs=inputs)
+
+
+def initial_rest(init: str, helices: Helices, material: Material, model: stages.Group | None) -> np.ndarray:
+    """The rest shape ``q0`` (E, 3) of an initialisation (see the module docstring)."""
+    if init == "inverted":
+        if model is None:
+            raise InputError("has no /model group: invert it first, or simulate with --init naive")
+        return np.ascontiguousarray(model["omega_rest"], dtype=np.float64)
+    if init == "naive":
+        return helices.omega.copy()
+    if init == "gravity-only":
+        return helices.omega - generalized_gravity(helices, material) / stiffness(helices, material).reshape(-1, 3)
+    raise InputError(f"unknown initialisation {init!r}; choose one of {', '.join(INITS)}")
+
+
+def _samples(helices: Helices, q: np.ndarray, per_element: int = 2) -> np.ndarray:
+    """Points at the ends and inside every element, (S, k, 3), body frame."""
+    out = []
+    for k in range(helices.n_strands):
+        a, z = helices.offsets[k], helices.offsets[k + 1]
+        total = helices.length[a:z].sum()
+        s = np.linspace(0.0, total, per_element * (z - a) + 1)
+        pts = np.empty((len(s), 3))
+        points_at(helices.root[k], helices.frame0[k], q[a:z], helices.length[a:z], s, pts)
+        out.append(pts)
+    return out
+
+
+def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts | None, body_mesh,
+              scene: Scene, settings: Settings, init: str = "inverted", seconds: float | None = None,
+              fps: float | None = None, on_frame=None, on_step=None) -> Frames:
+    """Simulate ``scene`` from the model.
+
+    Parameters
+    ----------
+    helices : Helices, the fitted groom (body frame = the groom's own frame at rest)
+    model : the ``/model`` group or None (then only ``naive`` works)
+    contacts : the model's contacts and ``model["force"]`` their forces (warm start of the first step)
+    body_mesh : trimesh.Trimesh or None, in metres
+    scene : Scene
+    settings : Settings (``material`` is taken from the model when there is one)
+    on_frame : callable(FrameLog), optional, after every frame
+    on_step : callable(), optional, after every step
+    """
+    seconds = float(scene.seconds if seconds is None else seconds)
+    fps = float(scene.fps if fps is None else fps)
+    if not seconds > 0 or not fps > 0:
+        raise InputError(f"the simulated time and the frame rate must be > 0, got {seconds} s at {fps} fps")
+    if model is not None:
+        material = material_from_group(model)
+    else:
+        raise InputError("has no /model group: run `hairinv invert` on it first")
+    rest = initial_rest(init, helices, material, model)
+    force = np.asarray(model["force"], dtype=np.float64) if (init == "inverted" and model is not None) else None
+    trimmed = False
+    if scene.trim is not None:
+        if scene.trim.time > 0:
+            raise InputError(f"{scene.source}: trim.time must be 0: /frames holds one element layout for the "
+                             "whole run, so strands are cut before it starts")
+        helices, element_map = trim_helices(helices, length=scene.trim.length, fraction=scene.trim.fraction)
+        rest = rest[element_map]
+        trimmed = True
+        contacts, force = None, None  # the cut groom starts from its own contacts, unloaded
+    body_removed = scene.body == "removed"
+    contact_settings = settings.contacts
+    if body_removed:
+        contact_settings = dataclasses.replace(contact_settings, body=False)
+        if contacts is not None:
+            keep = contacts.strand[:, 1] >= 0
+            contacts = contacts.subset(keep)
+            force = None if force is None else force[keep]
+    body = BodyMesh.from_mesh(body_mesh) if (body_mesh is not None and not body_removed) else None
+    sim = Simulation(helices, rest, material, body, contact_settings, settings.dynamics,
+                     initial=contacts, initial_force=force)
+
+    steps_per_frame = max(1, int(round(1.0 / (fps * settings.dynamics.time_step))))
+    h = 1.0 / (fps * steps_per_frame)
+    n_frames = int(round(seconds * fps)) + 1
+    pivot = scene.pivot_point(helices.root) if helices.n_strands else np.zeros(3)
+    world_gravity = material.gravity
+    up = -world_gravity / np.linalg.norm(world_gravity)
+    start_points = _samples(helices, sim.q)
+
+    def state(t: float):
+        if not scene.moving:
+            return np.eye(3), np.zeros(3), Motion.still(world_gravity)
+        m = scene.body_motion(t, pivot, up)
+        R = m.R
+        return R, m.c, Motion(R.T @ world_gravity, R.T @ m.acceleration, R.T @ m.velocity, R.T @ m.omega,
+                              R.T @ m.alpha)
+
+    F, S, E = n_frames, helices.n_strands, helices.n_elements
+    out = Frames(np.zeros(F), np.zeros((F, E, 3)), np.zeros((F, S, 3)), np.zeros((F, S, 3, 3)), np.zeros((F, 4, 4)),
+                 helices=helices, trimmed=trimmed, body_removed=body_removed,
+                 attrs={"time_step": h, "steps_per_frame": steps_per_frame, "fps": fps, "init": init,
+                        "scene": scene.name})
+
+    def record(index: int, t: float, reports: list[StepReport], seconds_used: float) -> None:
+        R, c, _ = state(t)
+        out.time[index] = t
+        out.omega[index] = sim.q
+        out.root[index] = helices.root @ R.T + c
+        out.frame0[index] = helices.frame0 @ R.T
+        out.body_transform[index] = np.eye(4)
+        out.body_transform[index, :3, :3] = R
+        out.body_transform[index, :3, 3] = c
+        now = _samples(helices, sim.q)
+        moved = max((float(np.max(np.linalg.norm(a - b, axis=1))) for a, b in zip(now, start_points)), default=0.0)
+        log = FrameLog(index, t, reports[-1].contacts if reports else sim.contacts.n_contacts,
+                       reports[-1].n_body if reports else sim.contacts.n_body,
+                       max((r.sweeps for r in reports), default=0),
+                       max((r.relative_residual for r in reports), default=0.0),
+                       sum(r.status != "CONVERGED" for r in reports),
+                       sim.kinetic_energy(), sim.elastic_energy(), moved, seconds_used)
+        out.log.append(log)
+        if on_frame is not None:
+            on_frame(log)
+
+    record(0, 0.0, [], 0.0)
+    t = 0.0
+    for index in range(1, n_frames):
+        began = time.perf_counter()
+        reports = []
+        for _ in range(steps_per_frame):
+            _, _, motion = state(t)
+            reports.append(sim.step(motion, h))
+            t += h
+            if on_step is not None:
+                on_step()
+        record(index, index / fps, reports, time.perf_counter() - began)
+    return out

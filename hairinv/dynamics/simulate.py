@@ -1,0 +1,382 @@
+"""Super-helix dynamics with frictional contact (paper section 7, after Daviet et al. 2011).
+
+Everything is computed in the body's frame: the roots are clamped to the
+body, and the body moves rigidly, so in its frame the body and the roots
+stand still and the motion shows up as the fictitious forces of a moving
+frame (its linear acceleration, the Euler, centrifugal and Coriolis terms)
+and as gravity turning with the body. Air drag acts against the velocity
+in the world.
+
+One step of length ``h`` (linearly implicit Euler, Bertails et al. 2006):
+
+    Mt = M(q) + h D + h^2 K,      D = damping K + air_damping M
+    v_f = v + Mt^-1 (h (F(q, v) - K (q - q0)) - (h D + h^2 K) v)
+    v+ = v_f + Mt^-1 H^T r,       q+ = q + h v+
+
+with ``F`` gravity (exact, as in the inversion), the fictitious and
+velocity-product forces and the drag of the moving frame, and ``r`` the
+contact impulses: Coulomb's law on the De Saxce velocities
+``u = H v+ + g/h`` where ``g`` is how much closer the contact may come
+(docs/dynamics.md). From the inverted model at rest the first step's
+answer is ``r = h r_inverse`` and ``v+ = 0``: a still body keeps a still groom.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._jit import jit
+from .._parallel import run_chunks
+from ..config import ContactSettings, DynamicsSettings
+from ..contacts.body import BodyMesh
+from ..contacts.detect import Contacts, detect_contacts
+from ..errors import InputError
+from ..fit import Helices
+from ..invert import Material, stiffness
+from ..rod.statics import gravity_forces
+from ..solver.gauss_seidel import NUMERICAL, solve_cone_qp, split_strands
+from ..solver.rows import contact_rows
+from .contact import back_substitute, contact_keys, factored_rows
+from .inertia import node_forces_to_generalized, strand_bias_forces, strand_mass, strand_nodes
+
+__all__ = ["Motion", "Simulation", "StepReport", "strand_dynamics", "validate_settings"]
+
+
+def validate_settings(settings: DynamicsSettings) -> None:
+    """Raise InputError (naming the setting) for a value the integrator cannot use."""
+    for name in ("time_step",):
+        if not getattr(settings, name) > 0:
+            raise InputError(f"dynamics.{name} must be > 0, got {getattr(settings, name)}")
+    for name in ("damping", "air_damping", "body_thickness", "hair_thickness", "push_speed", "tolerance"):
+        value = getattr(settings, name)
+        if not (value >= 0 and np.isfinite(value)):
+            raise InputError(f"dynamics.{name} must be >= 0 and finite, got {value}")
+    if settings.max_sweeps < 1:
+        raise InputError(f"dynamics.max_sweeps must be >= 1, got {settings.max_sweeps}")
+    if not 1 <= settings.quadrature <= 8:
+        raise InputError(f"dynamics.quadrature must be between 1 and 8, got {settings.quadrature}")
+
+
+@dataclass
+class StepReport:
+    """What one step did."""
+
+    contacts: int
+    n_body: int
+    sweeps: int
+    relative_residual: float
+    status: str
+    local_failures: int
+    seconds: float
+
+
+@dataclass
+class Motion:
+    """The body frame's motion at one instant, in body coordinates.
+
+    Attributes
+    ----------
+    gravity : (3,) m/s^2, gravity as seen in the body frame
+    accel : (3,) m/s^2, acceleration of the body frame's origin
+    velocity : (3,) m/s, velocity of the body frame's origin (for the air drag)
+    spin : (3,) rad/s, angular velocity of the body
+    spin_rate : (3,) rad/s^2, angular acceleration of the body
+    """
+
+    gravity: np.ndarray
+    accel: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    spin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    spin_rate: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @classmethod
+    def still(cls, gravity: np.ndarray) -> "Motion":
+        return cls(np.asarray(gravity, dtype=np.float64))
+
+    def packed(self) -> np.ndarray:
+        """(5, 3): gravity, accel, velocity, spin, spin_rate, for the kernels."""
+        return np.ascontiguousarray(np.stack([self.gravity, self.accel, self.velocity, self.spin, self.spin_rate]))
+
+
+@jit
+def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, air, h, motion, gx, gw, chol, v_free):
+    """The free velocity of one strand and the Cholesky factor of its step matrix.
+
+    ``motion`` is :meth:`Motion.packed`. Writes ``chol`` (row-major lower
+    factor of ``Mt = M + h (damping K + air M) + h^2 K``) and ``v_free`` (N, 3);
+    returns the kinetic energy ``1/2 v^T M v`` (J) at the start of the step.
+    The moving frame's forces act on the centerline only (the cross-sections'
+    own rotational inertia, ~1e-9 of it for hair, is not driven by the frame).
+    """
+    n = q.shape[0]
+    m = gx.shape[0]
+    nodes = n * m
+    nd = 3 * n
+    M = np.empty((nd, nd))
+    strand_mass(root, frame0, q, length, gx, gw, lam, rot, M)
+    vf = np.empty(nd)
+    for c in range(nd):
+        vf[c] = v[c // 3, c % 3]
+    moving = False
+    for c in range(nd):
+        if vf[c] != 0.0:
+            moving = True
+    force = np.zeros(nd)
+    g = np.empty((n, 3))
+    gravity_forces(root, frame0, q, length, lam, motion[0], g)
+    for c in range(nd):
+        force[c] = g[c // 3, c % 3] - stiff[c] * (q[c // 3, c % 3] - q0[c // 3, c % 3])
+    extra = np.zeros(nd)
+    if moving:
+        strand_bias_forces(root, frame0, q, length, v, gx, gw, lam, rot, extra)
+        for c in range(nd):
+            force[c] += extra[c]
+    # the moving frame: -lam (a0 + A x x + W x (W x x) + 2 W x xdot) and the drag of its own velocity
+    acc = motion[1]
+    vel = motion[2]
+    W = motion[3]
+    A = motion[4]
+    framed = False
+    for i in range(3):
+        if acc[i] != 0.0 or vel[i] != 0.0 or W[i] != 0.0 or A[i] != 0.0:
+            framed = True
+    if framed:
+        x = np.empty((nodes, 3))
+        F = np.empty((nodes, 3, 3))
+        w = np.empty(nodes)
+        J = np.empty((nodes, 3, nd))
+        T = np.empty((nodes, 3, nd))
+        strand_nodes(root, frame0, q, length, gx, gw, x, F, w, J, T)
+        f = np.empty((nodes, 3))
+        xd = np.zeros(3)
+        for node in range(nodes):
+            end = 3 * (node // m + 1)
+            xd[:] = 0.0
+            for c in range(end):
+                for i in range(3):
+                    xd[i] += J[node, i, c] * vf[c]
+            p = x[node]
+            Wx = np.array([W[1] * p[2] - W[2] * p[1], W[2] * p[0] - W[0] * p[2], W[0] * p[1] - W[1] * p[0]])
+            WWx = np.array([W[1] * Wx[2] - W[2] * Wx[1], W[2] * Wx[0] - W[0] * Wx[2], W[0] * Wx[1] - W[1] * Wx[0]])
+            Ax = np.array([A[1] * p[2] - A[2] * p[1], A[2] * p[0] - A[0] * p[2], A[0] * p[1] - A[1] * p[0]])
+            Wxd = np.array([W[1] * xd[2] - W[2] * xd[1], W[2] * xd[0] - W[0] * xd[2], W[0] * xd[1] - W[1] * xd[0]])
+            for i in range(3):
+                f[node, i] = -lam * w[node] * (acc[i] + Ax[i] + WWx[i] + 2.0 * Wxd[i] + air * (vel[i] + Wx[i]))
+        node_forces_to_generalized(J, f, extra)
+        for c in range(nd):
+            force[c] += extra[c]
+    # Mt and the right-hand side h (F - K (q - q0)) - (h D + h^2 K) v with D = damping K + air M
+    Mv = M @ vf
+    kinetic = 0.5 * np.dot(vf, Mv)
+    rhs = np.empty(nd)
+    for c in range(nd):
+        rhs[c] = h * force[c] - (h * damping + h * h) * stiff[c] * vf[c] - h * air * Mv[c]
+    Mt = M * (1.0 + h * air)
+    for c in range(nd):
+        Mt[c, c] += (h * damping + h * h) * stiff[c]
+    L = np.linalg.cholesky(Mt)
+    for r in range(nd):
+        for c in range(nd):
+            chol[r * nd + c] = L[r, c]
+    # v_free = v + Mt^-1 rhs
+    y = np.empty(nd)
+    for r in range(nd):
+        acc_r = rhs[r]
+        for c in range(r):
+            acc_r -= L[r, c] * y[c]
+        y[r] = acc_r / L[r, r]
+    for r in range(nd - 1, -1, -1):
+        acc_r = y[r]
+        for c in range(r + 1, nd):
+            acc_r -= L[c, r] * y[c]
+        y[r] = acc_r / L[r, r]
+    for c in range(nd):
+        v_free[c // 3, c % 3] = vf[c] + y[c]
+    return kinetic
+
+
+@jit
+def _free_chunk(root, frame0, offsets, length, q, v, q0, stiff, lam, rot, damping, air, h, motion, gx, gw,
+                chol, chol_ptr, v_free, kinetic, lo, hi):
+    for k in range(lo, hi):
+        a = offsets[k]
+        z = offsets[k + 1]
+        kinetic[k] = strand_dynamics(root[k], frame0[k], q[a:z], v[a:z], q0[a:z], stiff[3 * a:3 * z], length[a:z],
+                                     lam, rot, damping, air, h, motion, gx, gw,
+                                     chol[chol_ptr[k]:chol_ptr[k + 1]], v_free[a:z])
+
+
+class Simulation:
+    """A groom's state and its time stepping, in the body's frame.
+
+    Parameters
+    ----------
+    helices : Helices, the strands at the start (their ``omega`` is the initial ``q``), metres, body frame
+    rest : (E, 3) float64, the rest shape ``q0``
+    material : Material (its ``gravity`` is the world gravity in the body frame at rest)
+    body : BodyMesh or None, in the body frame
+    contacts : ContactSettings, how contacts are detected at every step (``body`` off: none with the body)
+    settings : DynamicsSettings
+    initial : Contacts, optional, the contacts of the starting shape and ``impulse`` their forces times
+        the step, as warm start; they are matched to the first step's contacts element by element
+    """
+
+    def __init__(self, helices: Helices, rest: np.ndarray, material: Material, body: BodyMesh | None,
+                 contacts: ContactSettings, settings: DynamicsSettings, initial: Contacts | None = None,
+                 initial_force: np.ndarray | None = None):
+        validate_settings(settings)
+        self.helices = helices
+        self.q = np.ascontiguousarray(helices.omega, dtype=np.float64).copy()
+        self.v = np.zeros_like(self.q)
+        self.rest = np.ascontiguousarray(rest, dtype=np.float64)
+        self.material = material
+        self.body = body
+        self.contact_settings = contacts
+        self.settings = settings
+        self.stiff = stiffness(helices, material)
+        self.lam = material.linear_density
+        self.rot = material.density * np.pi * material.radius ** 4 / 4.0
+        nodes, weights = np.polynomial.legendre.leggauss(settings.quadrature)
+        self.gx = 0.5 * (nodes + 1.0)
+        self.gw = 0.5 * weights
+        sizes = (3 * np.diff(helices.offsets)) ** 2
+        self.chol_ptr = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.chol = np.zeros(int(self.chol_ptr[-1]))
+        self.kinetic = np.zeros(helices.n_strands)
+        self.part_of = split_strands(helices.root, np.zeros((0, 2), np.int64))
+        weight = material.linear_density * np.linalg.norm(material.gravity)
+        lengths = np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements else np.zeros(0)
+        self.strand_weight = float(weight * lengths.max()) if len(lengths) else 1.0
+        # contact velocities are measured against the speed gravity adds in one step, g h
+        self.velocity_scale = float(np.linalg.norm(material.gravity))
+        # contact memory: key -> (thickness, impulse in world coordinates: frames may turn between steps)
+        self._keys = np.zeros(0, dtype=np.int64)
+        self._thickness = np.zeros(0)
+        self._impulse = np.zeros((0, 3))
+        self._first = True
+        self._initial = initial if initial is not None and initial.n_contacts else None
+        self._initial_impulse = None
+        if self._initial is not None:
+            force = np.zeros((initial.n_contacts, 3)) if initial_force is None else initial_force
+            self._initial_impulse = np.asarray(force, dtype=np.float64)
+            keys = self._keys_of(initial)
+            order = np.argsort(keys, kind="stable")
+            self._keys = keys[order]
+            gap = initial.gap if initial.gap is not None else np.zeros(initial.n_contacts)
+            self._thickness = gap[order]
+            self._impulse = np.einsum("cji,cj->ci", initial.frame, self._initial_impulse)[order]
+        self.contacts = Contacts.empty()
+        self.last = None
+        self.desaxce = True
+
+    # ------------------------------------------------------------------ geometry
+    def current(self) -> Helices:
+        """The strands at the current ``q`` (body frame)."""
+        h = self.helices
+        return Helices(h.root, h.frame0, h.offsets, h.length, self.q, h.fit_error)
+
+    def _detect(self) -> Contacts:
+        found, _ = detect_contacts(self.current(), self.body, self.contact_settings)
+        return found
+
+    def _keys_of(self, contacts: Contacts) -> np.ndarray:
+        """A key per contact naming it from one detection to the next: its element (pair)."""
+        if contacts.element is None:
+            return contact_keys(contacts.strand, contacts.s, self.helices.offsets, self.helices.length)
+        n = self.helices.n_elements
+        return np.where(contacts.element[:, 1] < 0, contacts.element[:, 0],
+                        n * (1 + contacts.element[:, 0]) + contacts.element[:, 1])
+
+    def _remember(self, found: Contacts, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Keys, thickness and warm-start impulse of this step's contacts."""
+        keys = self._keys_of(found)
+        gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
+        initial = self._initial
+        if self._first and initial is not None and initial.n_contacts == found.n_contacts \
+                and np.array_equal(initial.strand, found.strand) and np.allclose(initial.s, found.s, rtol=0, atol=1e-12):
+            # the starting shape meets the contacts it was inverted with: their forces, one for one
+            return keys, gap.copy(), h * self._initial_impulse
+        where = np.minimum(np.searchsorted(self._keys, keys), max(len(self._keys) - 1, 0))
+        known = self._keys[where] == keys if len(self._keys) else np.zeros(len(keys), bool)
+        fresh = np.where(found.strand[:, 1] < 0, self.settings.body_thickness, self.settings.hair_thickness)
+        if self._first:
+            fresh = gap  # everything touching the starting shape touches at its own distance
+        thickness = np.minimum(gap, fresh)
+        impulse = np.zeros((found.n_contacts, 3))
+        if len(self._keys):
+            thickness[known] = self._thickness[where[known]]
+            world = self._impulse[where[known]] * (h if self._first else 1.0)
+            impulse[known] = np.einsum("cij,cj->ci", found.frame[known], world)
+        return keys, thickness, impulse
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, motion: Motion, h: float | None = None) -> StepReport:
+        """Advance by one step of ``h`` (default: the settings' time step) under ``motion``."""
+        started = time.perf_counter()
+        h = float(self.settings.time_step if h is None else h)
+        helices = self.helices
+        offsets = helices.offsets
+        v_free = np.zeros_like(self.q)
+        packed = motion.packed()
+
+        def free(lo: int, hi: int) -> None:
+            _free_chunk(helices.root, helices.frame0, offsets, helices.length, self.q, self.v, self.rest,
+                        self.stiff, self.lam, self.rot, self.settings.damping, self.settings.air_damping, h,
+                        packed, self.gx, self.gw, self.chol, self.chol_ptr, v_free, self.kinetic, lo, hi)
+
+        run_chunks(free, helices.n_strands, 64)
+        if not np.all(np.isfinite(v_free)):
+            raise FloatingPointError("the free velocity is not finite")
+
+        found = self._detect()
+        keys, thickness, impulse = self._remember(found, h)
+        self._first = False
+        report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0)
+        v_new = v_free
+        if found.n_contacts:
+            rows = contact_rows(self.current(), found, run=lambda work, n: run_chunks(work, n, 2048))
+            b = rows.matvec(v_free.ravel())
+            gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
+            room = gap - thickness
+            b[:, 0] += np.maximum(room / h, -self.settings.push_speed)
+            z_rows = factored_rows(rows, found.strand, offsets, self.chol, self.chol_ptr,
+                                   run=lambda work, n: run_chunks(work, n, 2048))
+            # a contact close to the root may be unable to move along one direction (W_ii of rank 2);
+            # a compliance of 1e-9 of its own W_ii picks the smallest force along it
+            own = np.add.reduceat(np.einsum("ij,ij->i", z_rows.vals, z_rows.vals), z_rows.ptr[:-1]) / 3.0
+            own[np.diff(z_rows.ptr) == 0] = 0.0
+            result = solve_cone_qp(z_rows, np.ones(rows.n_dofs), 1e-9 * own, b, found.mu, found.strand,
+                                   helices.n_strands, self.velocity_scale * h, self.settings.tolerance,
+                                   self.settings.max_sweeps, 5, r0=impulse, desaxce=self.desaxce, s=found.s,
+                                   part_of=self.part_of, velocity=True)
+            if result.status == NUMERICAL:
+                raise FloatingPointError("the contact solve failed")
+            z = z_rows.rmatvec(result.r)
+            correction = np.zeros(rows.n_dofs)
+            back_substitute(offsets, self.chol, self.chol_ptr, z, correction, 0, helices.n_strands)
+            v_new = v_free + correction.reshape(-1, 3)
+            impulse = result.r
+            report = StepReport(found.n_contacts, found.n_body, result.sweeps, result.relative_residual,
+                                result.status, result.local_failures, 0.0)
+        order = np.argsort(keys, kind="stable")
+        world = np.einsum("cji,cj->ci", found.frame, impulse)
+        self._keys, self._thickness, self._impulse = keys[order], thickness[order], world[order]
+        self.contacts = found
+        self.v = v_new
+        self.q = self.q + h * v_new
+        report.seconds = time.perf_counter() - started
+        self.last = report
+        return report
+
+    # ------------------------------------------------------------------ measures
+    def kinetic_energy(self) -> float:
+        """J, of the motion relative to the body at the start of the last step (``1/2 v^T M v``)."""
+        return float(self.kinetic.sum())
+
+    def elastic_energy(self) -> float:
+        """J, ``1/2 (q - q0)^T K (q - q0)``."""
+        d = (self.q - self.rest).ravel()
+        return float(0.5 * np.dot(d, self.stiff * d))

@@ -1,0 +1,136 @@
+"""The time step of simulate: the linearly implicit Euler step and the factored Delassus operator.
+
+Everything is checked against dense matrices assembled here from the
+inertia kernels (themselves checked against independent energies in
+test_inertia.py), never against the step's own output.
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+import pytest
+
+from hairinv.config import DynamicsSettings, Settings
+from hairinv.dynamics.contact import back_substitute, contact_keys, factored_rows
+from hairinv.dynamics.inertia import inertia_terms
+from hairinv.dynamics.simulate import Motion, Simulation, _free_chunk
+from hairinv.invert import generalized_gravity, stiffness
+from hairinv.solver.rows import contact_rows
+
+from test_invert import material, two_strand_scene
+
+H = 0.01
+
+
+def _free_step(helices, q0, mat, v, settings: DynamicsSettings, motion: Motion):
+    sim = Simulation(helices, q0, mat, None, Settings().contacts, settings)
+    sim.v = v.copy()
+    v_free = np.zeros_like(sim.q)
+    _free_chunk(helices.root, helices.frame0, helices.offsets, helices.length, sim.q, sim.v, sim.rest, sim.stiff,
+                sim.lam, sim.rot, settings.damping, settings.air_damping, H, motion.packed(), sim.gx, sim.gw,
+                sim.chol, sim.chol_ptr, v_free, sim.kinetic, 0, helices.n_strands)
+    return sim, v_free
+
+
+def _dense_step_matrix(helices, mat, v, settings: DynamicsSettings):
+    """Per strand: M, the velocity-product force and Mt = M (1 + h air) + (h damping + h^2) K."""
+    lam = mat.linear_density
+    rot = mat.density * np.pi * mat.radius ** 4 / 4.0
+    stiff = stiffness(helices, mat)
+    out = []
+    for k in range(helices.n_strands):
+        a, z = helices.offsets[k], helices.offsets[k + 1]
+        M, bias = inertia_terms(helices.root[k], helices.frame0[k], helices.omega[a:z], helices.length[a:z],
+                                v[a:z], lam, rot, order=settings.quadrature)
+        Kk = np.diag(stiff[3 * a:3 * z])
+        Mt = M * (1.0 + H * settings.air_damping) + (H * settings.damping + H * H) * Kk
+        out.append((M, bias, Mt, Kk))
+    return out
+
+
+@pytest.mark.parametrize("moving", [False, True])
+def test_free_velocity_is_the_linearly_implicit_euler_step(moving):
+    """v_f = v + Mt^-1 (h (F_g + b - K (q - q0)) - (h D + h^2 K) v), assembled densely here."""
+    helices, _ = two_strand_scene()
+    mat = material()
+    rng = np.random.default_rng(3)
+    q0 = helices.omega + 0.5 * rng.standard_normal(helices.omega.shape)
+    v = 0.3 * rng.standard_normal(helices.omega.shape) if moving else np.zeros_like(helices.omega)
+    settings = DynamicsSettings(damping=0.02, air_damping=0.5)
+    _, v_free = _free_step(helices, q0, mat, v, settings, Motion.still(mat.gravity))
+    gravity = generalized_gravity(helices, mat)
+    for k, (M, bias, Mt, Kk) in enumerate(_dense_step_matrix(helices, mat, v, settings)):
+        a, z = helices.offsets[k], helices.offsets[k + 1]
+        vk = v[a:z].ravel()
+        force = gravity[a:z].ravel() + bias - Kk @ (helices.omega[a:z] - q0[a:z]).ravel()
+        rhs = H * force - (H * settings.damping + H * H) * (Kk @ vk) - H * settings.air_damping * (M @ vk)
+        expected = vk + np.linalg.solve(Mt, rhs)
+        assert np.allclose(v_free[a:z].ravel(), expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+
+
+def test_factored_delassus_equals_the_dense_operator():
+    """Z^T Z = H Mt^-1 H^T and L^-T Z^T r = Mt^-1 H^T r, with Mt assembled densely here."""
+    helices, contacts = two_strand_scene()
+    mat = material()
+    settings = DynamicsSettings()
+    sim, _ = _free_step(helices, helices.omega, mat, np.zeros_like(helices.omega), settings,
+                        Motion.still(mat.gravity))
+    rows = contact_rows(helices, contacts)
+    Z = factored_rows(rows, contacts.strand, helices.offsets, sim.chol, sim.chol_ptr)
+    blocks = [Mt for _, _, Mt, _ in _dense_step_matrix(helices, mat, np.zeros_like(helices.omega), settings)]
+    n = rows.n_dofs
+    Mt = np.zeros((n, n))
+    for k, block in enumerate(blocks):
+        a, z = 3 * helices.offsets[k], 3 * helices.offsets[k + 1]
+        Mt[a:z, a:z] = block
+    Hd = rows.to_sparse().toarray()
+    W = Hd @ np.linalg.solve(Mt, Hd.T)
+    Zd = Z.to_sparse().toarray()
+    assert np.allclose(Zd @ Zd.T, W, rtol=1e-9, atol=1e-12 * np.abs(W).max())
+    r = np.random.default_rng(0).standard_normal((contacts.n_contacts, 3))
+    out = np.zeros(n)
+    back_substitute(helices.offsets, sim.chol, sim.chol_ptr, Z.rmatvec(r), out, 0, helices.n_strands)
+    expected = np.linalg.solve(Mt, Hd.T @ r.ravel())
+    assert np.allclose(out, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+
+
+def test_contact_keys_name_elements():
+    helices = two_strand_scene()[0]
+    offsets, length = helices.offsets, helices.length
+    ends = np.concatenate([[0.0], np.cumsum(length[offsets[0]:offsets[1]])])
+    # a body contact inside element 1 of strand 0, and a hair-hair one from element 0 of strand 0
+    # to the last element of strand 1 (its arc length clamped to the strand's end)
+    strand = np.array([[0, -1], [0, 1]], np.int64)
+    s = np.array([[0.5 * (ends[1] + ends[2]), 0.0], [0.25 * ends[1], 10.0]])
+    keys = contact_keys(strand, s, offsets, length)
+    E = int(offsets[-1])
+    assert keys[0] == offsets[0] + 1
+    assert keys[1] == E * (1 + offsets[0]) + offsets[2] - 1
+
+
+def test_one_step_from_an_inverted_equilibrium_keeps_the_groom_still():
+    """A sample groom inverted on the sample bust: with the inversion's forces (times h) as the first
+    step's impulses, the contact problem is already solved and the step leaves the strands at rest."""
+    from conftest import SAMPLES
+    from hairinv import config
+    from hairinv.contacts.body import BodyMesh
+    from hairinv.invert import Material, invert
+    from hairinv.pipeline import prepare
+
+    settings = config.apply(config.resolve(), {"import": {"guides": 20}, "solver": {"max_sweeps": 100}})
+    scene = prepare(SAMPLES / "wavy.h5", SAMPLES / "body.obj", settings)
+    mat = Material.from_settings(settings.material, scene.up)
+    model, _ = invert(scene.helices, scene.contacts, mat, settings.solver)
+    sim = Simulation(scene.helices, model.omega_rest, mat, BodyMesh.from_mesh(scene.body), settings.contacts,
+                     settings.dynamics, initial=scene.contacts, initial_force=model.force)
+    report = sim.step(Motion.still(mat.gravity))
+    assert report.contacts == scene.contacts.n_contacts
+    assert report.sweeps == 0 and report.status == "CONVERGED"
+    # the free velocity is of order h g / length ~ 1 1/(m s); what is left is round-off
+    assert np.abs(sim.v).max() < 1e-8
+    # the naive model (q0 = q) is not an equilibrium: it starts to move at once
+    naive = Simulation(scene.helices, scene.helices.omega, mat, BodyMesh.from_mesh(scene.body),
+                       settings.contacts, settings.dynamics, initial=scene.contacts)
+    naive.step(Motion.still(mat.gravity))
+    assert np.abs(naive.v).max() > 1e-3
