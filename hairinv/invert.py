@@ -32,7 +32,7 @@ from .config import MaterialSettings, SolverSettings
 from .contacts import Contacts
 from .errors import InputError, RunError
 from .fit import Helices
-from .rod.statics import gravity_forces
+from .rod.statics import gravity_forces, gravity_hessian
 from .solver.gauss_seidel import CONVERGED, SolverResult, solve_cone_qp, split_strands
 from .solver.rows import ContactRows, contact_rows
 
@@ -140,30 +140,17 @@ def target_shape(helices: Helices, target: str) -> np.ndarray:
 
 @jit
 def _gravity_hessian_chunk(root, frame0, offsets, omega, length, lam, gravity, lo, hi, hess_ptr, hess):
-    """Central differences of ``-F_g`` per strand: the Hessian of the gravity potential (dense per strand)."""
+    """The Hessian of the gravity potential per strand (dense, row-major at ``hess[hess_ptr[s]:]``)."""
     for s in range(lo, hi):
         a = offsets[s]
         z = offsets[s + 1]
-        n = z - a
-        m = 3 * n
-        q = omega[a:z].copy()
-        fp = np.empty((n, 3))
-        fm = np.empty((n, 3))
-        total = 0.0
-        for e in range(n):
-            total += length[a + e]
+        m = 3 * (z - a)
+        out = np.empty((m, m))
+        gravity_hessian(root[s], frame0[s], omega[a:z], length[a:z], lam, gravity, out)
         base = hess_ptr[s]
-        for j in range(m):
-            e = j // 3
-            k = j % 3
-            h = 1e-5 * (1.0 / total + abs(q[e, k]))
-            q[e, k] += h
-            gravity_forces(root[s], frame0[s], q, length[a:z], lam, gravity, fp)
-            q[e, k] -= 2.0 * h
-            gravity_forces(root[s], frame0[s], q, length[a:z], lam, gravity, fm)
-            q[e, k] += h
-            for i in range(m):
-                hess[base + i * m + j] = -(fp[i // 3, i % 3] - fm[i // 3, i % 3]) / (2.0 * h)
+        for i in range(m):
+            for j in range(m):
+                hess[base + i * m + j] = out[i, j]
 
 
 def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None = None,

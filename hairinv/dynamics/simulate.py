@@ -36,7 +36,7 @@ from ..contacts.detect import Contacts, detect_contacts
 from ..errors import InputError
 from ..fit import Helices
 from ..invert import Material, stiffness
-from ..rod.statics import gravity_forces
+from ..rod.statics import gravity_forces, gravity_hessian
 from ..solver.gauss_seidel import NUMERICAL, solve_cone_qp, split_strands
 from ..solver.rows import contact_rows
 from .contact import back_substitute, contact_keys, factored_rows
@@ -47,13 +47,16 @@ __all__ = ["Motion", "Simulation", "StepReport", "strand_dynamics", "validate_se
 
 def validate_settings(settings: DynamicsSettings) -> None:
     """Raise InputError (naming the setting) for a value the integrator cannot use."""
-    for name in ("time_step",):
+    for name in ("time_step", "max_turn"):
         if not getattr(settings, name) > 0:
             raise InputError(f"dynamics.{name} must be > 0, got {getattr(settings, name)}")
-    for name in ("damping", "air_damping", "body_thickness", "hair_thickness", "push_speed", "tolerance"):
+    for name in ("damping", "air_damping", "body_thickness", "hair_thickness", "push_speed", "tolerance",
+                 "inertia_radius"):
         value = getattr(settings, name)
         if not (value >= 0 and np.isfinite(value)):
             raise InputError(f"dynamics.{name} must be >= 0 and finite, got {value}")
+    if not 0 <= settings.max_substeps <= 12:
+        raise InputError(f"dynamics.max_substeps must be between 0 and 12, got {settings.max_substeps}")
     if settings.max_sweeps < 1:
         raise InputError(f"dynamics.max_sweeps must be >= 1, got {settings.max_sweeps}")
     if not 1 <= settings.quadrature <= 8:
@@ -71,6 +74,7 @@ class StepReport:
     status: str
     local_failures: int
     seconds: float
+    substeps: int = 1
 
 
 @dataclass
@@ -102,11 +106,31 @@ class Motion:
 
 
 @jit
+def _cholesky(A, L):
+    """Lower Cholesky factor of the symmetric ``A`` into ``L``; False if ``A`` is not positive definite."""
+    n = A.shape[0]
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 0.0:
+            return False
+        L[j, j] = np.sqrt(d)
+        for i in range(j + 1, n):
+            acc = A[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            L[i, j] = acc / L[j, j]
+    return True
+
+
+@jit
 def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, air, h, motion, gx, gw, chol, v_free):
     """The free velocity of one strand and the Cholesky factor of its step matrix.
 
     ``motion`` is :meth:`Motion.packed`. Writes ``chol`` (row-major lower
-    factor of ``Mt = M + h (damping K + air M) + h^2 K``) and ``v_free`` (N, 3);
+    factor of ``Mt = M (1 + h air) + h damping K + h^2 (K + G)``, ``G`` the Hessian of the
+    gravity potential, its negative part left out where ``K + G`` is not positive) and ``v_free`` (N, 3);
     returns the kinetic energy ``1/2 v^T M v`` (J) at the start of the step.
     The moving frame's forces act on the centerline only (the cross-sections'
     own rotational inertia, ~1e-9 of it for hair, is not driven by the frame).
@@ -168,16 +192,45 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
         node_forces_to_generalized(J, f, extra)
         for c in range(nd):
             force[c] += extra[c]
-    # Mt and the right-hand side h (F - K (q - q0)) - (h D + h^2 K) v with D = damping K + air M
+    # Mt = M (1 + h air) + h damping K + h^2 S and the right-hand side h F - (h D + h^2 S) v, with
+    # S = K + G the stiffness of elasticity and gravity (G the Hessian of the gravity potential): gravity
+    # enters implicitly, as twist, resisted by a nearly massless cross-section, cannot follow an explicit
+    # gravity. Where S is not positive (a strand resting in an unstable equilibrium) its negative part
+    # stays explicit.
+    S = np.empty((nd, nd))
+    gravity_hessian(root, frame0, q, length, lam, motion[0], S)
+    for r in range(nd):
+        for c in range(r + 1, nd):
+            sym = 0.5 * (S[r, c] + S[c, r])
+            S[r, c] = sym
+            S[c, r] = sym
+        S[r, r] += stiff[r]
+    Mt = M * (1.0 + h * air)
+    for r in range(nd):
+        Mt[r, r] += h * damping * stiff[r]
+        for c in range(nd):
+            Mt[r, c] += h * h * S[r, c]
+    L = np.zeros((nd, nd))
+    if not _cholesky(Mt, L):
+        lam_s, V = np.linalg.eigh(S)
+        for k in range(nd):
+            lam_s[k] = max(lam_s[k], 0.0)
+        S = (V * lam_s) @ V.T
+        Mt = M * (1.0 + h * air)
+        for r in range(nd):
+            Mt[r, r] += h * damping * stiff[r]
+            for c in range(nd):
+                Mt[r, c] += h * h * S[r, c]
+        if not _cholesky(Mt, L):
+            for r in range(nd):
+                v_free[r // 3, r % 3] = np.nan
+            return np.nan
     Mv = M @ vf
+    Sv = S @ vf
     kinetic = 0.5 * np.dot(vf, Mv)
     rhs = np.empty(nd)
     for c in range(nd):
-        rhs[c] = h * force[c] - (h * damping + h * h) * stiff[c] * vf[c] - h * air * Mv[c]
-    Mt = M * (1.0 + h * air)
-    for c in range(nd):
-        Mt[c, c] += (h * damping + h * h) * stiff[c]
-    L = np.linalg.cholesky(Mt)
+        rhs[c] = h * force[c] - h * damping * stiff[c] * vf[c] - h * h * Sv[c] - h * air * Mv[c]
     for r in range(nd):
         for c in range(nd):
             chol[r * nd + c] = L[r, c]
@@ -238,7 +291,8 @@ class Simulation:
         self.settings = settings
         self.stiff = stiffness(helices, material)
         self.lam = material.linear_density
-        self.rot = material.density * np.pi * material.radius ** 4 / 4.0
+        # the cross-sections' rotational inertia, rot = lam r^2 / 4 with r the inertia radius (>= the hair's own)
+        self.rot = self.lam * max(settings.inertia_radius, material.radius) ** 2 / 4.0
         nodes, weights = np.polynomial.legendre.leggauss(settings.quadrature)
         self.gx = 0.5 * (nodes + 1.0)
         self.gw = 0.5 * weights
@@ -314,9 +368,20 @@ class Simulation:
 
     # ------------------------------------------------------------------ stepping
     def step(self, motion: Motion, h: float | None = None) -> StepReport:
-        """Advance by one step of ``h`` (default: the settings' time step) under ``motion``."""
+        """Advance by ``h`` (default: the settings' time step) under ``motion``.
+
+        The step is linearised at its start, so it is split in halves (up to
+        ``dynamics.max_substeps`` times) while any element would turn by more
+        than ``dynamics.max_turn`` within it.
+        """
         started = time.perf_counter()
         h = float(self.settings.time_step if h is None else h)
+        report = self._step(motion, h, 0)
+        report.seconds = time.perf_counter() - started
+        self.last = report
+        return report
+
+    def _step(self, motion: Motion, h: float, depth: int) -> StepReport:
         helices = self.helices
         offsets = helices.offsets
         v_free = np.zeros_like(self.q)
@@ -330,10 +395,8 @@ class Simulation:
         run_chunks(free, helices.n_strands, 64)
         if not np.all(np.isfinite(v_free)):
             raise FloatingPointError("the free velocity is not finite")
-
         found = self._detect()
         keys, thickness, impulse = self._remember(found, h)
-        self._first = False
         report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0)
         v_new = v_free
         if found.n_contacts:
@@ -361,14 +424,24 @@ class Simulation:
             impulse = result.r
             report = StepReport(found.n_contacts, found.n_body, result.sweeps, result.relative_residual,
                                 result.status, result.local_failures, 0.0)
+        turn = h * float(np.max(np.linalg.norm(v_new, axis=1) * helices.length)) if helices.n_elements else 0.0
+        if not np.isfinite(turn):
+            raise FloatingPointError("the velocity is not finite")
+        if turn > self.settings.max_turn and depth < self.settings.max_substeps:
+            # nothing is kept of this attempt: two half steps instead
+            first = self._step(motion, 0.5 * h, depth + 1)
+            second = self._step(motion, 0.5 * h, depth + 1)
+            second.sweeps = max(first.sweeps, second.sweeps)
+            second.relative_residual = max(first.relative_residual, second.relative_residual)
+            second.substeps = first.substeps + second.substeps
+            return second
+        self._first = False
         order = np.argsort(keys, kind="stable")
         world = np.einsum("cji,cj->ci", found.frame, impulse)
         self._keys, self._thickness, self._impulse = keys[order], thickness[order], world[order]
         self.contacts = found
         self.v = v_new
         self.q = self.q + h * v_new
-        report.seconds = time.perf_counter() - started
-        self.last = report
         return report
 
     # ------------------------------------------------------------------ measures

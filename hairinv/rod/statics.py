@@ -21,7 +21,7 @@ import numpy as np
 from .._jit import jit
 from .helix import chain, element_derivatives, element_step
 
-__all__ = ["gravity_forces", "gravity_potential", "point_jacobian"]
+__all__ = ["gravity_forces", "gravity_hessian", "gravity_potential", "point_jacobian"]
 
 _H = 1e-30  # complex-step size: the derivative is exact for any tiny step
 
@@ -126,6 +126,34 @@ def gravity_forces(root, frame0, omega, length, lam, gravity, out):
         _element_moment(xs[e], Fs[e], omega[e], length[e], moment)
         mass += length[e]
         first += moment
+
+
+@jit
+def gravity_hessian(root, frame0, omega, length, lam, gravity, out):
+    """Hessian of the gravity potential, ``-dF_g/d omega``, (3N, 3N), by central differences of :func:`gravity_forces`.
+
+    The step of coordinate ``(e, k)`` is ``1e-5 (1 / L + |omega[e, k]|)`` with ``L``
+    the strand's length: relative accuracy about 1e-10. Not symmetrised.
+    """
+    n = omega.shape[0]
+    m = 3 * n
+    q = omega.copy()
+    fp = np.empty((n, 3))
+    fm = np.empty((n, 3))
+    total = 0.0
+    for e in range(n):
+        total += length[e]
+    for j in range(m):
+        e = j // 3
+        k = j % 3
+        h = 1e-5 * (1.0 / total + abs(q[e, k]))
+        q[e, k] += h
+        gravity_forces(root, frame0, q, length, lam, gravity, fp)
+        q[e, k] -= 2.0 * h
+        gravity_forces(root, frame0, q, length, lam, gravity, fm)
+        q[e, k] += h
+        for i in range(m):
+            out[i, j] = -(fp[i // 3, i % 3] - fm[i // 3, i % 3]) / (2.0 * h)
 
 
 @jit
