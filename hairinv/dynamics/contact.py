@@ -12,12 +12,18 @@ is factorised; hair-hair contacts couple two strands only through ``W``.
 
 from __future__ import annotations
 
+import dataclasses
+import time
+
 import numpy as np
 
 from .._jit import jit
+from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult, _accumulate_f, diagonal_blocks,
+                                   natural_residuals, solve_cone_qp)
 from ..solver.rows import ContactRows
 
-__all__ = ["back_substitute", "contact_keys", "factored_rows"]
+__all__ = ["back_substitute", "contact_keys", "contact_velocities", "desaxce_residual", "factored_rows",
+           "solve_coulomb"]
 
 
 @jit
@@ -135,3 +141,89 @@ def contact_keys(strand: np.ndarray, s: np.ndarray, offsets: np.ndarray, length:
     if hair.any():
         keys[hair] = n_elements * (1 + keys[hair]) + element(strand[hair, 1], s[hair, 1])
     return keys
+
+
+def contact_velocities(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``u = W r + b`` for ``W = Z^T Z + diag(gamma)`` given the rows ``Z_i^T``, (C, 3)."""
+    return rows.matvec(rows.rmatvec(r)) + b + gamma[:, None] * r
+
+
+def desaxce_residual(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, r: np.ndarray) -> float:
+    """Largest natural-map residual of the De Saxce problem, in velocity units (:func:`natural_residuals`)."""
+    n = rows.n_contacts
+    if n == 0:
+        return 0.0
+    ones = np.ones(rows.n_dofs)
+    Wd = np.empty((n, 3, 3))
+    diagonal_blocks(rows.ptr, rows.cols, rows.vals, ones, gamma, Wd)
+    f = np.empty(rows.n_dofs)
+    _accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, f)
+    per = np.empty(n)
+    return float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, True, True, per))
+
+
+def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, strand: np.ndarray,
+                  n_strands: int, velocity_scale: float, tolerance: float, max_sweeps: int, r0: np.ndarray,
+                  s: np.ndarray | None = None, part_of: np.ndarray | None = None, max_rounds: int = 20) -> SolverResult:
+    """Coulomb friction of one step: the De Saxce problem ``K ∋ r ⟂ u + mu |u_T| e_N ∈ K*``.
+
+    As a fixed point of convex problems (Acary, Cadoux et al.): with the
+    shift ``s_i = mu_i |u_T,i|`` of the last iterate frozen, the problem is the
+    convex cone complementarity problem of ``b + s e_N``, which the
+    accelerated Gauss-Seidel of the inversion solves monotonically; its
+    solution updates ``s``. At a fixed point the De Saxce conditions hold
+    exactly. Gauss-Seidel run directly on the De Saxce problem (local solves
+    of the non-convex law) drifts away on hair: on the 300-strand straight
+    sample its residual grows from 2e-3 to 1e-2 over 1,000 sweeps, where the
+    fixed point meets 1e-6 in 5 sweeps. Fail-safe: if the rounds stall above
+    the tolerance, direct De Saxce sweeps start from the best iterate, and the
+    better of the two is kept.
+
+    ``rows`` are the factored rows ``Z_i^T`` (:func:`factored_rows`); the
+    tolerance is on the De Saxce residual in velocity units, relative to
+    ``velocity_scale``. Returns the best iterate; ``sweeps`` counts all rounds.
+    """
+    started = time.perf_counter()
+    ones = np.ones(rows.n_dofs)
+    target = tolerance * velocity_scale
+    r = np.array(r0, dtype=np.float64, copy=True)
+    best_r, best = r.copy(), desaxce_residual(rows, gamma, b, mu, r)
+    history = [(0, best)]
+    sweeps = 0
+    status = CONVERGED if best <= target else MAX_ITERS
+    rounds = 0
+    while status == MAX_ITERS and sweeps < max_sweeps and rounds < max_rounds:
+        u = contact_velocities(rows, gamma, b, r)
+        shifted = b.copy()
+        shifted[:, 0] += mu * np.hypot(u[:, 1], u[:, 2])
+        inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, tolerance,
+                              max_sweeps - sweeps, 5, r0=r, s=s, part_of=part_of, velocity=True)
+        if inner.status == NUMERICAL:
+            return dataclasses.replace(inner, r=best_r, status=NUMERICAL, sweeps=sweeps + inner.sweeps)
+        sweeps += inner.sweeps
+        rounds += 1
+        r = inner.r
+        residual = desaxce_residual(rows, gamma, b, mu, r)
+        history.append((sweeps, residual))
+        if residual < best:
+            best, best_r = residual, r.copy()
+        if residual <= target:
+            status = CONVERGED
+        elif inner.sweeps == 0:
+            break  # the shift no longer changes the convex solution: the rounds have stalled
+    failsafe = 0
+    if status != CONVERGED and sweeps < max_sweeps:
+        direct = solve_cone_qp(rows, ones, gamma, b, mu, strand, n_strands, velocity_scale, tolerance,
+                               max_sweeps - sweeps, 5, r0=best_r, desaxce=True, s=s, part_of=part_of,
+                               velocity=True)
+        sweeps += direct.sweeps
+        failsafe = direct.local_failures
+        if direct.status != NUMERICAL:
+            residual = desaxce_residual(rows, gamma, b, mu, direct.r)
+            history.append((sweeps, residual))
+            if residual < best:
+                best, best_r = residual, direct.r
+            if residual <= target:
+                status = CONVERGED
+    return SolverResult(best_r, status, sweeps, best, best / velocity_scale, history,
+                        time.perf_counter() - started, 0, failsafe, rounds)

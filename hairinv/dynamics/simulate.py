@@ -37,9 +37,9 @@ from ..errors import InputError
 from ..fit import Helices
 from ..invert import Material, stiffness
 from ..rod.statics import gravity_forces, gravity_hessian
-from ..solver.gauss_seidel import NUMERICAL, solve_cone_qp, split_strands
+from ..solver.gauss_seidel import NUMERICAL, split_strands
 from ..solver.rows import contact_rows
-from .contact import back_substitute, contact_keys, factored_rows
+from .contact import back_substitute, contact_keys, factored_rows, solve_coulomb
 from .inertia import node_forces_to_generalized, strand_bias_forces, strand_mass, strand_nodes
 
 __all__ = ["Motion", "Simulation", "StepReport", "strand_dynamics", "validate_settings"]
@@ -125,7 +125,8 @@ def _cholesky(A, L):
 
 
 @jit
-def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, air, h, motion, gx, gw, chol, v_free):
+def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, air, h, motion, gx, gw, chol, v_free,
+                    hess, fresh):
     """The free velocity of one strand and the Cholesky factor of its step matrix.
 
     ``motion`` is :meth:`Motion.packed`. Writes ``chol`` (row-major lower
@@ -198,12 +199,20 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
     # gravity. Where S is not positive (a strand resting in an unstable equilibrium) its negative part
     # stays explicit.
     S = np.empty((nd, nd))
-    gravity_hessian(root, frame0, q, length, lam, motion[0], S)
+    if fresh:
+        gravity_hessian(root, frame0, q, length, lam, motion[0], S)
+        for r in range(nd):
+            for c in range(r + 1, nd):
+                sym = 0.5 * (S[r, c] + S[c, r])
+                S[r, c] = sym
+                S[c, r] = sym
+            for c in range(nd):
+                hess[r * nd + c] = S[r, c]
+    else:
+        for r in range(nd):
+            for c in range(nd):
+                S[r, c] = hess[r * nd + c]
     for r in range(nd):
-        for c in range(r + 1, nd):
-            sym = 0.5 * (S[r, c] + S[c, r])
-            S[r, c] = sym
-            S[c, r] = sym
         S[r, r] += stiff[r]
     Mt = M * (1.0 + h * air)
     for r in range(nd):
@@ -253,13 +262,14 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
 
 @jit
 def _free_chunk(root, frame0, offsets, length, q, v, q0, stiff, lam, rot, damping, air, h, motion, gx, gw,
-                chol, chol_ptr, v_free, kinetic, lo, hi):
+                chol, chol_ptr, v_free, kinetic, hess, fresh, lo, hi):
     for k in range(lo, hi):
         a = offsets[k]
         z = offsets[k + 1]
         kinetic[k] = strand_dynamics(root[k], frame0[k], q[a:z], v[a:z], q0[a:z], stiff[3 * a:3 * z], length[a:z],
                                      lam, rot, damping, air, h, motion, gx, gw,
-                                     chol[chol_ptr[k]:chol_ptr[k + 1]], v_free[a:z])
+                                     chol[chol_ptr[k]:chol_ptr[k + 1]], v_free[a:z],
+                                     hess[chol_ptr[k]:chol_ptr[k + 1]], fresh[k])
 
 
 class Simulation:
@@ -299,6 +309,10 @@ class Simulation:
         sizes = (3 * np.diff(helices.offsets)) ** 2
         self.chol_ptr = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         self.chol = np.zeros(int(self.chol_ptr[-1]))
+        # gravity's Hessian per strand, laid out like chol, and the shape and gravity it was taken at
+        self.hess = np.zeros(int(self.chol_ptr[-1]))
+        self._hess_q = None
+        self._hess_gravity = None
         self.kinetic = np.zeros(helices.n_strands)
         self.part_of = split_strands(helices.root, np.zeros((0, 2), np.int64))
         weight = material.linear_density * np.linalg.norm(material.gravity)
@@ -324,7 +338,6 @@ class Simulation:
             self._impulse = np.einsum("cji,cj->ci", initial.frame, self._initial_impulse)[order]
         self.contacts = Contacts.empty()
         self.last = None
-        self.desaxce = True
 
     # ------------------------------------------------------------------ geometry
     def current(self) -> Helices:
@@ -366,6 +379,28 @@ class Simulation:
             impulse[known] = np.einsum("cij,cj->ci", found.frame[known], world)
         return keys, thickness, impulse
 
+    def _stale_hessians(self, gravity: np.ndarray) -> np.ndarray:
+        """Strands whose gravity Hessian must be taken again, (S,) bool: it only shapes the implicit
+        matrix, so it is kept while no element has turned by more than 0.01 rad since, and gravity
+        (in the body frame) has not turned by more than 0.01 rad."""
+        n = self.helices.n_strands
+        if self._hess_q is None or np.linalg.norm(np.cross(gravity, self._hess_gravity)) > \
+                1e-2 * np.linalg.norm(gravity) * np.linalg.norm(self._hess_gravity):
+            fresh = np.ones(n, dtype=np.bool_)
+        else:
+            turn = np.linalg.norm(self.q - self._hess_q, axis=1) * self.helices.length
+            fresh = np.zeros(n, dtype=np.bool_)
+            if len(turn):
+                fresh = np.maximum.reduceat(turn, self.helices.offsets[:-1]) > 1e-2 if n else fresh
+        if fresh.any():
+            if self._hess_q is None or fresh.all():
+                self._hess_q = self.q.copy()
+                self._hess_gravity = np.array(gravity, dtype=np.float64)
+            else:
+                mask = np.repeat(fresh, np.diff(self.helices.offsets))
+                self._hess_q[mask] = self.q[mask]
+        return fresh
+
     # ------------------------------------------------------------------ stepping
     def step(self, motion: Motion, h: float | None = None) -> StepReport:
         """Advance by ``h`` (default: the settings' time step) under ``motion``.
@@ -386,11 +421,13 @@ class Simulation:
         offsets = helices.offsets
         v_free = np.zeros_like(self.q)
         packed = motion.packed()
+        fresh = self._stale_hessians(packed[0])
 
         def free(lo: int, hi: int) -> None:
             _free_chunk(helices.root, helices.frame0, offsets, helices.length, self.q, self.v, self.rest,
                         self.stiff, self.lam, self.rot, self.settings.damping, self.settings.air_damping, h,
-                        packed, self.gx, self.gw, self.chol, self.chol_ptr, v_free, self.kinetic, lo, hi)
+                        packed, self.gx, self.gw, self.chol, self.chol_ptr, v_free, self.kinetic, self.hess,
+                        fresh, lo, hi)
 
         run_chunks(free, helices.n_strands, 64)
         if not np.all(np.isfinite(v_free)):
@@ -411,10 +448,9 @@ class Simulation:
             # a compliance of 1e-9 of its own W_ii picks the smallest force along it
             own = np.add.reduceat(np.einsum("ij,ij->i", z_rows.vals, z_rows.vals), z_rows.ptr[:-1]) / 3.0
             own[np.diff(z_rows.ptr) == 0] = 0.0
-            result = solve_cone_qp(z_rows, np.ones(rows.n_dofs), 1e-9 * own, b, found.mu, found.strand,
-                                   helices.n_strands, self.velocity_scale * h, self.settings.tolerance,
-                                   self.settings.max_sweeps, 5, r0=impulse, desaxce=self.desaxce, s=found.s,
-                                   part_of=self.part_of, velocity=True)
+            result = solve_coulomb(z_rows, 1e-9 * own, b, found.mu, found.strand, helices.n_strands,
+                                   self.velocity_scale * h, self.settings.tolerance, self.settings.max_sweeps,
+                                   impulse, s=found.s, part_of=self.part_of)
             if result.status == NUMERICAL:
                 raise FloatingPointError("the contact solve failed")
             z = z_rows.rmatvec(result.r)
