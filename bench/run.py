@@ -30,6 +30,26 @@ def discover(prefixes=()) -> list[str]:
     return names
 
 
+def _split(page: str) -> list[str]:
+    """The ``## `` sections of a page after its "How to reproduce" part, each with its text."""
+    parts, current = [], None
+    for line in page.splitlines(keepends=True):
+        if line.startswith("## "):
+            current = [line]
+            parts.append(current)
+        elif current is not None:
+            current.append(line)
+    return ["".join(p).rstrip() + "\n" for p in parts if not p[0].startswith("## How to reproduce")]
+
+
+def merge_sections(page: str, new: list[str]) -> list[str]:
+    """The page's sections with those of ``new`` (matched by their title) replaced or appended."""
+    old = _split(page)
+    titles = {s.splitlines()[0]: s for s in new}
+    merged = [titles.pop(s.splitlines()[0], s) for s in old]
+    return merged + [s for s in new if s.splitlines()[0] in titles]
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     info = machine()
@@ -65,6 +85,11 @@ def main(argv=None) -> int:
         "The real hair files are read from `../shared/data/real/` beside the repository, or from the folder named by `HAIRINV_REAL_DATA` (see that folder's README for their origin and units).",
         "",
     ]
+    if argv and OUTPUT.exists():
+        # a partial run: keep the other benchmarks' sections as they were, in their order
+        sections = merge_sections(OUTPUT.read_text(), sections)
+        head[4] = (f"Sections rerun on {started:%Y-%m-%d} (UTC): {', '.join(discover(argv))} "
+                   f"({total / 60:.1f} min); the others are from earlier runs on the same machine.")
     OUTPUT.parent.mkdir(parents=True, exist_ok=True)
     OUTPUT.write_text("\n".join(head) + "\n" + "\n".join(sections))
     log(f"wrote {OUTPUT}")

@@ -1,0 +1,371 @@
+"""Benchmark of the simulation (``hairinv.dynamics``): the paper's experiments and the speed.
+
+Run alone with ``python bench/dynamics_bench.py`` (prints the markdown section),
+or through ``bench/run.py``, which writes ``docs/benchmarks.md``.
+
+Measured, in this order:
+
+* the paper's controlled validation (its straightSynthSim): guide strands of
+  the straight sample with a straight rest shape (q0 = 0) settle on the
+  sample bust by simulation; the settled shape is inverted with target
+  ``zero`` and the recovered rest curvature is compared with 0, beside the
+  gravity-only inversion's;
+* still body: the settled groom simulated for 2 s from the inverted model,
+  from the naive model (q0 = the settled shape) and from the gravity-only
+  model: the largest displacement of any strand point;
+* body removed: the reference (q0 = 0) and the inverted model, both released
+  from the settled shape without the body: how far apart they move;
+* motion: the ``motion`` scene (head turn and nod) on the inverted model:
+  energy, contact count and the deepest point inside the body;
+* trim: the ``trim`` scene (strands cut at half length) on the inverted
+  model: how much the tips rise;
+* speed: seconds of computing per simulated second, against strands and contacts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from common import DATA, IMG, ROOT, log, table  # type: ignore
+else:
+    from .common import DATA, IMG, ROOT, log, table
+
+sys.path.insert(0, str(ROOT))
+
+from hairinv import config  # noqa: E402
+from hairinv.contacts import detect_contacts  # noqa: E402
+from hairinv.contacts.body import BodyMesh  # noqa: E402
+from hairinv.dynamics.run import _samples  # noqa: E402
+from hairinv.dynamics.scene import Scene, trim_helices  # noqa: E402
+from hairinv.dynamics.simulate import Motion, Simulation  # noqa: E402
+from hairinv.fit import Helices  # noqa: E402
+from hairinv.invert import Material, generalized_gravity, invert, stiffness  # noqa: E402
+from hairinv.pipeline import prepare  # noqa: E402
+
+TITLE = "Simulating an inverted groom"
+SAMPLES = ROOT / "samples"
+GUIDES = 40
+SETTLE_SECONDS = 4.0
+SETTLE_AIR = 5.0  # 1/s: the reference settles faster; only the settled shape is kept
+STILL_SECONDS = 2.0
+GRAVITY_ONLY_SECONDS = 0.5  # it falls apart at once; the strands' fast motion makes its steps costly
+RELEASE_SECONDS = 1.0
+MOTION_SECONDS = 3.0
+TRIM_SECONDS = 1.0
+PLOT_STILL = IMG / "bench_dynamics_still.png"
+PLOT_SHAPES = IMG / "bench_dynamics_shapes.png"
+
+
+def _settings(**sections):
+    return config.apply(config.resolve(), sections)
+
+
+def _displacement(helices: Helices, q_start: np.ndarray, q: np.ndarray) -> float:
+    return max(float(np.max(np.linalg.norm(a - b, axis=1)))
+               for a, b in zip(_samples(helices, q), _samples(helices, q_start)))
+
+
+def _run(sim: Simulation, seconds: float, motion_at, every: float = 0.1, watch=None) -> dict:
+    """Step ``sim`` for ``seconds``; sample displacement, energy and contacts every ``every`` s."""
+    h = sim.settings.time_step
+    q_start = sim.q.copy()
+    trace = {"t": [0.0], "moved": [0.0], "kinetic": [0.0], "contacts": [], "deepest": 0.0, "sweeps": [],
+             "unconverged": 0, "substeps": 0}
+    steps = int(round(seconds / h))
+    per = max(1, int(round(every / h)))
+    started = time.perf_counter()
+    for i in range(steps):
+        report = sim.step(motion_at(i * h))
+        trace["sweeps"].append(report.sweeps)
+        trace["unconverged"] += report.status != "CONVERGED"
+        trace["substeps"] += report.substeps - 1
+        body = sim.contacts.strand[:, 1] < 0
+        if body.any() and sim.contacts.gap is not None:
+            trace["deepest"] = min(trace["deepest"], float(sim.contacts.gap[body].min()))
+        if (i + 1) % per == 0:
+            trace["t"].append((i + 1) * h)
+            trace["moved"].append(_displacement(sim.helices, q_start, sim.q))
+            trace["kinetic"].append(sim.kinetic_energy())
+            trace["contacts"].append(sim.contacts.n_contacts)
+            if watch is not None:
+                watch(trace)
+    trace["seconds"] = time.perf_counter() - started
+    trace["q"] = sim.q.copy()
+    return trace
+
+
+def settle(helices: Helices, mat: Material, body: BodyMesh, settings) -> tuple[Helices, dict]:
+    """The reference: straight rest shape, dropped from the sample's shape onto the bust."""
+    dyn = dataclasses.replace(settings.dynamics, air_damping=SETTLE_AIR)
+    sim = Simulation(helices, np.zeros_like(helices.omega), mat, body, settings.contacts, dyn)
+    trace = _run(sim, SETTLE_SECONDS, lambda t: Motion.still(mat.gravity), every=0.5)
+    settled = dataclasses.replace(helices, omega=sim.q.copy())
+    return settled, trace
+
+
+def mean_curvature(q0: np.ndarray, length: np.ndarray) -> tuple[float, float]:
+    """Length-weighted mean of |q0| (1/m): all three components, and the two curvatures alone."""
+    w = length / length.sum()
+    return float(np.sum(np.linalg.norm(q0, axis=1) * w)), float(np.sum(np.linalg.norm(q0[:, :2], axis=1) * w))
+
+
+def validation() -> dict:
+    settings = _settings(**{"import": {"guides": GUIDES}, "solver": {"max_sweeps": 20000, "tolerance": 1e-6}})
+    scene = prepare(SAMPLES / "straight.h5", SAMPLES / "body.obj", settings, contacts=False)
+    mat = Material.from_settings(settings.material, scene.up)
+    body = BodyMesh.from_mesh(scene.body)
+    log(f"settling {scene.helices.n_strands} straight strands for {SETTLE_SECONDS} s")
+    settled, settle_trace = settle(scene.helices, mat, body, settings)
+    contacts, _ = detect_contacts(settled, body, settings.contacts)
+    started = time.perf_counter()
+    model, report = invert(settled, contacts, mat, dataclasses.replace(settings.solver, target="zero"))
+    invert_seconds = time.perf_counter() - started
+    gravity_only = settled.omega - generalized_gravity(settled, mat) / stiffness(settled, mat).reshape(-1, 3)
+    still = lambda t: Motion.still(mat.gravity)  # noqa: E731
+    runs = {}
+    for label, rest, initial, force, seconds in (
+            ("inverted", model.omega_rest, contacts, model.force, STILL_SECONDS),
+            ("naive", settled.omega, contacts, None, STILL_SECONDS),
+            ("gravity-only", gravity_only, contacts, None, GRAVITY_ONLY_SECONDS)):
+        log(f"still body, {label}, {seconds} s")
+        sim = Simulation(settled, rest, mat, body, settings.contacts, settings.dynamics, initial=initial,
+                         initial_force=force)
+        runs[label] = _run(sim, seconds, still)
+    no_body = dataclasses.replace(settings.contacts, body=False)
+    released = {}
+    for label, rest, force in (("reference", np.zeros_like(settled.omega), None),
+                               ("inverted", model.omega_rest, model.force)):
+        log(f"body removed, {label}, {RELEASE_SECONDS} s")
+        hair_only = contacts.subset(contacts.strand[:, 1] >= 0)
+        sim = Simulation(settled, rest, mat, None, no_body, settings.dynamics, initial=hair_only,
+                         initial_force=None if force is None else force[contacts.strand[:, 1] >= 0])
+        samples = []
+        released[label] = _run(sim, RELEASE_SECONDS, still,
+                               watch=lambda tr, sim=sim, samples=samples: samples.append(_samples(settled, sim.q)))
+        released[label]["samples"] = samples
+    gaps = [max(float(np.max(np.linalg.norm(a - b, axis=1))) for a, b in zip(x, y))
+            for x, y in zip(released["reference"]["samples"], released["inverted"]["samples"])]
+    fallen = [max(float(np.max(np.linalg.norm(a - b, axis=1))) for a, b in
+                  zip(x, _samples(settled, settled.omega))) for x in released["reference"]["samples"]]
+    return {"settings": settings, "mat": mat, "body": body, "scene": scene, "settled": settled,
+            "settle": settle_trace, "contacts": contacts, "model": model, "report": report,
+            "invert_seconds": invert_seconds,
+            "error": mean_curvature(model.omega_rest, settled.length),
+            "error_gravity_only": mean_curvature(gravity_only, settled.length),
+            "runs": runs, "released": released, "release_gap": gaps, "release_fall": fallen}
+
+
+def motion_and_trim(v: dict) -> dict:
+    settings, mat, body, settled, model, contacts = (v[k] for k in ("settings", "mat", "body", "settled", "model",
+                                                                      "contacts"))
+    up = -mat.gravity / np.linalg.norm(mat.gravity)
+    scene = Scene.load("motion")
+    pivot = scene.pivot_point(settled.root)
+
+    def moving(t: float) -> Motion:
+        m = scene.body_motion(t, pivot, up)
+        R = m.R
+        return Motion(R.T @ mat.gravity, R.T @ m.acceleration, R.T @ m.velocity, R.T @ m.omega, R.T @ m.alpha)
+
+    log(f"motion scene, {MOTION_SECONDS} s")
+    sim = Simulation(settled, model.omega_rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
+                     initial_force=model.force)
+    motion = _run(sim, MOTION_SECONDS, moving)
+    # trim: a wavy groom (its own shape as the reference rest shape) settled on the bust, inverted with
+    # target actual, then cut at half length: reference and inverted model side by side
+    wavy_settings = _settings(**{"import": {"guides": GUIDES}, "solver": {"max_sweeps": 5000}})
+    wavy = prepare(SAMPLES / "wavy.h5", SAMPLES / "body.obj", wavy_settings, contacts=False)
+    log(f"settling {wavy.helices.n_strands} wavy strands for {SETTLE_SECONDS} s")
+    ref_rest = wavy.helices.omega.copy()
+    dyn = dataclasses.replace(wavy_settings.dynamics, air_damping=SETTLE_AIR)
+    sim = Simulation(wavy.helices, ref_rest, mat, body, wavy_settings.contacts, dyn)
+    _run(sim, SETTLE_SECONDS, lambda t: Motion.still(mat.gravity), every=0.5)
+    settled_wavy = dataclasses.replace(wavy.helices, omega=sim.q.copy())
+    wavy_contacts, _ = detect_contacts(settled_wavy, body, wavy_settings.contacts)
+    wavy_model, _ = invert(settled_wavy, wavy_contacts, mat, wavy_settings.solver)
+    trim = Scene.load("trim")
+    cut, element_map = trim_helices(settled_wavy, length=trim.trim.length, fraction=trim.trim.fraction)
+    tips_before = np.array([p[-1] for p in _samples(cut, cut.omega)])
+    rises, trims = {}, {}
+    for label, rest in (("reference", ref_rest), ("inverted", wavy_model.omega_rest)):
+        log(f"trim scene, {label}, {TRIM_SECONDS} s")
+        sim = Simulation(cut, rest[element_map], mat, body, wavy_settings.contacts, wavy_settings.dynamics)
+        trims[label] = _run(sim, TRIM_SECONDS, lambda t: Motion.still(mat.gravity))
+        tips_after = np.array([p[-1] for p in _samples(cut, sim.q)])
+        rises[label] = (tips_after - tips_before) @ up
+    w = settled_wavy.length / settled_wavy.length.sum()
+    recovered = float(np.sum(np.linalg.norm(wavy_model.omega_rest - ref_rest, axis=1) * w))
+    unchanged = float(np.sum(np.linalg.norm(settled_wavy.omega - ref_rest, axis=1) * w))
+    return {"motion": motion, "trim": trims, "rise": rises, "cut_strands": cut.n_strands,
+            "wavy_recovered": recovered, "wavy_settled_vs_rest": unchanged}
+
+
+def speed_point(style: Path, body_path: Path, guides: int, hair_hair: bool, seconds: float, scale=None,
+                label: str = "") -> dict:
+    extra = {"import": {"guides": guides}, "contacts": {"hair_hair": hair_hair}, "solver": {"max_sweeps": 300}}
+    if scale:
+        extra["import"]["scale"] = scale
+    settings = _settings(**extra)
+    scene = prepare(style, body_path, settings)
+    mat = Material.from_settings(settings.material, scene.up)
+    model, _ = invert(scene.helices, scene.contacts, mat, settings.solver, check_stability=False)
+    body = BodyMesh.from_mesh(scene.body)
+    sim = Simulation(scene.helices, model.omega_rest, mat, body, settings.contacts, settings.dynamics,
+                     initial=scene.contacts, initial_force=model.force)
+    sim.step(Motion.still(mat.gravity))  # compile and warm up
+    trace = _run(sim, seconds, lambda t: Motion.still(mat.gravity), every=seconds)
+    return {"label": label, "strands": scene.helices.n_strands, "elements": scene.helices.n_elements,
+            "contacts": int(np.mean(trace["contacts"])) if trace["contacts"] else 0, "hair_hair": hair_hair,
+            "simulated": seconds, "seconds": trace["seconds"], "per_second": trace["seconds"] / seconds,
+            "per_frame": trace["seconds"] / seconds / 25.0}
+
+
+def speed() -> list[dict]:
+    points = []
+    for guides in (100, 300):
+        for hh in (False, True):
+            log(f"speed: straight sample, {guides} strands, hair-hair {hh}")
+            points.append(speed_point(SAMPLES / "straight.h5", SAMPLES / "body.obj", guides, hh, 0.2,
+                                      label="straight sample"))
+    ruby = DATA / "ruby" / "ruby_short_hair_16_guide.tfx"
+    if ruby.exists():
+        log("speed: ruby short, 1,867 strands, hair-hair on")
+        points.append(speed_point(ruby, DATA / "ruby" / "ruby_head.obj", 0, True, 0.04, scale=0.002,
+                                  label="ruby short"))
+    return points
+
+
+def plot(v: dict, path_still: Path, path_shapes: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for label, style in (("inverted", "-"), ("naive", "--"), ("gravity-only", ":")):
+        run = v["runs"][label]
+        moved = np.maximum(np.array(run["moved"]) * 1e3, 1e-9)
+        ax.semilogy(run["t"], moved, style, label=label)
+    ax.axhline(0.1, color="grey", lw=0.8)
+    ax.text(1.55, 0.15, "0.1 mm", color="grey")
+    ax.set_xlabel("simulated time (s)")
+    ax.set_ylabel("largest displacement (mm)")
+    ax.set_title(f"Still body: {v['settled'].n_strands} settled strands, three rest shapes")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path_still, dpi=120)
+    plt.close(fig)
+
+    settled = v["settled"]
+    up = -v["mat"].gravity / np.linalg.norm(v["mat"].gravity)
+    side = np.array([0.0, 0.0, 1.0]) if abs(up[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    horizontal = np.cross(up, side)
+    fig, axes = plt.subplots(1, 3, figsize=(10, 4.2), sharex=True, sharey=True)
+    shapes = (("input (settled)", settled.omega), ("inverted, after 2 s", v["runs"]["inverted"]["q"]),
+              ("naive, after 2 s", v["runs"]["naive"]["q"]))
+    verts = np.asarray(v["scene"].body.vertices)
+    start = _samples(settled, settled.omega, per_element=4)
+    for index, (ax, (title, q)) in enumerate(zip(axes, shapes)):
+        ax.scatter(verts @ horizontal, verts @ up, s=0.2, color="0.85")
+        if index:
+            for pts in start:
+                ax.plot(pts @ horizontal, pts @ up, lw=1.6, color="0.75")
+        for pts in _samples(settled, q, per_element=4):
+            ax.plot(pts @ horizontal, pts @ up, lw=0.7)
+        ax.set_title(title)
+        ax.set_aspect("equal")
+        ax.set_xlabel("side (m)")
+    axes[0].set_ylabel("up (m)")
+    fig.suptitle("The groom on the sample bust (grey: the input)")
+    fig.tight_layout()
+    fig.savefig(path_shapes, dpi=120)
+    plt.close(fig)
+
+
+def run() -> str:
+    v = validation()
+    mt = motion_and_trim(v)
+    points = speed()
+    IMG.mkdir(parents=True, exist_ok=True)
+    plot(v, PLOT_STILL, PLOT_SHAPES)
+    return render(v, mt, points)
+
+
+def _mm(x: float) -> str:
+    return f"{1e3 * x:.3g}" if x >= 1e-6 else f"{1e3 * x:.1e}"
+
+
+def render(v: dict, mt: dict, points: list[dict]) -> str:
+    runs, rep = v["runs"], v["report"]
+    lines = [f"## {TITLE}", "",
+             "`bench/dynamics_bench.py`. Sample bust, default settings (time step 10 ms, the contact solve to "
+             "1e-6 of g h), unless stated.", "",
+             "### The paper's controlled validation", "",
+             f"{v['settled'].n_strands} guide strands of the straight sample, with a straight rest shape "
+             f"(q0 = 0), were dropped on the bust and simulated for {SETTLE_SECONDS:g} s (air drag "
+             f"{SETTLE_AIR:g} /s, to settle faster) into a resting groom with {v['contacts'].n_contacts} contacts "
+             f"({v['contacts'].n_body} on the body). That groom was inverted with target `zero`. The paper "
+             "recovered a mean rest curvature of 0.9 1/m against 9.9 1/m without contacts; the target here was "
+             "under 0.3 1/m.", ""]
+    e, g = v["error"], v["error_gravity_only"]
+    lines += [table(["inversion", "mean |q0| (1/m), all three", "mean curvature (1/m), bending only"],
+                    [("with contacts (hairinv, target zero)", f"{e[0]:.3g}", f"{e[1]:.3g}"),
+                     ("gravity only", f"{g[0]:.3g}", f"{g[1]:.3g}")]), "",
+              f"The inversion took {v['invert_seconds']:.1f} s ({rep.result.sweeps} sweeps, status {rep.result.status}, relative "
+              f"residual {rep.result.relative_residual:.1e}); {rep.unstable} of {v['settled'].n_strands} strands are flagged "
+              f"unstable, against {rep.unstable_gravity_only} for the gravity-only inversion.", "",
+              "### Still body", "",
+              "The settled groom, simulated from three rest shapes with the body still. The largest "
+              "displacement is over every strand point, from where it started.", ""]
+    rows = []
+    for label in ("inverted", "naive", "gravity-only"):
+        r = runs[label]
+        rows.append((label, f"{r['t'][-1]:g}", _mm(max(r["moved"])), f"{r['seconds']:.1f}",
+                     f"{r['unconverged']} of {len(r['sweeps'])}"))
+    lines += [table(["rest shape", "simulated (s)", "largest displacement (mm)", "wall time (s)",
+                     "steps at the sweep cap"], rows), "",
+              f"![displacement against time](img/{PLOT_STILL.name})", "",
+              f"![the groom after 2 s](img/{PLOT_SHAPES.name})", "",
+              "### Body removed", "",
+              f"Both the reference (q0 = 0) and the inverted model released from the settled shape without the "
+              f"body for {RELEASE_SECONDS:g} s: the hair falls by up to {_mm(max(v['release_fall']))} mm; the two "
+              f"stay within {_mm(max(v['release_gap']))} mm of each other (largest distance between the same "
+              "strand point in the two runs, over the run).", "",
+              "### Motion and trim", ""]
+    m = mt["motion"]
+    lines += [f"The `motion` scene (a 50 degree head turn and a 20 degree nod, back by 2.2 s) for "
+              f"{MOTION_SECONDS:g} s on the inverted model: kinetic energy at most {max(m['kinetic']):.3g} J and "
+              f"{m['kinetic'][-1]:.3g} J at the end; contacts {min(m['contacts'])}-{max(m['contacts'])}; the deepest "
+              f"body contact {_mm(max(0.0, -m['deepest']))} mm inside the surface (the contact radius is "
+              f"{_mm(v['settings'].contacts.body_distance)} mm); {m['substeps']} extra half steps; wall time "
+              f"{m['seconds']:.1f} s.", "",
+              f"Trim: {mt['cut_strands']} strands of the wavy sample with their drawn shape as the rest shape "
+              f"(the reference) were settled on the bust for {SETTLE_SECONDS:g} s and inverted with target "
+              f"`actual`: the inverted rest shape is {mt['wavy_recovered']:.3g} 1/m from the reference's (mean "
+              f"|q0 - q0_ref|; the settled shape itself is {mt['wavy_settled_vs_rest']:.3g} 1/m from it). Both were "
+              f"then cut at half length (the `trim` scene) and simulated for {TRIM_SECONDS:g} s; the rise of the "
+              "new tips:", "",
+              table(["rest shape", "median rise (mm)", "strands whose tip rose by over 0.1 mm", "wall time (s)"],
+                    [(label, f"{1e3 * float(np.median(mt['rise'][label])):.3g}",
+                      f"{int(np.sum(mt['rise'][label] > 1e-4))} of {len(mt['rise'][label])}",
+                      f"{mt['trim'][label]['seconds']:.1f}") for label in ("reference", "inverted")]), "",
+              "### Speed", "",
+              "Still body, from the inverted model, after one warm-up step. Targets: 300 strands without "
+              "hair-hair contact faster than real time, 2,000 strands with hair-hair contact under 5 s per "
+              "1/25 s frame.", ""]
+    rows = [(p["label"], str(p["strands"]), str(p["elements"]), "on" if p["hair_hair"] else "off", str(p["contacts"]),
+             f"{p['per_second']:.2f}", f"{p['per_frame']:.2f}") for p in points]
+    lines += [table(["groom", "strands", "elements", "hair-hair", "contacts", "s per simulated s",
+                     "s per 1/25 s frame"], rows), ""]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(run())
