@@ -32,7 +32,8 @@ from .._jit import jit
 from .._parallel import run_chunks
 from ..config import ContactSettings, DynamicsSettings
 from ..contacts.body import BodyMesh
-from ..contacts.detect import Contacts, detect_contacts
+from ..contacts.detect import COINCIDENT, Contacts, contact_frames, detect_contacts
+from ..rod.helix import points_at
 from ..errors import InputError
 from ..fit import Helices
 from ..invert import Material, stiffness
@@ -260,6 +261,26 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
     return kinetic
 
 
+# m: a remembered contact point stays while it is at most this much farther from the surface than
+# the point detection finds on the same element
+_PERSIST_SLACK = 1e-5
+
+
+@jit
+def _points_on(root, frame0, offsets, omega, length, strand, s, out):
+    """Centerline points of strands ``strand`` at arc lengths ``s``, (n, 3)."""
+    one = np.empty(1)
+    pt = np.empty((1, 3))
+    for i in range(strand.shape[0]):
+        k = strand[i]
+        a = offsets[k]
+        z = offsets[k + 1]
+        one[0] = s[i]
+        points_at(root[k], frame0[k], omega[a:z], length[a:z], one, pt)
+        for j in range(3):
+            out[i, j] = pt[0, j]
+
+
 @jit
 def _free_chunk(root, frame0, offsets, length, q, v, q0, stiff, lam, rot, damping, air, h, motion, gx, gw,
                 chol, chol_ptr, v_free, kinetic, hess, fresh, lo, hi):
@@ -322,6 +343,10 @@ class Simulation:
         self.velocity_scale = float(np.linalg.norm(material.gravity))
         # contact memory: key -> (thickness, impulse in world coordinates: frames may turn between steps)
         self._keys = np.zeros(0, dtype=np.int64)
+        self._arc = np.zeros((0, 2))  # where each remembered contact sits on its strands
+        self._pair = np.zeros((0, 2), dtype=np.int64)  # its strands
+        self._elements = np.zeros((0, 2), dtype=np.int64)  # its elements
+        self._mu = np.zeros(0)
         self._thickness = np.zeros(0)
         self._impulse = np.zeros((0, 3))
         self._first = True
@@ -335,6 +360,10 @@ class Simulation:
             self._keys = keys[order]
             gap = initial.gap if initial.gap is not None else np.zeros(initial.n_contacts)
             self._thickness = gap[order]
+            self._arc = initial.s[order]
+            self._pair = initial.strand[order]
+            self._mu = initial.mu[order]
+            self._elements = self._elements_of(initial)[order]
             self._impulse = np.einsum("cji,cj->ci", initial.frame, self._initial_impulse)[order]
         self.contacts = Contacts.empty()
         self.last = None
@@ -356,6 +385,86 @@ class Simulation:
         n = self.helices.n_elements
         return np.where(contacts.element[:, 1] < 0, contacts.element[:, 0],
                         n * (1 + contacts.element[:, 0]) + contacts.element[:, 1])
+
+    def _elements_of(self, contacts: Contacts) -> np.ndarray:
+        if contacts.element is not None:
+            return contacts.element
+        keys = self._keys_of(contacts)
+        n = self.helices.n_elements
+        return np.stack([np.where(keys < n, keys, keys // n - 1), np.where(keys < n, -1, keys % n)], axis=1)
+
+    def _persist(self, found: Contacts) -> Contacts:
+        """Contacts that persist stay on the same material points of their strands.
+
+        Detection picks each element's closest point afresh; where a strand lies
+        along the body (or along another strand) that point jumps along the
+        element with the slightest motion (or to the element's end, where no
+        contact is declared), and the force warm-started from the last step
+        would act somewhere else or vanish. So a remembered contact keeps its
+        arc lengths, its gap and normal are measured there, and it is kept as
+        long as that gap stays within the detection distance.
+        """
+        if not len(self._keys) or self._first:
+            return found  # the first step meets the starting contacts as detected (see _remember)
+        keys = self._keys_of(found)
+        where = np.minimum(np.searchsorted(self._keys, keys), len(self._keys) - 1)
+        known = self._keys[where] == keys
+        missing = np.ones(len(self._keys), bool)
+        missing[where[known]] = False
+        # the union: what detection found, and the remembered contacts it did not find again
+        extra = np.flatnonzero(missing)
+        strand = np.concatenate([found.strand, self._pair[extra]])
+        arc = np.concatenate([found.s, self._arc[extra]])
+        arc[np.flatnonzero(known)] = self._arc[where[known]]
+        mu = np.concatenate([found.mu, self._mu[extra]])
+        element = np.concatenate([self._elements_of(found), self._elements[extra]])
+        old_frame = np.concatenate([found.frame, np.zeros((len(extra), 3, 3))])
+        redo = np.concatenate([np.flatnonzero(known), found.n_contacts + np.arange(len(extra))])
+        gap = np.concatenate([found.gap if found.gap is not None else np.zeros(found.n_contacts),
+                              np.zeros(len(extra))])
+        point = np.concatenate([found.point, np.zeros((len(extra), 3))])
+        normal = old_frame[:, 0].copy()  # remembered contacts get theirs measured below
+        h = self.helices
+        xa = np.empty((len(redo), 3))
+        _points_on(h.root, h.frame0, h.offsets, self.q, h.length, strand[redo, 0], arc[redo, 0], xa)
+        point[redo] = xa
+        body = strand[redo, 1] < 0
+        limit = np.where(body, self.contact_settings.body_distance, self.contact_settings.hair_distance)
+        if body.any():
+            if self.body is None:
+                gap[redo[body]] = np.inf
+            else:
+                sd, closest, feature, _ = self.body.closest(xa[body])
+                away = xa[body] - closest
+                dist = np.linalg.norm(away, axis=1)
+                flat = dist <= COINCIDENT * self.contact_settings.body_distance
+                side = np.where(sd < 0, -1.0, 1.0)[:, None]
+                normal[redo[body]] = np.where(flat[:, None], feature, side * away / np.where(flat, 1.0, dist)[:, None])
+                gap[redo[body]] = sd
+        hair = ~body
+        if hair.any():
+            xb = np.empty((int(hair.sum()), 3))
+            _points_on(h.root, h.frame0, h.offsets, self.q, h.length, strand[redo[hair], 1], arc[redo[hair], 1], xb)
+            apart = xa[hair] - xb
+            dist = np.linalg.norm(apart, axis=1)
+            flat = dist <= COINCIDENT * self.contact_settings.hair_distance
+            normal[redo[hair]] = np.where(flat[:, None], normal[redo[hair]], apart / np.where(flat, 1.0, dist)[:, None])
+            gap[redo[hair]] = dist
+        frame = old_frame
+        frame[redo] = contact_frames(normal[redo])
+        keep = np.ones(len(strand), bool)
+        keep[redo] = gap[redo] < limit  # contacts that have opened beyond reach end here
+        # where detection found a point clearly closer than the remembered one (the strand slides or
+        # rolls over the surface), the contact moves there: the remembered point would leave the
+        # closest one unconstrained
+        redetected = np.flatnonzero(known)
+        detected_gap = found.gap[redetected] if found.gap is not None else gap[redetected]
+        moved = redetected[gap[redetected] > detected_gap + _PERSIST_SLACK]
+        arc[moved], point[moved], frame[moved], gap[moved] = (found.s[moved], found.point[moved], found.frame[moved],
+                                                              detected_gap[np.searchsorted(redetected, moved)])
+        keep[moved] = True
+        merged = Contacts(strand, arc, point, frame, mu, gap, element)
+        return merged.subset(keep) if not keep.all() else merged
 
     def _remember(self, found: Contacts, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Keys, thickness and warm-start impulse of this step's contacts."""
@@ -433,6 +542,7 @@ class Simulation:
         if not np.all(np.isfinite(v_free)):
             raise FloatingPointError("the free velocity is not finite")
         found = self._detect()
+        found = self._persist(found)
         keys, thickness, impulse = self._remember(found, h)
         report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0)
         v_new = v_free
@@ -475,6 +585,8 @@ class Simulation:
         order = np.argsort(keys, kind="stable")
         world = np.einsum("cji,cj->ci", found.frame, impulse)
         self._keys, self._thickness, self._impulse = keys[order], thickness[order], world[order]
+        self._arc, self._pair, self._mu = found.s[order], found.strand[order], found.mu[order]
+        self._elements = self._elements_of(found)[order]
         self.contacts = found
         self.v = v_new
         self.q = self.q + h * v_new

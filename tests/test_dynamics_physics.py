@@ -1,0 +1,209 @@
+"""The simulator against physics it must reproduce: closed-form contact laws, an independent
+integration of the same equations of motion, energy, and the extremes."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from hairinv.config import DynamicsSettings, Settings
+from hairinv.dynamics.contact import contact_velocities, solve_coulomb
+from hairinv.dynamics.inertia import inertia_terms
+from hairinv.dynamics.simulate import Motion, Simulation
+from hairinv.rod.helix import points_at
+from hairinv.rod.statics import gravity_forces, gravity_potential
+from hairinv.solver.rows import ContactRows
+
+from test_invert import horizontal_strand, material, strands
+
+NO_CONTACTS = dataclasses.replace(Settings().contacts, body=False, hair_hair=False)
+
+
+# ---------------------------------------------------------------- one and two contacts, closed forms
+
+def _isotropic_rows(weights):
+    """Rows Z_i^T on three private coordinates per contact, so that W = diag(w_i I)."""
+    n = len(weights)
+    ptr = np.arange(0, 3 * n + 1, 3, dtype=np.int64)
+    cols = np.arange(3 * n, dtype=np.int64)
+    vals = np.zeros((3 * n, 3))
+    for i, w in enumerate(weights):
+        vals[3 * i:3 * i + 3] = np.sqrt(w) * np.eye(3)
+    return ContactRows(ptr, cols, vals, 3 * n)
+
+
+def _solve(weights, b, mu):
+    rows = _isotropic_rows(weights)
+    n = len(weights)
+    strand = np.stack([np.arange(n), -np.ones(n, np.int64)], axis=1).astype(np.int64)
+    return solve_coulomb(rows, np.zeros(n), np.asarray(b, float), np.asarray(mu, float), strand, n, 1.0, 1e-10,
+                         500, np.zeros((n, 3))), rows
+
+
+@pytest.mark.parametrize("case", ["take-off", "stick", "slide"])
+def test_one_contact_against_closed_forms(case):
+    w, mu = 2.0, 0.4
+    b = {"take-off": [0.3, 0.5, -0.2], "stick": [-1.0, 0.1, 0.2], "slide": [-1.0, 0.6, -0.8]}[case]
+    result, rows = _solve([w], [b], [mu])
+    r = result.r[0]
+    b = np.array(b)
+    if case == "take-off":  # moving apart: no force
+        expected = np.zeros(3)
+    elif case == "stick":  # the force that stops the contact, inside the cone
+        expected = -b / w
+        assert np.hypot(*expected[1:]) < mu * expected[0]
+    else:  # sliding: the normal force stops the approach, friction at the cone's edge opposes the slip
+        rn = -b[0] / w
+        slip = b[1:] / np.linalg.norm(b[1:])
+        expected = np.array([rn, *(-mu * rn * slip)])
+        assert np.linalg.norm(b[1:]) > mu * w * rn
+    assert result.status == "CONVERGED"
+    assert np.allclose(r, expected, atol=1e-9)
+    u = contact_velocities(rows, np.zeros(1), b[None, :], result.r)[0]
+    if case == "slide":  # Coulomb: no normal velocity, slip along the friction force, exactly opposed
+        assert abs(u[0]) < 1e-9
+        assert np.allclose(np.cross(np.r_[0, u[1:]], np.r_[0, r[1:]]), 0.0, atol=1e-9)
+        assert np.dot(u[1:], r[1:]) < 0
+
+
+def test_two_contacts_one_sticking_one_sliding():
+    result, _ = _solve([1.0, 3.0], [[-2.0, 0.1, 0.0], [-3.0, 0.0, 5.0]], [0.5, 0.2])
+    assert result.status == "CONVERGED"
+    assert np.allclose(result.r[0], [2.0, -0.1, 0.0], atol=1e-9)
+    assert np.allclose(result.r[1], [1.0, 0.0, -0.2], atol=1e-9)
+
+
+def test_zero_friction_has_no_tangential_force():
+    result, _ = _solve([1.5], [[-3.0, 2.0, 1.0]], [0.0])
+    assert np.allclose(result.r[0], [2.0, 0.0, 0.0], atol=1e-9)
+
+
+# ---------------------------------------------------------------- free motion of one strand
+
+def _strand(n=4, total=0.08, curl=0.0):
+    return strands([horizontal_strand(n=n, total=total, curl=curl)])
+
+
+def _sim(helices, rest, h, mat=None, **dyn):
+    settings = dataclasses.replace(DynamicsSettings(damping=0.0, air_damping=0.0, time_step=h), **dyn)
+    return Simulation(helices, rest, mat or material(), None, NO_CONTACTS, settings)
+
+
+def _tip(helices, q):
+    out = np.empty((1, 3))
+    points_at(helices.root[0], helices.frame0[0], q, helices.length, np.array([helices.length.sum()]), out)
+    return out[0]
+
+
+def test_free_swing_matches_an_independent_integration():
+    """A straight strand released horizontally, no contact, no damping: the tip's path against
+    scipy's adaptive Runge-Kutta on M q'' = F_g - K (q - q0) + b(q, q') (the kernels checked in
+    test_inertia.py and test_statics.py), to 1 % of the distance it falls."""
+    helices = _strand()
+    mat = material()
+    settings = DynamicsSettings(damping=0.0, air_damping=0.0, time_step=2e-5, max_turn=1.0)
+    rot = mat.linear_density * settings.inertia_radius ** 2 / 4.0
+    stiff = np.array([mat.bending, mat.bending, mat.twisting])[None, :] * helices.length[:, None]
+    n = helices.n_elements
+
+    def rhs(_t, y):
+        q, v = y[:3 * n].reshape(n, 3), y[3 * n:].reshape(n, 3)
+        M, bias = inertia_terms(helices.root[0], helices.frame0[0], q, helices.length, v, mat.linear_density, rot)
+        g = np.empty((n, 3))
+        gravity_forces(helices.root[0], helices.frame0[0], q, helices.length, mat.linear_density, mat.gravity, g)
+        force = g.ravel() - (stiff * q).ravel() + bias
+        return np.concatenate([v.ravel(), np.linalg.solve(M, force)])
+
+    T = 0.03
+    ref = solve_ivp(rhs, (0.0, T), np.zeros(6 * n), rtol=1e-9, atol=1e-9, method="DOP853")
+    q_ref = ref.y[:3 * n, -1].reshape(n, 3)
+    sim = Simulation(helices, np.zeros_like(helices.omega), mat, None, NO_CONTACTS, settings)
+    for _ in range(int(round(T / settings.time_step))):
+        sim.step(Motion.still(mat.gravity))
+    start, tip, tip_ref = _tip(helices, helices.omega), _tip(helices, sim.q), _tip(helices, q_ref)
+    fall = np.linalg.norm(tip_ref - start)
+    assert fall > 1e-3
+    assert np.linalg.norm(tip - tip_ref) < 0.01 * fall
+
+
+def test_undamped_swing_never_gains_energy():
+    """Kinetic + elastic + gravitational energy over 1,000 steps without damping: linearly implicit
+    Euler may lose energy, never gain it (beyond 0.1 % of the energy exchanged)."""
+    helices = _strand(curl=20.0)
+    mat = material()
+    sim = _sim(helices, np.zeros_like(helices.omega), 1e-3, mat)
+
+    def energy():
+        M, _ = inertia_terms(helices.root[0], helices.frame0[0], sim.q, helices.length, sim.v, sim.lam, sim.rot)
+        v = sim.v.ravel()
+        return 0.5 * v @ M @ v, sim.elastic_energy() + gravity_potential(
+            helices.root[0], helices.frame0[0], sim.q, helices.length, sim.lam, mat.gravity)
+
+    energies, exchanged = [], 0.0
+    for _ in range(1000):
+        sim.step(Motion.still(mat.gravity))
+        kinetic, potential = energy()
+        energies.append(kinetic + potential)
+        exchanged = max(exchanged, kinetic)
+    energies = np.array(energies)
+    assert exchanged > 0
+    assert np.all(np.diff(energies) <= 1e-3 * exchanged)
+    assert energies[-1] > energies[0] - exchanged  # it swings, it does not just stop
+
+
+# ---------------------------------------------------------------- extremes
+
+@pytest.mark.parametrize("name, youngs, h, curl", [
+    ("very stiff", 4e12, 0.01, 0.0),
+    ("very soft", 4e5, 0.01, 0.0),
+    ("tiny step", 4e9, 1e-5, 0.0),
+    ("large step", 4e9, 0.1, 0.0),
+    ("extremely curly", 4e9, 0.01, 500.0),
+])
+def test_extremes_stay_finite_and_lose_energy(name, youngs, h, curl):
+    """Released from a shape away from its rest shape, with the default damping: the motion stays
+    finite and the strand ends with less energy than it started with."""
+    helices = _strand(n=6, total=0.12, curl=curl)
+    mat = material(youngs_modulus=youngs)
+    rest = np.zeros_like(helices.omega)
+    sim = Simulation(helices, rest, mat, None, NO_CONTACTS, DynamicsSettings(time_step=h))
+
+    def potential():
+        return sim.elastic_energy() + gravity_potential(helices.root[0], helices.frame0[0], sim.q, helices.length,
+                                                        sim.lam, mat.gravity)
+
+    start = potential()
+    steps = max(1, int(round(min(0.2, 50 * h) / h)))
+    for _ in range(steps):
+        sim.step(Motion.still(mat.gravity))
+        assert np.all(np.isfinite(sim.q))
+    assert potential() + sim.kinetic_energy() <= start + 1e-12 * abs(start)
+
+
+def test_a_strand_resting_along_the_body_stays_put():
+    """A strand lying on a flat floor along its whole length (a box as the body), inverted with its
+    contacts: the simulation keeps it where it is."""
+    import trimesh
+
+    from hairinv.contacts import detect_contacts
+    from hairinv.contacts.body import BodyMesh
+    from hairinv.invert import invert
+
+    helices = _strand(n=6, total=0.12)
+    floor = trimesh.creation.box(extents=(1.0, 0.2, 1.0))
+    floor.apply_translation((0.3, -0.1 - 1e-3, 0.0))  # top face 1 mm below the strand
+    settings = Settings()
+    body = BodyMesh.from_mesh(floor)
+    contacts, _ = detect_contacts(helices, body, settings.contacts)
+    assert contacts.n_body >= 4
+    mat = material()
+    model, _ = invert(helices, contacts, mat, settings.solver)
+    sim = Simulation(helices, model.omega_rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
+                     initial_force=model.force)
+    start = _tip(helices, helices.omega)
+    for _ in range(50):
+        sim.step(Motion.still(mat.gravity))
+    assert np.linalg.norm(_tip(helices, sim.q) - start) < 1e-7
