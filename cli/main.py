@@ -506,8 +506,9 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
 @main.command()
 @click.argument("file", type=click.Path(path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@click.pass_obj
 @handle_errors
-def info(file, as_json):
+def info(obj, file, as_json):
     """Summarise a hairinv stage file: groups, sizes and key figures."""
     from hairinv.errors import InputError
     from hairinv.summary import summarise
@@ -516,14 +517,15 @@ def info(file, as_json):
     if not file.exists():
         raise InputError("no such file", file)
     summary = summarise(stages.read_stage(file))
+    say = functools.partial(_say, {**obj, "quiet": False})
     if as_json:
-        click.echo(json.dumps(summary, indent=2))
+        say(json.dumps(summary, indent=2))
         return
-    click.echo(f"{file}: {summary['producer']}, schema {summary['schema_version']}, stages {summary['stages']}")
+    say(f"{file}: {summary['producer']}, schema {summary['schema_version']}, stages {summary['stages']}")
     for name, group in summary["groups"].items():
-        click.echo(f"/{name}")
+        say(f"/{name}")
         for key, value in group.items():
-            click.echo(f"  {key}: {value}")
+            say(f"  {key}: {value}")
 
 
 if __name__ == "__main__":

@@ -85,8 +85,17 @@ def summarise(stage: stages.StageFile) -> dict:
             "youngs_modulus_Pa": float(g.attrs.get("youngs_modulus", 0.0)),
             "radius_m": float(g.attrs.get("radius", 0.0)),
         }
-    for name in (stages.FRAMES,):
-        if name in stage:
-            g = stage[name]
-            out["groups"][name] = {key: list(value.shape) for key, value in g.datasets.items()}
+    if stages.FRAMES in stage:
+        g = stage[stages.FRAMES]
+        time = g["time"]
+        frames = {"frames": int(len(time)), "seconds": float(time[-1]) if len(time) else 0.0,
+                  "scene": str(g.attrs.get("scene", "")), "init": str(g.attrs.get("init", "")),
+                  "time_step_s": float(g.attrs.get("time_step", 0.0)),
+                  "body_removed": bool(g.attrs.get("body_removed", False)),
+                  "trimmed": bool(g.attrs.get("trimmed", False))}
+        if "displacement" in g.datasets:
+            frames["largest_displacement_mm"] = round(1e3 * float(np.max(g["displacement"])), 6)
+            frames["final_kinetic_energy_J"] = float(g["kinetic_energy"][-1])
+            frames["contacts"] = _stats(g["contact_count"], digits=1)
+        out["groups"]["frames"] = frames
     return out

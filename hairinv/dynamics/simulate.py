@@ -365,7 +365,7 @@ class Simulation:
             self._mu = initial.mu[order]
             self._elements = self._elements_of(initial)[order]
             self._impulse = np.einsum("cji,cj->ci", initial.frame, self._initial_impulse)[order]
-        self.contacts = Contacts.empty()
+        self.contacts = initial if initial is not None else Contacts.empty()
         self.last = None
 
     # ------------------------------------------------------------------ geometry
