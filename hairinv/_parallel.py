@@ -8,11 +8,25 @@ the thread count or on scheduling.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
+
+_lock = threading.Lock()
+_pool: ThreadPoolExecutor | None = None
+_pool_size = 0
+_controller: ThreadpoolController | None = None
+_pinned = threading.local()
+_PREFIX = "hairinv-worker"
+
+
+def in_worker() -> bool:
+    """True on one of the pool's threads: work submitted from there runs inline (no nested waits)."""
+    return threading.current_thread().name.startswith(_PREFIX)
 
 
 def worker_count() -> int:
@@ -21,6 +35,41 @@ def worker_count() -> int:
     if value:
         return max(1, int(value))
     return max(1, os.cpu_count() or 1)
+
+
+def executor(workers: int) -> ThreadPoolExecutor:
+    """A thread pool of ``workers`` threads, kept between calls (starting threads costs milliseconds,
+    which a simulation step that runs several parallel phases cannot afford)."""
+    global _pool, _pool_size
+    with _lock:
+        if _pool is None or _pool_size != workers:
+            if _pool is not None:
+                _pool.shutdown(wait=False)
+            _pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix=_PREFIX)
+            _pool_size = workers
+        return _pool
+
+
+@contextlib.contextmanager
+def blas_pinned():
+    """BLAS limited to one thread within the block (re-entrant; the library scan is done once)."""
+    global _controller
+    if getattr(_pinned, "depth", 0):
+        _pinned.depth += 1
+        try:
+            yield
+        finally:
+            _pinned.depth -= 1
+        return
+    with _lock:
+        if _controller is None:
+            _controller = ThreadpoolController()
+    _pinned.depth = 1
+    try:
+        with _controller.limit(limits=1, user_api="blas"):
+            yield
+    finally:
+        _pinned.depth = 0
 
 
 def run_chunks(work: Callable[[int, int], None], count: int, chunk: int,
@@ -32,22 +81,29 @@ def run_chunks(work: Callable[[int, int], None], count: int, chunk: int,
     fight our workers for the cores (measured: no speed-up from a second
     worker on the curly sample until BLAS was pinned, 1.9x after).
     """
-    with threadpool_limits(limits=1, user_api="blas"):
+    with blas_pinned():
         _run(work, count, chunk, progress)
 
 
 def _run(work, count, chunk, progress) -> None:
     bounds = [(lo, min(count, lo + chunk)) for lo in range(0, count, chunk)]
     workers = min(worker_count(), len(bounds))
-    if workers <= 1:
+    if workers <= 1 or in_worker():
         for lo, hi in bounds:
             work(lo, hi)
             if progress is not None:
                 progress(hi - lo)
         return
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(work, lo, hi) for lo, hi in bounds]
+    pool = executor(workers)
+    futures = [pool.submit(work, lo, hi) for lo, hi in bounds]
+    try:
         for (lo, hi), future in zip(bounds, futures):
             future.result()
             if progress is not None:
                 progress(hi - lo)
+    finally:
+        for future in futures:  # an error in one chunk: let the others finish before the caller moves on
+            future.cancel()
+        for future in futures:
+            if not future.cancelled():
+                future.exception()

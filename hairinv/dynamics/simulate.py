@@ -366,6 +366,10 @@ class Simulation:
             self._elements = self._elements_of(initial)[order]
             self._impulse = np.einsum("cji,cj->ci", initial.frame, self._initial_impulse)[order]
         self.contacts = initial if initial is not None else Contacts.empty()
+        self._last_found = None
+        self._q_detected = None
+        self._strand_length = (np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements
+                               else np.zeros(helices.n_strands))
         self.last = None
 
     # ------------------------------------------------------------------ geometry
@@ -375,7 +379,17 @@ class Simulation:
         return Helices(h.root, h.frame0, h.offsets, h.length, self.q, h.fit_error)
 
     def _detect(self) -> Contacts:
+        """This step's contacts: detected afresh once any strand point may have moved by more than a
+        quarter of the hair-hair contact distance since the last detection (a bound from the elements'
+        turns times the strand's length); until then the last detection is reused, and the remembered
+        contacts are measured again where they are (see :meth:`_persist`)."""
+        if self._last_found is not None and self.helices.n_elements:
+            turn = np.linalg.norm(self.q - self._q_detected, axis=1) * self.helices.length
+            bound = np.add.reduceat(turn, self.helices.offsets[:-1]) * self._strand_length
+            if float(bound.max()) < 0.25 * self.contact_settings.hair_distance:
+                return self._last_found
         found, _ = detect_contacts(self.current(), self.body, self.contact_settings)
+        self._last_found, self._q_detected = found, self.q.copy()
         return found
 
     def _keys_of(self, contacts: Contacts) -> np.ndarray:

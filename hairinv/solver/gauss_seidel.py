@@ -30,11 +30,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._jit import jit
-from concurrent.futures import ThreadPoolExecutor
 
-from threadpoolctl import threadpool_limits
 
-from .._parallel import worker_count
+from .._parallel import blas_pinned, executor, in_worker, worker_count
 from .local import NUMERICAL_ERROR, project_cone, solve_contact
 from .rows import ContactRows
 
@@ -396,8 +394,9 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     tk = 1.0
     restarts = 0
     from_x = True
-    pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
-    limits = threadpool_limits(limits=1, user_api="blas")  # the kernels' own threads, not BLAS's
+    pool = executor(threads) if threads > 1 and not in_worker() else None
+    pinned = blas_pinned()  # the kernels' own threads, not BLAS's
+    pinned.__enter__()
     try:
         while status == MAX_ITERS and sweeps < max_sweeps:
             failures = 0
@@ -460,9 +459,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
                 elif max_seconds > 0 and time.perf_counter() - started > max_seconds:
                     break
     finally:
-        limits.restore_original_limits()
-        if pool is not None:
-            pool.shutdown()
+        pinned.__exit__(None, None, None)
     if accelerate:
         r = x
     # local solves meet the cone to about eps^(3/4); make every force exactly admissible
