@@ -8,8 +8,10 @@ physics, as the paper's straightSynthSim: 40 guide strands of
 straight rest shape (q0 = 0) and are simulated on ``body.obj`` under
 gravity, with body and hair-hair contact, for 4 s (air drag 5 /s so they
 settle quickly). The settled centre lines are written as ``/curves``, 2 mm
-apart. Inverting it with ``--target zero`` should give back a nearly straight
-rest shape, and simulating the inverted model should keep it still::
+apart, and the simulator's own super-helices as ``/helices``, so that
+``hairinv invert`` uses them as they are rather than fitting the curves
+again. Inverting it with ``--target zero`` should give back a nearly
+straight rest shape, and simulating the inverted model should keep it still::
 
     cd <project root> && .venv/bin/python samples/make_settled.py
 
@@ -73,7 +75,10 @@ def main() -> int:
                "scale_to_m": 1.0, "up": np.array([0.0, 1.0, 0.0])},
     )
     out = HERE / "settled.h5"
-    stages.write_stage(out, [group], "samples")
+    settled = dataclasses.replace(helices, omega=sim.q.copy())
+    helix_group = settled.group(settings.fit, [])
+    helix_group.attrs["note"] = "the simulator's own super-helices of the settled groom (not a fit of /curves)"
+    stages.write_stage(out, [group, helix_group], "samples")
     print(f"wrote {out}: {helices.n_strands} strands, {len(points)} points")
     return 0
 
