@@ -192,18 +192,18 @@ def motion_and_trim(v: dict) -> dict:
     sim = Simulation(settled, model.omega_rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
                      initial_force=model.force)
     motion = _run(sim, MOTION_SECONDS, moving)
-    # trim: a wavy groom (its own shape as the reference rest shape) settled on the bust, inverted with
+    # trim: a curly groom (its own shape as the reference rest shape) settled on the bust, inverted with
     # target actual, then cut at half length: reference and inverted model side by side
     wavy_settings = _settings(**{"import": {"guides": GUIDES}, "solver": {"max_sweeps": 5000}})
-    wavy = prepare(SAMPLES / "wavy.h5", SAMPLES / "body.obj", wavy_settings, contacts=False)
-    log(f"settling {wavy.helices.n_strands} wavy strands for {SETTLE_SECONDS} s")
+    wavy = prepare(SAMPLES / "curly.h5", SAMPLES / "body.obj", wavy_settings, contacts=False)
+    log(f"settling {wavy.helices.n_strands} curly strands for {SETTLE_SECONDS} s")
     ref_rest = wavy.helices.omega.copy()
     dyn = dataclasses.replace(wavy_settings.dynamics, air_damping=SETTLE_AIR)
     sim = Simulation(wavy.helices, ref_rest, mat, body, wavy_settings.contacts, dyn)
     _run(sim, SETTLE_SECONDS, lambda t: Motion.still(mat.gravity), every=0.5)
     settled_wavy = dataclasses.replace(wavy.helices, omega=sim.q.copy())
     wavy_contacts, _ = detect_contacts(settled_wavy, body, wavy_settings.contacts)
-    wavy_model, _ = invert(settled_wavy, wavy_contacts, mat, wavy_settings.solver)
+    wavy_model, wavy_report = invert(settled_wavy, wavy_contacts, mat, wavy_settings.solver)
     trim = Scene.load("trim")
     cut, element_map = trim_helices(settled_wavy, length=trim.trim.length, fraction=trim.trim.fraction)
     tips_before = np.array([p[-1] for p in _samples(cut, cut.omega)])
@@ -214,10 +214,18 @@ def motion_and_trim(v: dict) -> dict:
         trims[label] = _run(sim, TRIM_SECONDS, lambda t: Motion.still(mat.gravity))
         tips_after = np.array([p[-1] for p in _samples(cut, sim.q)])
         rises[label] = (tips_after - tips_before) @ up
+    curly_still = {}
+    for label, rest, force in (("inverted", wavy_model.omega_rest, wavy_model.force), ("naive", settled_wavy.omega,
+                                                                                      None)):
+        log(f"still body, curly, {label}, {STILL_SECONDS} s")
+        sim = Simulation(settled_wavy, rest, mat, body, wavy_settings.contacts, wavy_settings.dynamics,
+                         initial=wavy_contacts, initial_force=force)
+        curly_still[label] = _run(sim, STILL_SECONDS, lambda t: Motion.still(mat.gravity))
     w = settled_wavy.length / settled_wavy.length.sum()
     recovered = float(np.sum(np.linalg.norm(wavy_model.omega_rest - ref_rest, axis=1) * w))
     unchanged = float(np.sum(np.linalg.norm(settled_wavy.omega - ref_rest, axis=1) * w))
     return {"motion": motion, "trim": trims, "rise": rises, "cut_strands": cut.n_strands,
+            "curly_unstable": wavy_report.unstable, "curly_still": curly_still,
             "wavy_recovered": recovered, "wavy_settled_vs_rest": unchanged}
 
 
@@ -369,12 +377,17 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               f"body contact {_mm(max(0.0, -m['deepest']))} mm inside the surface (the contact radius is "
               f"{_mm(v['settings'].contacts.body_distance)} mm); {m['substeps']} extra half steps; wall time "
               f"{m['seconds']:.1f} s.", "",
-              f"Trim: {mt['cut_strands']} strands of the wavy sample with their drawn shape as the rest shape "
+              f"Trim: {mt['cut_strands']} strands of the curly sample with their drawn shape as the rest shape "
               f"(the reference) were settled on the bust for {SETTLE_SECONDS:g} s and inverted with target "
               f"`actual`: the inverted rest shape is {mt['wavy_recovered']:.3g} 1/m from the reference's (mean "
-              f"|q0 - q0_ref|; the settled shape itself is {mt['wavy_settled_vs_rest']:.3g} 1/m from it). Both were "
-              f"then cut at half length (the `trim` scene) and simulated for {TRIM_SECONDS:g} s; the rise of the "
-              "new tips:", "",
+              f"|q0 - q0_ref|; the settled shape itself is {mt['wavy_settled_vs_rest']:.3g} 1/m from it; "
+              f"{mt['curly_unstable']} strands flagged unstable). With the body still, for {STILL_SECONDS:g} s, "
+              "from its inverted model and from the naive one:", "",
+              table(["rest shape", "largest displacement (mm)", "wall time (s)"],
+                    [(label, _mm(max(mt["curly_still"][label]["moved"])), f"{mt['curly_still'][label]['seconds']:.1f}")
+                     for label in ("inverted", "naive")]), "",
+              f"Both the reference and the inverted model cut at half length (the `trim` scene) and simulated "
+              f"for {TRIM_SECONDS:g} s; the rise of the new tips:", "",
               table(["rest shape", "median rise (mm)", "strands whose tip rose by over 0.1 mm", "wall time (s)"],
                     [(label, f"{1e3 * float(np.median(mt['rise'][label])):.3g}",
                       f"{int(np.sum(mt['rise'][label] > 1e-4))} of {len(mt['rise'][label])}",

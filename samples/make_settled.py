@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Make ``samples/settled.h5``: a groom at rest, settled on the sample bust by simulation.
+"""Make ``samples/settled.h5`` and ``samples/settled_curly.h5``: grooms at rest, settled on the sample bust by simulation.
 
 The drawn sample grooms are not at rest: many of their strands would be in an
 unstable equilibrium whatever rest shape they got. This one is made by
@@ -7,15 +7,17 @@ physics, as the paper's straightSynthSim: 40 guide strands of
 ``straight.h5`` (the same seeded selection as ``--guides 40``) get a
 straight rest shape (q0 = 0) and are simulated on ``body.obj`` under
 gravity, with body and hair-hair contact, for 4 s (air drag 5 /s so they
-settle quickly). The settled centre lines are written as ``/curves``, 2 mm
-apart, and the simulator's own super-helices as ``/helices``, so that
-``hairinv invert`` uses them as they are rather than fitting the curves
-again. Inverting it with ``--target zero`` should give back a nearly
-straight rest shape, and simulating the inverted model should keep it still::
+settle quickly). ``settled_curly.h5`` is the same with 40 guides of
+``curly.h5``, whose drawn shape is their rest shape. The settled centre lines
+are written as ``/curves``, 2 mm apart, and the simulator's own
+super-helices as ``/helices``, so that ``hairinv invert`` uses them as they
+are rather than fitting the curves again. Inverting the straight one with
+``--target zero`` should give back a nearly straight rest shape; simulating
+an inverted model should keep the groom still::
 
     cd <project root> && .venv/bin/python samples/make_settled.py
 
-It takes about a minute (most of it the first compile of the kernels).
+It takes about two minutes (part of it the first compile of the kernels).
 """
 
 from __future__ import annotations
@@ -44,19 +46,19 @@ AIR = 5.0
 SPACING = 2e-3
 
 
-def main() -> int:
+def settle(style: str, straight_rest: bool, out: Path) -> None:
     settings = config.apply(config.resolve(), {"import": {"guides": GUIDES}})
-    scene = prepare(HERE / "straight.h5", HERE / "body.obj", settings, contacts=False)
+    scene = prepare(HERE / style, HERE / "body.obj", settings, contacts=False)
     mat = Material.from_settings(settings.material, scene.up)
     helices = scene.helices
+    rest = np.zeros_like(helices.omega) if straight_rest else helices.omega.copy()
     dynamics = dataclasses.replace(settings.dynamics, air_damping=AIR)
-    sim = Simulation(helices, np.zeros_like(helices.omega), mat, BodyMesh.from_mesh(scene.body), settings.contacts,
-                     dynamics)
+    sim = Simulation(helices, rest, mat, BodyMesh.from_mesh(scene.body), settings.contacts, dynamics)
     steps = int(round(SECONDS / dynamics.time_step))
     for i in range(steps):
         sim.step(Motion.still(mat.gravity))
         if (i + 1) % 100 == 0:
-            print(f"t {(i + 1) * dynamics.time_step:.1f} s: kinetic energy {sim.kinetic_energy():.2e} J, "
+            print(f"{out.name}: t {(i + 1) * dynamics.time_step:.1f} s: kinetic energy {sim.kinetic_energy():.2e} J, "
                   f"{sim.contacts.n_contacts} contacts", flush=True)
     strands = []
     for k in range(helices.n_strands):
@@ -68,18 +70,23 @@ def main() -> int:
         strands.append(pts)
     points = np.concatenate(strands)
     offsets = np.concatenate([[0], np.cumsum([len(p) for p in strands])]).astype(np.int64)
+    rest_name = "straight-rest" if straight_rest else "own-shape-rest"
     group = stages.Group(
         stages.CURVES, {"points": points, "offsets": offsets},
-        attrs={"source": f"hairinv sample groom 'settled': {GUIDES} straight-rest strands of straight.h5 settled "
+        attrs={"source": f"hairinv sample groom '{out.stem}': {GUIDES} {rest_name} strands of {style} settled "
                          f"on body.obj for {SECONDS:g} s (samples/make_settled.py)",
                "scale_to_m": 1.0, "up": np.array([0.0, 1.0, 0.0])},
     )
-    out = HERE / "settled.h5"
     settled = dataclasses.replace(helices, omega=sim.q.copy())
     helix_group = settled.group(settings.fit, [])
     helix_group.attrs["note"] = "the simulator's own super-helices of the settled groom (not a fit of /curves)"
     stages.write_stage(out, [group, helix_group], "samples")
     print(f"wrote {out}: {helices.n_strands} strands, {len(points)} points")
+
+
+def main() -> int:
+    settle("straight.h5", True, HERE / "settled.h5")
+    settle("curly.h5", False, HERE / "settled_curly.h5")
     return 0
 
 
