@@ -303,6 +303,23 @@ def _kinematics(frame0, omega, length, gx, xs, Fs, Th, E, x, F, dX, dTh):
 
 
 @jit
+def _strand_kinematics(frame0, omega, length, gx):
+    """:func:`_kinematics` into freshly allocated arrays: ``(xs, Fs, Th, E, x, F, dX, dTh)``."""
+    n = omega.shape[0]
+    nodes = n * gx.shape[0]
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    Th = np.empty((n, 3, 3))
+    E = np.empty((n, 3, 3))
+    x = np.empty((nodes, 3))
+    F = np.empty((nodes, 3, 3))
+    dX = np.empty((nodes, 3, 3))
+    dTh = np.empty((nodes, 3, 3))
+    _kinematics(frame0, omega, length, gx, xs, Fs, Th, E, x, F, dX, dTh)
+    return xs, Fs, Th, E, x, F, dX, dTh
+
+
+@jit
 def strand_mass(root, frame0, omega, length, gx, gw, lam, rot, out):
     """Mass matrix of one strand as a composite rigid body, kg m^4.
 
@@ -337,16 +354,7 @@ def strand_mass(root, frame0, omega, length, gx, gw, lam, rot, out):
     """
     n = omega.shape[0]
     m = gx.shape[0]
-    nodes = n * m
-    xs = np.empty((n + 1, 3))
-    Fs = np.empty((n + 1, 3, 3))
-    Th = np.empty((n, 3, 3))
-    E = np.empty((n, 3, 3))
-    x = np.empty((nodes, 3))
-    F = np.empty((nodes, 3, 3))
-    dX = np.empty((nodes, 3, 3))
-    dTh = np.empty((nodes, 3, 3))
-    _kinematics(frame0, omega, length, gx, xs, Fs, Th, E, x, F, dX, dTh)
+    xs, Fs, Th, E, x, F, dX, dTh = _strand_kinematics(frame0, omega, length, gx)
     out[:, :] = 0.0
     # composite of the nodes after element b: sum w, sum w x, sum w x x^T, sum w (1 + t t^T)
     c0 = 0.0
@@ -475,18 +483,8 @@ def strand_node_loads(root, frame0, omega, length, gx, f, torque, out):
         World torque at each node, N m.
     out : (3N,) float64, out
     """
-    n = omega.shape[0]
     m = gx.shape[0]
-    nodes = n * m
-    xs = np.empty((n + 1, 3))
-    Fs = np.empty((n + 1, 3, 3))
-    Th = np.empty((n, 3, 3))
-    E = np.empty((n, 3, 3))
-    x = np.empty((nodes, 3))
-    F = np.empty((nodes, 3, 3))
-    dX = np.empty((nodes, 3, 3))
-    dTh = np.empty((nodes, 3, 3))
-    _kinematics(frame0, omega, length, gx, xs, Fs, Th, E, x, F, dX, dTh)
+    xs, Fs, Th, E, x, F, dX, dTh = _strand_kinematics(frame0, omega, length, gx)
     _project_loads(Th, E, x, dX, dTh, m, f, torque, out)
 
 
@@ -631,15 +629,7 @@ def strand_bias_forces(root, frame0, omega, length, velocity, gx, gw, lam, rot, 
     n = omega.shape[0]
     m = gx.shape[0]
     nodes = n * m
-    xs = np.empty((n + 1, 3))
-    Fs = np.empty((n + 1, 3, 3))
-    Th = np.empty((n, 3, 3))
-    E = np.empty((n, 3, 3))
-    x = np.empty((nodes, 3))
-    F = np.empty((nodes, 3, 3))
-    dX = np.empty((nodes, 3, 3))
-    dTh = np.empty((nodes, 3, 3))
-    _kinematics(frame0, omega, length, gx, xs, Fs, Th, E, x, F, dX, dTh)
+    xs, Fs, Th, E, x, F, dX, dTh = _strand_kinematics(frame0, omega, length, gx)
     a = np.empty((nodes, 3))
     alpha = np.empty((nodes, 3))
     node_bias_accelerations(root, frame0, omega, length, velocity, gx, a, alpha)
