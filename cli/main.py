@@ -67,14 +67,14 @@ def handle_errors(fn):
 class Progress:
     """A tqdm bar on stderr when it is a terminal; silent otherwise."""
 
-    def __init__(self, total: int, desc: str, enabled: bool):
+    def __init__(self, total: int, desc: str, enabled: bool, unit: str = "strand"):
         self.bar = None
         if enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, desc=desc, unit="strand", leave=False, file=sys.stderr)
+            self.bar = tqdm(total=total, desc=desc, unit=unit, leave=False, file=sys.stderr)
 
-    def __call__(self, n: int) -> None:
+    def __call__(self, n: int = 1) -> None:
         if self.bar is not None:
             self.bar.update(n)
 
@@ -210,24 +210,16 @@ def _stage_progress(enabled: bool):
     return lambda name, total: Progress(total, name, True)
 
 
-class SolverProgress:
+class SolverProgress(Progress):
     """A bar of Gauss-Seidel sweeps showing the relative residual, on a terminal only."""
 
     def __init__(self, total: int, enabled: bool):
-        self.bar = None
-        if enabled and sys.stderr.isatty():
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, desc="invert", unit="sweep", leave=False, file=sys.stderr)
+        super().__init__(total, "invert", enabled, unit="sweep")
 
     def __call__(self, sweeps: int, relative: float) -> None:
         if self.bar is not None:
             self.bar.update(sweeps - self.bar.n)
             self.bar.set_postfix_str(f"residual {relative:.1e}")
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
 
 
 def _contact_extra(body_distance, hair_distance, mu, no_hair_hair) -> dict:
@@ -364,25 +356,6 @@ def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guid
     _say(obj, f"wrote {output}")
 
 
-class StepProgress:
-    """A bar of simulated time steps, on a terminal only."""
-
-    def __init__(self, total: int, enabled: bool):
-        self.bar = None
-        if enabled and sys.stderr.isatty():
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, desc="simulate", unit="step", leave=False, file=sys.stderr)
-
-    def __call__(self) -> None:
-        if self.bar is not None:
-            self.bar.update(1)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
 def _body_of(stage, model_path: Path):
     """The body file a model was inverted against, from its provenance, if it is still where it was."""
     from hairinv import stages
@@ -481,7 +454,7 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
     run_seconds = scene.seconds if seconds is None else seconds
     run_fps = scene.fps if fps is None else fps
     steps = max(1, round(1.0 / (run_fps * settings.dynamics.time_step))) * max(0, round(run_seconds * run_fps))
-    bar = StepProgress(steps, obj["progress"])
+    bar = Progress(steps, "simulate", obj["progress"], unit="step")
     try:
         frames = run_scene(helices, stage[stages.MODEL], contacts, mesh, scene, settings, init=init,
                            seconds=seconds, fps=fps, on_frame=lambda log: _say(obj, log.line()), on_step=bar)

@@ -46,6 +46,18 @@ def hairinv(cwd: Path, *args: str) -> subprocess.CompletedProcess:
     )
 
 
+def assert_refused(folder: Path, args, name: str, fragment: str) -> None:
+    """``hairinv *args`` in ``folder`` exits 2 with one line naming ``name`` and saying ``fragment``,
+    no traceback, and leaves every file of ``folder`` as it was."""
+    before = snapshot(folder)
+    result = hairinv(folder, *args)
+    assert result.returncode == 2, (result.stdout, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and name in lines[0] and fragment in lines[0], result.stderr
+    assert "Traceback" not in result.stderr
+    assert snapshot(folder) == before
+
+
 def snapshot(folder: Path) -> dict[str, bytes]:
     """Every file of ``folder`` (recursively) with its bytes."""
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}

@@ -148,16 +148,25 @@ def contact_velocities(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, r: n
     return rows.matvec(rows.rmatvec(r)) + b + gamma[:, None] * r
 
 
-def desaxce_residual(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, r: np.ndarray) -> float:
-    """Largest natural-map residual of the De Saxce problem, in velocity units (:func:`natural_residuals`)."""
+def _diagonal(rows: ContactRows, gamma: np.ndarray) -> np.ndarray:
+    """The blocks ``W_ii`` of ``W = Z^T Z + diag(gamma)``, (C, 3, 3)."""
+    Wd = np.empty((rows.n_contacts, 3, 3))
+    diagonal_blocks(rows.ptr, rows.cols, rows.vals, np.ones(rows.n_dofs), gamma, Wd)
+    return Wd
+
+
+def desaxce_residual(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, r: np.ndarray,
+                     Wd: np.ndarray | None = None) -> float:
+    """Largest natural-map residual of the De Saxce problem, in velocity units (:func:`natural_residuals`).
+
+    ``Wd``: the diagonal blocks, if already at hand.
+    """
     n = rows.n_contacts
     if n == 0:
         return 0.0
-    ones = np.ones(rows.n_dofs)
-    Wd = np.empty((n, 3, 3))
-    diagonal_blocks(rows.ptr, rows.cols, rows.vals, ones, gamma, Wd)
+    Wd = _diagonal(rows, gamma) if Wd is None else Wd
     f = np.empty(rows.n_dofs)
-    _accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, f)
+    _accumulate_f(rows.ptr, rows.cols, rows.vals, np.ones(rows.n_dofs), r, f)
     per = np.empty(n)
     return float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, True, True, per))
 
@@ -187,7 +196,8 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     ones = np.ones(rows.n_dofs)
     target = tolerance * velocity_scale
     r = np.array(r0, dtype=np.float64, copy=True)
-    best_r, best = r.copy(), desaxce_residual(rows, gamma, b, mu, r)
+    Wd = _diagonal(rows, gamma) if rows.n_contacts else None
+    best_r, best = r.copy(), desaxce_residual(rows, gamma, b, mu, r, Wd)
     history = [(0, best)]
     sweeps = 0
     status = CONVERGED if best <= target else MAX_ITERS
@@ -203,7 +213,7 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         sweeps += inner.sweeps
         rounds += 1
         r = inner.r
-        residual = desaxce_residual(rows, gamma, b, mu, r)
+        residual = desaxce_residual(rows, gamma, b, mu, r, Wd)
         history.append((sweeps, residual))
         if residual < best:
             best, best_r = residual, r.copy()
@@ -219,7 +229,7 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         sweeps += direct.sweeps
         failsafe = direct.local_failures
         if direct.status != NUMERICAL:
-            residual = desaxce_residual(rows, gamma, b, mu, direct.r)
+            residual = desaxce_residual(rows, gamma, b, mu, direct.r, Wd)
             history.append((sweeps, residual))
             if residual < best:
                 best, best_r = residual, direct.r

@@ -395,9 +395,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     restarts = 0
     from_x = True
     pool = executor(threads) if threads > 1 and not in_worker() else None
-    pinned = blas_pinned()  # the kernels' own threads, not BLAS's
-    pinned.__enter__()
-    try:
+    with blas_pinned():  # the kernels' own threads, not BLAS's
         while status == MAX_ITERS and sweeps < max_sweeps:
             failures = 0
             numerical = 0
@@ -458,8 +456,6 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
                     status = CONVERGED
                 elif max_seconds > 0 and time.perf_counter() - started > max_seconds:
                     break
-    finally:
-        pinned.__exit__(None, None, None)
     if accelerate:
         r = x
     # local solves meet the cone to about eps^(3/4); make every force exactly admissible
