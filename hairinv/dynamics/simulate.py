@@ -335,7 +335,6 @@ class Simulation:
         self._hess_q = None
         self._hess_gravity = None
         self.kinetic = np.zeros(helices.n_strands)
-        self.part_of = split_strands(helices.root, np.zeros((0, 2), np.int64))
         weight = material.linear_density * np.linalg.norm(material.gravity)
         lengths = np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements else np.zeros(0)
         self.strand_weight = float(weight * lengths.max()) if len(lengths) else 1.0
@@ -574,7 +573,7 @@ class Simulation:
             own[np.diff(z_rows.ptr) == 0] = 0.0
             result = solve_coulomb(z_rows, 1e-9 * own, b, found.mu, found.strand, helices.n_strands,
                                    self.velocity_scale * h, self.settings.tolerance, self.settings.max_sweeps,
-                                   impulse, s=found.s, part_of=self.part_of)
+                                   impulse, s=found.s, part_of=split_strands(helices.root, found.strand))
             if result.status == NUMERICAL:
                 raise FloatingPointError("the contact solve failed")
             z = z_rows.rmatvec(result.r)
