@@ -488,3 +488,23 @@ def test_inertia_terms_wrapper_and_the_two_mass_evaluations(rng):
     # the root only translates the strand
     M_far = mass(root + 3.0, frame0, omega, length, LAM, ROT, impl="nodes")
     np.testing.assert_allclose(M_far, M_nodes, rtol=0, atol=1e-11 * np.abs(M).max())
+
+
+@pytest.mark.parametrize("n", [1, 4, 12])
+def test_velocity_products_are_below_the_skip_bound(rng, n):
+    """The simulator leaves the velocity-product forces out while ``Omega^2 L < 1e-9 g``
+    (``Omega = sum |v_e| l_e``, ``L`` the strand's length): they are then below 1e-8 of the
+    largest moment gravity can exert, ``lam g L^2 max(l_e)``, with a wisp's rotational inertia."""
+    gx, gw = gauss_nodes(4)
+    worst = 0.0
+    for _ in range(20):
+        root, frame0, omega, length = random_strand(rng, n)
+        v = rng.normal(size=(n, 3)) * rng.uniform(0.0, 1.0, size=(n, 1))
+        spin = np.sum(np.linalg.norm(v, axis=1) * length)
+        total = length.sum()
+        v *= np.sqrt(1e-9 * 9.81 / total) / spin  # exactly at the bound
+        b = np.empty(3 * n)
+        rot = LAM * 5e-3 ** 2 / 4.0  # the default 5 mm inertia radius
+        strand_bias_forces(root, frame0, omega, length, v, gx, gw, LAM, rot, b)
+        worst = max(worst, np.abs(b).max() / (LAM * 9.81 * total ** 2 * length.max()))
+    assert 0.0 < worst < 1e-8

@@ -127,13 +127,19 @@ def _cholesky(A, L):
 
 @jit
 def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, air, h, motion, gx, gw, chol, v_free,
-                    hess, fresh):
+                    hess, mass, fresh, factored_h):
     """The free velocity of one strand and the Cholesky factor of its step matrix.
 
     ``motion`` is :meth:`Motion.packed`. Writes ``chol`` (row-major lower
     factor of ``Mt = M (1 + h air) + h damping K + h^2 (K + G)``, ``G`` the Hessian of the
     gravity potential, its negative part left out where ``K + G`` is not positive) and ``v_free`` (N, 3);
     returns the kinetic energy ``1/2 v^T M v`` (J) at the start of the step.
+
+    With ``fresh``, the mass matrix ``M`` and ``G`` are taken at ``q`` and kept in ``mass`` and
+    ``hess`` (``hess`` holds the part of ``G`` the step used); otherwise the kept ones serve, and
+    so does the kept factor ``chol`` if it was made for the same step (``factored_h == h``).
+    The velocity-product forces are left out while they are below 1e-9 of the strand's weight
+    (bound: ``Omega^2 L`` against ``g``, ``Omega = sum |v_e| l_e`` the fastest frame's angular speed).
     The moving frame's forces act on the centerline only (the cross-sections'
     own rotational inertia, ~1e-9 of it for hair, is not driven by the frame).
     """
@@ -142,14 +148,25 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
     nodes = n * m
     nd = 3 * n
     M = np.empty((nd, nd))
-    strand_mass(root, frame0, q, length, gx, gw, lam, rot, M)
+    if fresh:
+        strand_mass(root, frame0, q, length, gx, gw, lam, rot, M)
+        for r in range(nd):
+            for c in range(nd):
+                mass[r * nd + c] = M[r, c]
+    else:
+        for r in range(nd):
+            for c in range(nd):
+                M[r, c] = mass[r * nd + c]
     vf = np.empty(nd)
     for c in range(nd):
         vf[c] = v[c // 3, c % 3]
-    moving = False
-    for c in range(nd):
-        if vf[c] != 0.0:
-            moving = True
+    spin = 0.0
+    total = 0.0
+    for e in range(n):
+        spin += np.sqrt(v[e, 0] ** 2 + v[e, 1] ** 2 + v[e, 2] ** 2) * length[e]
+        total += length[e]
+    g_norm = np.sqrt(motion[0, 0] ** 2 + motion[0, 1] ** 2 + motion[0, 2] ** 2)
+    moving = spin * spin * total > 1e-9 * g_norm if g_norm > 0.0 else spin > 0.0
     force = np.zeros(nd)
     g = np.empty((n, 3))
     gravity_forces(root, frame0, q, length, lam, motion[0], g)
@@ -207,43 +224,50 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
                 sym = 0.5 * (S[r, c] + S[c, r])
                 S[r, c] = sym
                 S[c, r] = sym
-            for c in range(nd):
-                hess[r * nd + c] = S[r, c]
     else:
         for r in range(nd):
             for c in range(nd):
                 S[r, c] = hess[r * nd + c]
     for r in range(nd):
         S[r, r] += stiff[r]
-    Mt = M * (1.0 + h * air)
-    for r in range(nd):
-        Mt[r, r] += h * damping * stiff[r]
-        for c in range(nd):
-            Mt[r, c] += h * h * S[r, c]
     L = np.zeros((nd, nd))
-    if not _cholesky(Mt, L):
-        lam_s, V = np.linalg.eigh(S)
-        for k in range(nd):
-            lam_s[k] = max(lam_s[k], 0.0)
-        S = (V * lam_s) @ V.T
+    if fresh or factored_h != h:
         Mt = M * (1.0 + h * air)
         for r in range(nd):
             Mt[r, r] += h * damping * stiff[r]
             for c in range(nd):
                 Mt[r, c] += h * h * S[r, c]
         if not _cholesky(Mt, L):
+            lam_s, V = np.linalg.eigh(S)
+            for k in range(nd):
+                lam_s[k] = max(lam_s[k], 0.0)
+            S = (V * lam_s) @ V.T
+            Mt = M * (1.0 + h * air)
             for r in range(nd):
-                v_free[r // 3, r % 3] = np.nan
-            return np.nan
+                Mt[r, r] += h * damping * stiff[r]
+                for c in range(nd):
+                    Mt[r, c] += h * h * S[r, c]
+            if not _cholesky(Mt, L):
+                for r in range(nd):
+                    v_free[r // 3, r % 3] = np.nan
+                return np.nan
+        # keep the part of G this factor holds (its negative part left out if it was)
+        for r in range(nd):
+            for c in range(nd):
+                hess[r * nd + c] = S[r, c] - (stiff[r] if r == c else 0.0)
+        for r in range(nd):
+            for c in range(nd):
+                chol[r * nd + c] = L[r, c]
+    else:
+        for r in range(nd):
+            for c in range(r + 1):
+                L[r, c] = chol[r * nd + c]
     Mv = M @ vf
     Sv = S @ vf
     kinetic = 0.5 * np.dot(vf, Mv)
     rhs = np.empty(nd)
     for c in range(nd):
         rhs[c] = h * force[c] - h * damping * stiff[c] * vf[c] - h * h * Sv[c] - h * air * Mv[c]
-    for r in range(nd):
-        for c in range(nd):
-            chol[r * nd + c] = L[r, c]
     # v_free = v + Mt^-1 rhs
     y = np.empty(nd)
     for r in range(nd):
@@ -283,14 +307,16 @@ def _points_on(root, frame0, offsets, omega, length, strand, s, out):
 
 @jit
 def _free_chunk(root, frame0, offsets, length, q, v, q0, stiff, lam, rot, damping, air, h, motion, gx, gw,
-                chol, chol_ptr, v_free, kinetic, hess, fresh, lo, hi):
+                chol, chol_ptr, v_free, kinetic, hess, mass, fresh, factored_h, lo, hi):
     for k in range(lo, hi):
         a = offsets[k]
         z = offsets[k + 1]
         kinetic[k] = strand_dynamics(root[k], frame0[k], q[a:z], v[a:z], q0[a:z], stiff[3 * a:3 * z], length[a:z],
                                      lam, rot, damping, air, h, motion, gx, gw,
                                      chol[chol_ptr[k]:chol_ptr[k + 1]], v_free[a:z],
-                                     hess[chol_ptr[k]:chol_ptr[k + 1]], fresh[k])
+                                     hess[chol_ptr[k]:chol_ptr[k + 1]], mass[chol_ptr[k]:chol_ptr[k + 1]],
+                                     fresh[k], factored_h[k])
+        factored_h[k] = h
 
 
 class Simulation:
@@ -330,8 +356,11 @@ class Simulation:
         sizes = (3 * np.diff(helices.offsets)) ** 2
         self.chol_ptr = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         self.chol = np.zeros(int(self.chol_ptr[-1]))
-        # gravity's Hessian per strand, laid out like chol, and the shape and gravity it was taken at
+        # gravity's Hessian and the mass matrix per strand, laid out like chol, the shape and gravity they
+        # were taken at, and the step each strand's factor was made for
         self.hess = np.zeros(int(self.chol_ptr[-1]))
+        self.mass = np.zeros(int(self.chol_ptr[-1]))
+        self.factored_h = np.full(helices.n_strands, -1.0)
         self._hess_q = None
         self._hess_gravity = None
         self.kinetic = np.zeros(helices.n_strands)
@@ -502,9 +531,10 @@ class Simulation:
         return keys, thickness, impulse
 
     def _stale_hessians(self, gravity: np.ndarray) -> np.ndarray:
-        """Strands whose gravity Hessian must be taken again, (S,) bool: it only shapes the implicit
-        matrix, so it is kept while no element has turned by more than 0.01 rad since, and gravity
-        (in the body frame) has not turned by more than 0.01 rad."""
+        """Strands whose gravity Hessian and mass matrix must be taken again, (S,) bool: they only shape
+        the implicit matrix, so they (and its factor) are kept while no element has turned by more than
+        0.01 rad since, and gravity (in the body frame) has not turned by more than 0.01 rad. A still
+        groom then costs a gravity evaluation and two triangular solves per strand and step."""
         n = self.helices.n_strands
         if self._hess_q is None or np.linalg.norm(np.cross(gravity, self._hess_gravity)) > \
                 1e-2 * np.linalg.norm(gravity) * np.linalg.norm(self._hess_gravity):
@@ -549,7 +579,7 @@ class Simulation:
             _free_chunk(helices.root, helices.frame0, offsets, helices.length, self.q, self.v, self.rest,
                         self.stiff, self.lam, self.rot, self.settings.damping, self.settings.air_damping, h,
                         packed, self.gx, self.gw, self.chol, self.chol_ptr, v_free, self.kinetic, self.hess,
-                        fresh, lo, hi)
+                        self.mass, fresh, self.factored_h, lo, hi)
 
         run_chunks(free, helices.n_strands, 64)
         if not np.all(np.isfinite(v_free)):
