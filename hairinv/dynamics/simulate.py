@@ -288,6 +288,8 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
 # m: a remembered contact point stays while it is at most this much farther from the surface than
 # the point detection finds on the same element
 _PERSIST_SLACK = 1e-5
+# contacts per chunk of the per-step rows and factored rows: a few hundred already pay for a thread handoff
+_CONTACT_CHUNK = 256
 
 
 @jit
@@ -590,13 +592,13 @@ class Simulation:
         report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0)
         v_new = v_free
         if found.n_contacts:
-            rows = contact_rows(self.current(), found, run=lambda work, n: run_chunks(work, n, 2048))
+            rows = contact_rows(self.current(), found, run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
             b = rows.matvec(v_free.ravel())
             gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
             room = gap - thickness
             b[:, 0] += np.maximum(room / h, -self.settings.push_speed)
             z_rows = factored_rows(rows, found.strand, offsets, self.chol, self.chol_ptr,
-                                   run=lambda work, n: run_chunks(work, n, 2048))
+                                   run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
             # a contact close to the root may be unable to move along one direction (W_ii of rank 2);
             # a compliance of 1e-9 of its own W_ii picks the smallest force along it
             own = np.add.reduceat(np.einsum("ij,ij->i", z_rows.vals, z_rows.vals), z_rows.ptr[:-1]) / 3.0

@@ -46,6 +46,9 @@ NUMERICAL = "NUMERICAL_ERROR"
 # Colours with fewer contacts than this run on one thread: handing a small
 # colour to the thread pool costs more than it saves.
 _MIN_PARALLEL = 4096
+# Below this many contacts a whole sweep runs on one thread: a sweep then takes well under a
+# millisecond, and handing the two halves to the pool costs about as much as it saves.
+_MIN_HALVES = 2048
 _LOCAL_ITERATIONS = 50
 
 
@@ -394,7 +397,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     tk = 1.0
     restarts = 0
     from_x = True
-    pool = executor(threads) if threads > 1 and not in_worker() else None
+    pool = executor(threads) if threads > 1 and not in_worker() and n_contacts >= _MIN_HALVES else None
     with blas_pinned():  # the kernels' own threads, not BLAS's
         while status == MAX_ITERS and sweeps < max_sweeps:
             failures = 0
