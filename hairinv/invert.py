@@ -154,8 +154,9 @@ def _gravity_hessian_chunk(root, frame0, offsets, omega, length, lam, gravity, l
 
 
 def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None = None,
-              contacts: Contacts | None = None, carrying: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Which strands sit in an unstable equilibrium: (with their supports, without), each (S,) bool.
+              contacts: Contacts | None = None,
+              carrying: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which strands sit in an unstable equilibrium: (with their supports, without, held), each (S,) bool.
 
     The Hessian of the total energy at ``q`` is ``K + d^2 V_g / dq^2``
     (independent of ``q0``). A strand is stable if it is positive definite on
@@ -164,7 +165,10 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
     fixed). The gravity Hessian is taken by central differences of ``F_g``,
     accurate to about 1e-8 relative: enough to tell a sign. The second mask
     ignores the supports (the gravity-only inversion's stability: the
-    Hessian does not depend on ``q0``), from the same Hessian.
+    Hessian does not depend on ``q0``), from the same Hessian. The third
+    holds every declared contact point in place, loaded or not: a strand
+    unstable even so cannot be made stable by any choice of forces or rest
+    shape (its input shape is unstable on this rod model).
     """
     S = helices.n_strands
     counts = 3 * np.diff(helices.offsets)
@@ -178,8 +182,10 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
     run_chunks(work, S, 256)
     # supports per strand: the rows of H on that strand's columns for contacts carrying force
     support: dict[int, list[np.ndarray]] = {}
-    if rows is not None and carrying is not None and carrying.any():
-        for i in np.flatnonzero(carrying):
+    held: dict[int, list[np.ndarray]] = {}  # the same for every declared contact
+    if rows is not None and contacts is not None and rows.n_contacts:
+        loaded = np.zeros(rows.n_contacts, bool) if carrying is None else carrying
+        for i in range(rows.n_contacts):
             a, b = rows.ptr[i], rows.ptr[i + 1]
             cols = rows.cols[a:b]
             vals = rows.vals[a:b]
@@ -191,9 +197,12 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
                 mask = (cols >= lo) & (cols < hi)
                 block = np.zeros((3, hi - lo))
                 block[:, cols[mask] - lo] = vals[mask].T
-                support.setdefault(int(side), []).append(block)
+                held.setdefault(int(side), []).append(block)
+                if loaded[i]:
+                    support.setdefault(int(side), []).append(block)
     unstable = np.zeros(S, dtype=bool)
     free = np.zeros(S, dtype=bool)
+    always = np.zeros(S, dtype=bool)
     for s in range(S):
         m = counts[s]
         k = stiff[3 * helices.offsets[s]:3 * helices.offsets[s + 1]]
@@ -203,14 +212,19 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
         scale = 1.0 / np.sqrt(k)
         A = scale[:, None] * A * scale[None, :] + np.eye(m)
         free[s] = np.linalg.eigvalsh(A)[0] < -1e-6
-        unstable[s] = free[s]
-        if s in support:
-            C = np.vstack(support[s]) * scale[None, :]
-            _, sv, vt = np.linalg.svd(C)
-            rank = int((sv > 1e-10 * max(sv.max(), 1e-300)).sum())
-            Z = vt[rank:].T
-            unstable[s] = Z.shape[1] > 0 and np.linalg.eigvalsh(Z.T @ A @ Z)[0] < -1e-6
-    return unstable, free
+        unstable[s] = free[s] if s not in support else _unstable_held(A, support[s], scale)
+        always[s] = free[s] if s not in held else _unstable_held(A, held[s], scale)
+    return unstable, free, always
+
+
+def _unstable_held(A: np.ndarray, blocks: list[np.ndarray], scale: np.ndarray) -> bool:
+    """Whether the scaled Hessian ``A`` has a negative direction among the motions that keep the
+    contact points of ``blocks`` (rows of H on the strand's columns) in place."""
+    C = np.vstack(blocks) * scale[None, :]
+    _, sv, vt = np.linalg.svd(C)
+    rank = int((sv > 1e-10 * max(sv.max(), 1e-300)).sum())
+    Z = vt[rank:].T
+    return bool(Z.shape[1] > 0 and np.linalg.eigvalsh(Z.T @ A @ Z)[0] < -1e-6)
 
 
 @dataclass
@@ -257,6 +271,8 @@ class InvertReport:
     strands: int
     seconds: float
     notes: list[str] = field(default_factory=list)
+    unstable_held: int = 0
+    """Strands unstable even with every declared contact point held: no rest shape can keep them."""
 
     def lines(self) -> list[str]:
         r = self.result
@@ -279,6 +295,10 @@ class InvertReport:
         if self.unstable:
             lines.append(f"warning: {self.unstable} of {self.strands} strands rest in an unstable equilibrium "
                          f"(a simulation may let them fall away from the input shape)")
+            if self.unstable_held:
+                lines.append(f"{self.unstable_held} of them stay unstable even with every declared contact held "
+                             "in place: their input shape cannot be a stable rest on this rod model, whatever the "
+                             "rest shape (docs/dynamics.md, Stability)")
         else:
             lines.append("every strand rests in a stable equilibrium")
         if self.contacts:
@@ -351,10 +371,10 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     if not np.all(np.isfinite(omega_rest)):
         raise RunError("the inverted rest shape is not finite; check the material settings")
     carrying = r[:, 0] > settings.tolerance * force_scale if len(r) else np.zeros(0, bool)
-    unstable = unstable_g = 0
+    unstable = unstable_g = unstable_held = 0
     if check_stability:
-        supported, free = stability(helices, material, stiff, rows, contacts, carrying)
-        unstable, unstable_g = int(supported.sum()), int(free.sum())
+        supported, free, always = stability(helices, material, stiff, rows, contacts, carrying)
+        unstable, unstable_g, unstable_held = int(supported.sum()), int(free.sum()), int(always.sum())
     drift = omega_rest - target
     curvature = np.hypot(omega_rest[:, 0], omega_rest[:, 1])
     if declared != contacts.n_contacts:  # gravity-only: every declared contact carries no force
@@ -366,6 +386,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         float(curvature.max()) if len(curvature) else 0.0, unstable, unstable_g, helices.n_strands,
         time.perf_counter() - started,
     )
+    report.unstable_held = unstable_held
     if result.status != CONVERGED:
         report.notes.append(
             f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "

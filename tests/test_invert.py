@@ -322,6 +322,24 @@ def test_unsupported_upright_strand_is_flagged_unstable():
     assert short_report.unstable == 0
 
 
+@pytest.mark.parametrize("height, held_unstable", [(0.16, 0), (0.30, 1)])
+def test_holding_the_tip_raises_the_critical_height(height, held_unstable):
+    """An upright strand whose tip touches a side wall (a contact that carries no force).
+    Under its own weight a clamped-free column buckles past (7.84 EI / lam g)^(1/3) (about
+    12 cm here); pinned at the tip, past (52.5 EI / lam g)^(1/3), 1.88 times higher
+    (Greenhill; Wang, Wang & Reddy 2005). Both strands are unstable as inverted (the wall is
+    not loaded); held at every contact, the 16 cm one is stable and the 30 cm one is not."""
+    mat = material()
+    critical = (7.837 * mat.bending / (mat.linear_density * np.linalg.norm(mat.gravity))) ** (1 / 3)
+    assert 0.16 > 1.2 * critical and 0.16 < 0.85 * 1.88 * critical < 0.30
+    helices = strands([(np.zeros(3), UP, np.zeros((8, 3)), np.full(8, height / 8))])
+    contacts = make_contacts(helices, [(0, height, -1, 0.0, (1.0, 0.0, 0.0), 0.3)])
+    model, report = solve(helices, contacts, mat)
+    assert np.abs(model.force).max() == 0.0
+    assert report.unstable == 1
+    assert report.unstable_held == held_unstable
+
+
 def test_results_do_not_depend_on_the_thread_count(monkeypatch):
     """Two halves of the strands are swept at once; the order of the updates,
     and so every bit of the answer, is the same on one thread or two."""
