@@ -18,12 +18,14 @@ import time
 import numpy as np
 
 from .._jit import jit
+from .._parallel import run_chunks
 from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult, _accumulate_f, diagonal_blocks,
                                    natural_residuals, solve_cone_qp)
+from ..solver.local import LOCAL_TOL, NUMERICAL_ERROR, solve_contact
 from ..solver.rows import ContactRows
 
 __all__ = ["back_substitute", "contact_keys", "contact_velocities", "desaxce_residual", "factored_rows",
-           "solve_coulomb"]
+           "solve_coulomb", "solve_strand_blocks"]
 
 
 @jit
@@ -171,6 +173,176 @@ def desaxce_residual(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np
     return float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, True, True, per))
 
 
+@jit
+def _group_blocks(ptr, cols, vals, gamma, members, group_ptr, block_ptr, blocks, n_dofs):
+    """Dense ``W_g = Z_g^T Z_g + gamma`` of every group of contacts, row-major at ``blocks[block_ptr[g]:]``."""
+    scratch = np.zeros((n_dofs, 3))
+    for g in range(group_ptr.shape[0] - 1):
+        lo = group_ptr[g]
+        m = group_ptr[g + 1] - lo
+        n = 3 * m
+        base = block_ptr[g]
+        for a in range(m):
+            i = members[lo + a]
+            for t in range(ptr[i], ptr[i + 1]):
+                for row in range(3):
+                    scratch[cols[t], row] = vals[t, row]
+            for c in range(m):
+                j = members[lo + c]
+                for t in range(ptr[j], ptr[j + 1]):
+                    col = cols[t]
+                    for ra in range(3):
+                        for rc in range(3):
+                            blocks[base + (3 * a + ra) * n + 3 * c + rc] += scratch[col, ra] * vals[t, rc]
+            for ra in range(3):
+                blocks[base + (3 * a + ra) * n + 3 * a + ra] += gamma[i]
+            for t in range(ptr[i], ptr[i + 1]):
+                for row in range(3):
+                    scratch[cols[t], row] = 0.0
+
+
+@jit
+def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, r, f, inner_max, g_lo, g_hi,
+                 errors):
+    """A sweep over the groups ``g_lo:g_hi``: each group's contacts solved together (Gauss-Seidel on
+    its dense block until the forces stop changing, at most ``inner_max`` times) with the other groups
+    frozen. Counts numerical errors in ``errors[g_lo]``."""
+    numerical = 0
+    Wk = np.empty((3, 3))
+    bl = np.empty(3)
+    rk = np.empty(3)
+    for g in range(g_lo, g_hi):
+        lo = group_ptr[g]
+        m = group_ptr[g + 1] - lo
+        n = 3 * m
+        base = block_ptr[g]
+        # q = u - W_g r_g: what the group sees of b and of the other groups
+        q = np.empty(n)
+        old = np.empty(n)
+        for a in range(m):
+            i = members[lo + a]
+            for row in range(3):
+                acc = b[i, row] + gamma[i] * r[i, row]
+                for t in range(ptr[i], ptr[i + 1]):
+                    acc += vals[t, row] * f[cols[t]]
+                q[3 * a + row] = acc
+                old[3 * a + row] = r[i, row]
+        for a in range(n):
+            acc = 0.0
+            for c in range(n):
+                acc += blocks[base + a * n + c] * old[c]
+            q[a] -= acc
+        x = old.copy()
+        for sweep in range(inner_max):
+            change = 0.0
+            size = 0.0
+            for a in range(m):
+                for ra in range(3):
+                    acc = q[3 * a + ra]
+                    for c in range(n):
+                        if c // 3 != a:
+                            acc += blocks[base + (3 * a + ra) * n + c] * x[c]
+                    bl[ra] = acc
+                    for rc in range(3):
+                        Wk[ra, rc] = blocks[base + (3 * a + ra) * n + 3 * a + rc]
+                    rk[ra] = x[3 * a + ra]
+                status, _ = solve_contact(Wk, bl, mu[members[lo + a]], rk, LOCAL_TOL, 50, False)
+                if status == NUMERICAL_ERROR:
+                    numerical += 1
+                    continue
+                for ra in range(3):
+                    change = max(change, abs(rk[ra] - x[3 * a + ra]))
+                    size = max(size, abs(rk[ra]))
+                    x[3 * a + ra] = rk[ra]
+            if m == 1 or change <= 1e-9 * size:
+                break
+        for a in range(m):
+            i = members[lo + a]
+            d0 = x[3 * a] - r[i, 0]
+            d1 = x[3 * a + 1] - r[i, 1]
+            d2 = x[3 * a + 2] - r[i, 2]
+            r[i, 0] = x[3 * a]
+            r[i, 1] = x[3 * a + 1]
+            r[i, 2] = x[3 * a + 2]
+            for t in range(ptr[i], ptr[i + 1]):
+                f[cols[t]] += vals[t, 0] * d0 + vals[t, 1] * d1 + vals[t, 2] * d2
+    errors[g_lo] += numerical
+
+
+def strand_groups(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray) -> tuple:
+    """The groups of :func:`solve_strand_blocks` and their dense blocks (for several solves on the same rows)."""
+    n = rows.n_contacts
+    body = strand[:, 1] < 0
+    key = np.where(body, strand[:, 0], len(strand) + np.arange(n)) if n else np.zeros(0, np.int64)
+    members = np.argsort(key, kind="stable").astype(np.int64)
+    sorted_key = key[members]
+    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]]) if n else np.zeros(0, np.int64)
+    group_ptr = np.r_[starts, n].astype(np.int64)
+    sizes = (3 * np.diff(group_ptr)) ** 2
+    block_ptr = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+    blocks = np.zeros(int(block_ptr[-1]))
+    _group_blocks(rows.ptr, rows.cols, rows.vals, gamma, members, group_ptr, block_ptr, blocks, rows.n_dofs)
+    return members, group_ptr, block_ptr, blocks, _diagonal(rows, gamma)
+
+
+def solve_strand_blocks(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, strand: np.ndarray,
+                        velocity_scale: float, tolerance: float, max_sweeps: int, r0: np.ndarray,
+                        inner_max: int = 50, groups: tuple | None = None) -> SolverResult:
+    """The convex cone problem of ``W = Z^T Z + gamma`` by Gauss-Seidel over strands.
+
+    The body contacts of one strand form a group, solved together on their
+    dense block of ``W`` (small: a few contacts) until their forces stop
+    changing; each hair-hair contact is a group of its own. Contacts along
+    one strand have nearly parallel rows, which is what makes contact-by-contact
+    sweeps crawl; here they cost a few cheap inner sweeps on a small dense
+    block instead. Without hair-hair contact the strands do not interact and
+    one sweep solves the problem up to the inner tolerance. The stop test is
+    :func:`solve_cone_qp`'s (natural map in velocity units).
+    """
+    started = time.perf_counter()
+    n = rows.n_contacts
+    r = np.array(r0, dtype=np.float64, copy=True)
+    members, group_ptr, block_ptr, blocks, Wd = strand_groups(rows, gamma, strand) if groups is None else groups
+    ones = np.ones(rows.n_dofs)
+    f = np.empty(rows.n_dofs)
+    _accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, f)
+    per = np.empty(n)
+    target = tolerance * velocity_scale
+
+    def residual() -> float:
+        _accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, f)
+        return float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, False, True, per))
+
+    res = residual()
+    history = [(0, res)]
+    status = CONVERGED if res <= target else MAX_ITERS
+    sweeps = 0
+    n_groups = len(group_ptr) - 1
+    errors = np.zeros(max(n_groups, 1), dtype=np.int64)
+    independent = not np.any(strand[:, 1] >= 0)  # then groups share no strand, and so no entry of f
+
+    def work(lo: int, hi: int) -> None:
+        _block_sweep(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, r, f,
+                     inner_max, lo, hi, errors)
+
+    while status == MAX_ITERS and sweeps < max_sweeps:
+        if independent:
+            run_chunks(work, n_groups, max(16, -(-n_groups // 8)))
+        else:
+            work(0, n_groups)
+        if errors.any():
+            status = NUMERICAL
+            break
+        sweeps += 1
+        res = residual()
+        history.append((sweeps, res))
+        if not np.isfinite(res):
+            status = NUMERICAL
+        elif res <= target:
+            status = CONVERGED
+    return SolverResult(r, status, sweeps, res, res / velocity_scale, history, time.perf_counter() - started)
+
+
 def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, strand: np.ndarray,
                   n_strands: int, velocity_scale: float, tolerance: float, max_sweeps: int, r0: np.ndarray,
                   s: np.ndarray | None = None, part_of: np.ndarray | None = None, max_rounds: int = 20) -> SolverResult:
@@ -195,6 +367,11 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     started = time.perf_counter()
     ones = np.ones(rows.n_dofs)
     target = tolerance * velocity_scale
+    # body contacts only: strand by strand on dense blocks (see solve_strand_blocks); with hair-hair
+    # contact, the accelerated contact-by-contact sweeps of the inversion
+    blocks = rows.n_contacts > 0 and not np.any(strand[:, 1] >= 0)
+    groups = strand_groups(rows, gamma, strand) if blocks else None
+    stalled = False
     r = np.array(r0, dtype=np.float64, copy=True)
     Wd = _diagonal(rows, gamma) if rows.n_contacts else None
     best_r, best = r.copy(), desaxce_residual(rows, gamma, b, mu, r, Wd)
@@ -206,8 +383,14 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         u = contact_velocities(rows, gamma, b, r)
         shifted = b.copy()
         shifted[:, 0] += mu * np.hypot(u[:, 1], u[:, 2])
-        inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, tolerance,
-                              max_sweeps - sweeps, 5, r0=r, s=s, part_of=part_of, velocity=True)
+        if blocks:
+            # each round only as exact as the shift it starts from deserves
+            inner_tol = max(tolerance, 0.1 * best / velocity_scale)
+            inner = solve_strand_blocks(rows, gamma, shifted, mu, strand, velocity_scale, inner_tol,
+                                        max_sweeps - sweeps, r, groups=groups)
+        else:
+            inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, tolerance,
+                                  max_sweeps - sweeps, 5, r0=r, s=s, part_of=part_of, velocity=True)
         if inner.status == NUMERICAL:
             return dataclasses.replace(inner, r=best_r, status=NUMERICAL, sweeps=sweeps + inner.sweeps)
         sweeps += inner.sweeps
@@ -221,8 +404,11 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
             status = CONVERGED
         elif inner.sweeps == 0:
             break  # the shift no longer changes the convex solution: the rounds have stalled
+        elif blocks and rounds >= 4 and min(h for _, h in history[-3:]) > 0.5 * min(h for _, h in history[:-3]):
+            stalled = True  # three rounds without halving the residual: keep the best (see below)
+            break
     failsafe = 0
-    if status != CONVERGED and sweeps < max_sweeps:
+    if status != CONVERGED and sweeps < max_sweeps and not stalled:
         direct = solve_cone_qp(rows, ones, gamma, b, mu, strand, n_strands, velocity_scale, tolerance,
                                max_sweeps - sweeps, 5, r0=best_r, desaxce=True, s=s, part_of=part_of,
                                velocity=True)
