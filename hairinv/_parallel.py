@@ -34,7 +34,10 @@ def worker_count() -> int:
     value = os.environ.get("HAIRINV_THREADS")
     if value:
         return max(1, int(value))
-    return max(1, os.cpu_count() or 1)
+    return _CPUS
+
+
+_CPUS = max(1, os.cpu_count() or 1)  # os.cpu_count() asks the system each time (tens of microseconds)
 
 
 def executor(workers: int) -> ThreadPoolExecutor:

@@ -177,6 +177,51 @@ def test_one_step_from_an_inverted_equilibrium_keeps_the_groom_still():
     assert np.abs(naive.v).max() > 1e-3
 
 
+def test_persisting_body_gaps_stay_within_the_bound_of_an_exact_measurement(monkeypatch):
+    """A body contact whose point has hardly moved takes its gap to first order from its last exact
+    measurement: on a still inverted groom no closest-point query is made after the first step, on a
+    moving (naive) one the points are measured again; either way every persisted gap is within
+    ``tolerance g h^2 / 2`` of the exact signed distance, and each normal points from the closest
+    surface point to the hair."""
+    from conftest import SAMPLES
+    from hairinv import config
+    from hairinv.contacts.body import BodyMesh
+    from hairinv.invert import Material, invert
+    from hairinv.pipeline import prepare
+
+    settings = config.apply(config.resolve(), {"import": {"guides": 20}, "solver": {"max_sweeps": 100}})
+    scene = prepare(SAMPLES / "wavy.h5", SAMPLES / "body.obj", settings)
+    mat = Material.from_settings(settings.material, scene.up)
+    model, _ = invert(scene.helices, scene.contacts, mat, settings.solver)
+    body = BodyMesh.from_mesh(scene.body)
+    bound = 0.5 * settings.dynamics.tolerance * np.linalg.norm(mat.gravity) * settings.dynamics.time_step ** 2
+    queried = []
+    closest = BodyMesh.closest
+
+    def counted(self, points):
+        queried.append(len(points))
+        return closest(self, points)
+
+    for rest, still in ((model.omega_rest, True), (scene.helices.omega, False)):
+        sim = Simulation(scene.helices, rest, mat, body, settings.contacts, settings.dynamics,
+                         initial=scene.contacts, initial_force=model.force if still else None)
+        for k in range(4):
+            monkeypatch.setattr(BodyMesh, "closest", counted)
+            queried.clear()
+            sim.step(Motion.still(mat.gravity))
+            monkeypatch.setattr(BodyMesh, "closest", closest)
+            c = sim.contacts
+            on_body = c.strand[:, 1] < 0
+            sd, surface, _, _ = body.closest(c.point[on_body])
+            assert np.abs(c.gap[on_body] - sd).max() <= bound
+            away = (c.point[on_body] - surface) * np.sign(sd)[:, None]
+            assert np.all(np.einsum("ij,ij->i", away, c.frame[on_body, 0]) >= 0.99 * np.linalg.norm(away, axis=1))
+            if k and still:
+                assert sum(queried) == 0
+            elif k:
+                assert sum(queried) > 0
+
+
 def test_strand_blocks_solve_the_cone_problem_like_an_interior_point():
     """Body contacts grouped by strand, each group solved on its dense block of W = Z^T Z + gamma:
     the forces match Clarabel on the same problem (two strands, three nearly parallel contacts each)."""

@@ -370,7 +370,7 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     # body contacts only: strand by strand on dense blocks (see solve_strand_blocks); with hair-hair
     # contact, the accelerated contact-by-contact sweeps of the inversion
     blocks = rows.n_contacts > 0 and not np.any(strand[:, 1] >= 0)
-    groups = strand_groups(rows, gamma, strand) if blocks else None
+    groups = None  # made once a round is needed (a still groom's warm start often meets the tolerance)
     stalled = False
     r = np.array(r0, dtype=np.float64, copy=True)
     Wd = _diagonal(rows, gamma) if rows.n_contacts else None
@@ -386,6 +386,7 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         if blocks:
             # each round only as exact as the shift it starts from deserves
             inner_tol = max(tolerance, 0.1 * best / velocity_scale)
+            groups = strand_groups(rows, gamma, strand) if groups is None else groups
             inner = solve_strand_blocks(rows, gamma, shifted, mu, strand, velocity_scale, inner_tol,
                                         max_sweeps - sweeps, r, groups=groups)
         else:

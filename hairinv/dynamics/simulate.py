@@ -33,7 +33,7 @@ from .._parallel import run_chunks
 from ..config import ContactSettings, DynamicsSettings
 from ..contacts.body import BodyMesh
 from ..contacts.detect import COINCIDENT, Contacts, contact_frames, detect_contacts
-from ..rod.helix import points_at
+from ..rod.helix import chain, point_at
 from ..errors import InputError
 from ..fit import Helices
 from ..invert import Material, stiffness
@@ -147,13 +147,14 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
     m = gx.shape[0]
     nodes = n * m
     nd = 3 * n
+    refactor = fresh or factored_h != h
     M = np.empty((nd, nd))
     if fresh:
         strand_mass(root, frame0, q, length, gx, gw, lam, rot, M)
         for r in range(nd):
             for c in range(nd):
                 mass[r * nd + c] = M[r, c]
-    else:
+    elif refactor:
         for r in range(nd):
             for c in range(nd):
                 M[r, c] = mass[r * nd + c]
@@ -216,22 +217,22 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
     # enters implicitly, as twist, resisted by a nearly massless cross-section, cannot follow an explicit
     # gravity. Where S is not positive (a strand resting in an unstable equilibrium) its negative part
     # stays explicit.
-    S = np.empty((nd, nd))
-    if fresh:
-        gravity_hessian(root, frame0, q, length, lam, motion[0], S)
+    if refactor:
+        S = np.empty((nd, nd))
+        if fresh:
+            gravity_hessian(root, frame0, q, length, lam, motion[0], S)
+            for r in range(nd):
+                for c in range(r + 1, nd):
+                    sym = 0.5 * (S[r, c] + S[c, r])
+                    S[r, c] = sym
+                    S[c, r] = sym
+        else:
+            for r in range(nd):
+                for c in range(nd):
+                    S[r, c] = hess[r * nd + c]
         for r in range(nd):
-            for c in range(r + 1, nd):
-                sym = 0.5 * (S[r, c] + S[c, r])
-                S[r, c] = sym
-                S[c, r] = sym
-    else:
-        for r in range(nd):
-            for c in range(nd):
-                S[r, c] = hess[r * nd + c]
-    for r in range(nd):
-        S[r, r] += stiff[r]
-    L = np.zeros((nd, nd))
-    if fresh or factored_h != h:
+            S[r, r] += stiff[r]
+        L = np.zeros((nd, nd))
         Mt = M * (1.0 + h * air)
         for r in range(nd):
             Mt[r, r] += h * damping * stiff[r]
@@ -258,12 +259,18 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
         for r in range(nd):
             for c in range(nd):
                 chol[r * nd + c] = L[r, c]
-    else:
-        for r in range(nd):
-            for c in range(r + 1):
-                L[r, c] = chol[r * nd + c]
-    Mv = M @ vf
-    Sv = S @ vf
+    # from here on the kept matrices serve (row-major in mass, hess and chol): M v, S v = (G + K) v
+    Mv = np.zeros(nd)
+    Sv = np.empty(nd)
+    for r in range(nd):
+        acc_m = 0.0
+        acc_s = stiff[r] * vf[r]
+        row = r * nd
+        for c in range(nd):
+            acc_m += mass[row + c] * vf[c]
+            acc_s += hess[row + c] * vf[c]
+        Mv[r] = acc_m
+        Sv[r] = acc_s
     kinetic = 0.5 * np.dot(vf, Mv)
     rhs = np.empty(nd)
     for c in range(nd):
@@ -272,14 +279,15 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
     y = np.empty(nd)
     for r in range(nd):
         acc_r = rhs[r]
+        row = r * nd
         for c in range(r):
-            acc_r -= L[r, c] * y[c]
-        y[r] = acc_r / L[r, r]
+            acc_r -= chol[row + c] * y[c]
+        y[r] = acc_r / chol[row + r]
     for r in range(nd - 1, -1, -1):
         acc_r = y[r]
         for c in range(r + 1, nd):
-            acc_r -= L[c, r] * y[c]
-        y[r] = acc_r / L[r, r]
+            acc_r -= chol[c * nd + r] * y[c]
+        y[r] = acc_r / chol[r * nd + r]
     for c in range(nd):
         v_free[c // 3, c % 3] = vf[c] + y[c]
     return kinetic
@@ -294,17 +302,37 @@ _CONTACT_CHUNK = 256
 
 @jit
 def _points_on(root, frame0, offsets, omega, length, strand, s, out):
-    """Centerline points of strands ``strand`` at arc lengths ``s``, (n, 3)."""
-    one = np.empty(1)
-    pt = np.empty((1, 3))
+    """Centerline points of strands ``strand`` at arc lengths ``s``, (n, 3); each strand's element
+    chain is made once for its consecutive entries."""
+    last = -1
+    xs = np.empty((1, 3))
+    Fs = np.empty((1, 3, 3))
+    starts = np.zeros(1)
     for i in range(strand.shape[0]):
         k = strand[i]
         a = offsets[k]
         z = offsets[k + 1]
-        one[0] = s[i]
-        points_at(root[k], frame0[k], omega[a:z], length[a:z], one, pt)
-        for j in range(3):
-            out[i, j] = pt[0, j]
+        if k != last:
+            n = z - a
+            xs = np.empty((n + 1, 3))
+            Fs = np.empty((n + 1, 3, 3))
+            chain(root[k], frame0[k], omega[a:z], length[a:z], xs, Fs)
+            starts = np.zeros(n + 1)
+            for e in range(n):
+                starts[e + 1] = starts[e] + length[a + e]
+            last = k
+        point_at(xs, Fs, omega[a:z], starts, s[i], out[i])
+
+
+def points_on(helices: Helices, omega: np.ndarray, strand: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """:func:`_points_on` with the entries taken strand by strand, (n, 3)."""
+    order = np.argsort(strand, kind="stable")
+    out = np.empty((len(strand), 3))
+    _points_on(helices.root, helices.frame0, helices.offsets, omega, helices.length,
+               np.ascontiguousarray(strand[order]), np.ascontiguousarray(s[order]), out)
+    result = np.empty_like(out)
+    result[order] = out
+    return result
 
 
 @jit
@@ -376,6 +404,8 @@ class Simulation:
         self._arc = np.zeros((0, 2))  # where each remembered contact sits on its strands
         self._pair = np.zeros((0, 2), dtype=np.int64)  # its strands
         self._elements = np.zeros((0, 2), dtype=np.int64)  # its elements
+        # where each remembered body contact's gap was last measured exactly: point, normal, gap
+        self._anchor = (np.full((0, 3), np.nan), np.zeros((0, 3)), np.zeros(0))
         self._mu = np.zeros(0)
         self._thickness = np.zeros(0)
         self._impulse = np.zeros((0, 3))
@@ -394,6 +424,7 @@ class Simulation:
             self._pair = initial.strand[order]
             self._mu = initial.mu[order]
             self._elements = self._elements_of(initial)[order]
+            self._anchor = self._anchors_of(initial, order)
             self._impulse = np.einsum("cji,cj->ci", initial.frame, self._initial_impulse)[order]
         self.contacts = initial if initial is not None else Contacts.empty()
         self._last_found = None
@@ -437,7 +468,15 @@ class Simulation:
         n = self.helices.n_elements
         return np.stack([np.where(keys < n, keys, keys // n - 1), np.where(keys < n, -1, keys % n)], axis=1)
 
-    def _persist(self, found: Contacts) -> Contacts:
+    @staticmethod
+    def _anchors_of(contacts: Contacts, order: np.ndarray) -> tuple:
+        """Exact gap measurements of body contacts as detected (NaN points: none for hair-hair)."""
+        point = contacts.point[order].copy()
+        point[contacts.strand[order, 1] >= 0] = np.nan
+        gap = contacts.gap[order] if contacts.gap is not None else np.zeros(len(order))
+        return point, contacts.frame[order, 0].copy(), gap.copy()
+
+    def _persist(self, found: Contacts, dt: float) -> tuple[Contacts, tuple]:
         """Contacts that persist stay on the same material points of their strands.
 
         Detection picks each element's closest point afresh; where a strand lies
@@ -447,9 +486,20 @@ class Simulation:
         would act somewhere else or vanish. So a remembered contact keeps its
         arc lengths, its gap and normal are measured there, and it is kept as
         long as that gap stays within the detection distance.
+
+        A body contact whose point has moved by less than ``tolerance g dt^2 / 4``
+        since its gap was last measured exactly (its anchor) takes the gap to first
+        order from there, ``gap + n . dx``, and keeps the normal: the signed
+        distance is 1-Lipschitz, so the error is under ``2 |dx|``, which moves the
+        contact velocity by under half the contact solve's tolerance. A still
+        groom then makes no closest-point queries.
+
+        Returns the contacts and their anchors (point, normal, gap; NaN points for
+        hair-hair contacts), for :meth:`_step` to remember.
         """
         if not len(self._keys) or self._first:
-            return found  # the first step meets the starting contacts as detected (see _remember)
+            # the first step meets the starting contacts as detected (see _remember)
+            return found, self._anchors_of(found, np.arange(found.n_contacts))
         keys = self._keys_of(found)
         where = np.minimum(np.searchsorted(self._keys, keys), len(self._keys) - 1)
         known = self._keys[where] == keys
@@ -466,11 +516,19 @@ class Simulation:
         redo = np.concatenate([np.flatnonzero(known), found.n_contacts + np.arange(len(extra))])
         gap = np.concatenate([found.gap if found.gap is not None else np.zeros(found.n_contacts),
                               np.zeros(len(extra))])
+        # each contact's anchor: the remembered one where it is remembered, else none yet
+        remembered = np.concatenate([np.where(known, where, -1), extra])
+        anchor_point = np.full((len(strand), 3), np.nan)
+        anchor_normal = np.zeros((len(strand), 3))
+        anchor_gap = np.zeros(len(strand))
+        had = remembered >= 0
+        anchor_point[had] = self._anchor[0][remembered[had]]
+        anchor_normal[had] = self._anchor[1][remembered[had]]
+        anchor_gap[had] = self._anchor[2][remembered[had]]
         point = np.concatenate([found.point, np.zeros((len(extra), 3))])
         normal = old_frame[:, 0].copy()  # remembered contacts get theirs measured below
         h = self.helices
-        xa = np.empty((len(redo), 3))
-        _points_on(h.root, h.frame0, h.offsets, self.q, h.length, strand[redo, 0], arc[redo, 0], xa)
+        xa = points_on(h, self.q, strand[redo, 0], arc[redo, 0])
         point[redo] = xa
         body = strand[redo, 1] < 0
         limit = np.where(body, self.contact_settings.body_distance, self.contact_settings.hair_distance)
@@ -478,17 +536,28 @@ class Simulation:
             if self.body is None:
                 gap[redo[body]] = np.inf
             else:
-                sd, closest, feature, _ = self.body.closest(xa[body])
-                away = xa[body] - closest
-                dist = np.linalg.norm(away, axis=1)
-                flat = dist <= COINCIDENT * self.contact_settings.body_distance
-                side = np.where(sd < 0, -1.0, 1.0)[:, None]
-                normal[redo[body]] = np.where(flat[:, None], feature, side * away / np.where(flat, 1.0, dist)[:, None])
-                gap[redo[body]] = sd
+                at = redo[body]
+                shift = xa[body] - anchor_point[at]
+                # NaN (no anchor) compares False: measured
+                near = np.linalg.norm(shift, axis=1) <= 0.25 * self.settings.tolerance * self.velocity_scale * dt * dt
+                held = at[near]
+                normal[held] = anchor_normal[held]
+                gap[held] = anchor_gap[held] + np.einsum("ij,ij->i", anchor_normal[held], shift[near])
+                measure = at[~near]
+                if len(measure):
+                    x = xa[body][~near]
+                    sd, closest, feature, _ = self.body.closest(x)
+                    away = x - closest
+                    dist = np.linalg.norm(away, axis=1)
+                    flat = dist <= COINCIDENT * self.contact_settings.body_distance
+                    side = np.where(sd < 0, -1.0, 1.0)[:, None]
+                    normal[measure] = np.where(flat[:, None], feature,
+                                               side * away / np.where(flat, 1.0, dist)[:, None])
+                    gap[measure] = sd
+                    anchor_point[measure], anchor_normal[measure], anchor_gap[measure] = x, normal[measure], sd
         hair = ~body
         if hair.any():
-            xb = np.empty((int(hair.sum()), 3))
-            _points_on(h.root, h.frame0, h.offsets, self.q, h.length, strand[redo[hair], 1], arc[redo[hair], 1], xb)
+            xb = points_on(h, self.q, strand[redo[hair], 1], arc[redo[hair], 1])
             apart = xa[hair] - xb
             dist = np.linalg.norm(apart, axis=1)
             flat = dist <= COINCIDENT * self.contact_settings.hair_distance
@@ -507,8 +576,15 @@ class Simulation:
         arc[moved], point[moved], frame[moved], gap[moved] = (found.s[moved], found.point[moved], found.frame[moved],
                                                               detected_gap[np.searchsorted(redetected, moved)])
         keep[moved] = True
+        moved_body = moved[strand[moved, 1] < 0]
+        anchor_point[moved_body] = point[moved_body]
+        anchor_normal[moved_body] = frame[moved_body, 0]
+        anchor_gap[moved_body] = gap[moved_body]
         merged = Contacts(strand, arc, point, frame, mu, gap, element)
-        return merged.subset(keep) if not keep.all() else merged
+        anchors = (anchor_point, anchor_normal, anchor_gap)
+        if keep.all():
+            return merged, anchors
+        return merged.subset(keep), tuple(a[keep] for a in anchors)
 
     def _remember(self, found: Contacts, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Keys, thickness and warm-start impulse of this step's contacts."""
@@ -587,7 +663,7 @@ class Simulation:
         if not np.all(np.isfinite(v_free)):
             raise FloatingPointError("the free velocity is not finite")
         found = self._detect()
-        found = self._persist(found)
+        found, anchors = self._persist(found, h)
         keys, thickness, impulse = self._remember(found, h)
         report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0)
         v_new = v_free
@@ -632,6 +708,7 @@ class Simulation:
         self._keys, self._thickness, self._impulse = keys[order], thickness[order], world[order]
         self._arc, self._pair, self._mu = found.s[order], found.strand[order], found.mu[order]
         self._elements = self._elements_of(found)[order]
+        self._anchor = tuple(a[order] for a in anchors)
         self.contacts = found
         self.v = v_new
         self.q = self.q + h * v_new
