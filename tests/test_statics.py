@@ -122,3 +122,48 @@ def test_point_jacobian_matches_finite_differences_of_positions(rng, scale, frac
     # elements downstream of the point do not move it
     assert np.all(J[e_s + 1:] == 0.0)
     assert np.all(np.abs(fd[e_s + 1:]) < 1e-12)
+
+
+def test_assembled_contact_rows_match_finite_differences_of_contact_gaps(rng):
+    """``H`` as assembled for many contacts at once (several on one strand, in any order, sharing the
+    strand's chain, and hair-hair pairs acting on two strands): each row is the derivative of the
+    contact's relative position ``x_A(s_A) - x_B(s_B)`` along its frame."""
+    from hairinv.contacts.detect import Contacts, contact_frames
+    from hairinv.fit import Helices
+    from hairinv.solver.rows import contact_rows
+
+    specs = [random_strand(rng, n, 8.0) for n in (4, 6, 3)]
+    offsets = np.cumsum([0] + [len(sp[2]) for sp in specs])
+    helices = Helices(np.array([sp[0] for sp in specs]), np.array([sp[1] for sp in specs]), offsets,
+                      np.concatenate([sp[3] for sp in specs]), np.concatenate([sp[2] for sp in specs]),
+                      np.zeros(len(specs)))
+    total = [sp[3].sum() for sp in specs]
+    pairs = [(1, -1, 0.8), (0, -1, 0.3), (1, -1, 0.1), (1, 2, 0.5), (0, -1, 0.9), (2, 0, 0.6), (1, -1, 0.45)]
+    strand = np.array([(a, b) for a, b, _ in pairs], dtype=np.int64)
+    s = np.array([(f * total[a], 0.0 if b < 0 else (1 - f) * total[b]) for a, b, f in pairs])
+    frame = contact_frames(rng.normal(size=(len(pairs), 3)) * [1, 1, 1])
+    contacts = Contacts(strand, s, np.zeros((len(pairs), 3)), frame, np.full(len(pairs), 0.3),
+                        np.zeros(len(pairs)), None)
+    H = contact_rows(helices, contacts).to_sparse().toarray()
+
+    def relative(omega):
+        out = np.empty((len(pairs), 3))
+        for i, (a, b, _) in enumerate(pairs):
+            x = np.empty((1, 3))
+            lo, hi = offsets[a], offsets[a + 1]
+            points_at(helices.root[a], helices.frame0[a], omega[lo:hi], helices.length[lo:hi], s[i, :1], x)
+            out[i] = x[0]
+            if b >= 0:
+                lo, hi = offsets[b], offsets[b + 1]
+                points_at(helices.root[b], helices.frame0[b], omega[lo:hi], helices.length[lo:hi], s[i, 1:], x)
+                out[i] -= x[0]
+        return np.einsum("cij,cj->ci", frame, out).ravel()
+
+    h = 1e-6
+    fd = np.empty_like(H)
+    for col in range(H.shape[1]):
+        plus, minus = helices.omega.copy(), helices.omega.copy()
+        plus.ravel()[col] += h
+        minus.ravel()[col] -= h
+        fd[:, col] = (relative(plus) - relative(minus)) / (2 * h)
+    np.testing.assert_allclose(H, fd, rtol=0, atol=FINITE_DIFFERENCE * np.abs(fd).max())

@@ -182,6 +182,22 @@ def point_jacobian(root, frame0, omega, length, s, out):
     xs = np.empty((n + 1, 3))
     Fs = np.empty((n + 1, 3, 3))
     chain(root, frame0, omega, length, xs, Fs)
+    dX = np.empty((n, 3, 3))
+    dTh = np.empty((n, 3, 3))
+    return chained_point_jacobian(xs, Fs, omega, length, dX, dTh, 0, s, out)
+
+
+@jit
+def chained_point_jacobian(xs, Fs, omega, length, dX, dTh, done, s, out):
+    """:func:`point_jacobian` given the strand's element chain ``xs, Fs`` (:func:`chain`).
+
+    ``dX, dTh`` (N, 3, 3) hold each element's whole-length derivatives
+    (:func:`element_derivatives`) for the first ``done`` elements and are
+    extended as far as this point needs, so several points of one strand
+    share them. Returns the index of the element holding ``s`` (as
+    :func:`point_jacobian`); the elements before it are then done.
+    """
+    n = omega.shape[0]
     start = 0.0
     e_s = n - 1
     for e in range(n):
@@ -198,10 +214,11 @@ def point_jacobian(root, frame0, omega, length, s, out):
     for i in range(3):
         x[i] = xs[e_s, i] + Fs[e_s, 0, i] * P[0] + Fs[e_s, 1, i] * P[1] + Fs[e_s, 2, i] * P[2]
     out[:, :, :] = 0.0
-    dx = np.empty((3, 3))
-    dth = np.empty((3, 3))
+    for e in range(done, e_s):
+        element_derivatives(omega[e], length[e], Fs[e], dX[e], dTh[e])
     for e in range(e_s):
-        element_derivatives(omega[e], length[e], Fs[e], dx, dth)
+        dx = dX[e]
+        dth = dTh[e]
         for k in range(3):
             r0 = x[0] - xs[e + 1, 0]
             r1 = x[1] - xs[e + 1, 1]
@@ -209,6 +226,8 @@ def point_jacobian(root, frame0, omega, length, s, out):
             out[e, k, 0] = dx[k, 0] + dth[k, 1] * r2 - dth[k, 2] * r1
             out[e, k, 1] = dx[k, 1] + dth[k, 2] * r0 - dth[k, 0] * r2
             out[e, k, 2] = dx[k, 2] + dth[k, 0] * r1 - dth[k, 1] * r0
+    dx = np.empty((3, 3))
+    dth = np.empty((3, 3))
     element_derivatives(omega[e_s], sigma, Fs[e_s], dx, dth)
     for k in range(3):
         for i in range(3):

@@ -22,7 +22,8 @@ import numpy as np
 import scipy.sparse
 
 from .._jit import jit
-from ..rod.statics import point_jacobian
+from ..rod.helix import chain
+from ..rod.statics import chained_point_jacobian, point_jacobian
 
 __all__ = ["ContactRows", "contact_rows"]
 
@@ -108,11 +109,7 @@ def _count(offsets, length, strand, s, counts):
 
 
 @jit
-def _fill_side(root, frame0, offsets, omega, length, strand, s, frame, sign, ptr_at, cols, vals):
-    lo = offsets[strand]
-    hi = offsets[strand + 1]
-    J = np.empty((hi - lo, 3, 3))
-    e_s = point_jacobian(root[strand], frame0[strand], omega[lo:hi], length[lo:hi], s, J)
+def _write_side(J, e_s, lo, frame, sign, ptr_at, cols, vals):
     j = ptr_at
     for e in range(e_s + 1):
         for k in range(3):
@@ -125,11 +122,40 @@ def _fill_side(root, frame0, offsets, omega, length, strand, s, frame, sign, ptr
 
 
 @jit
-def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, vals, lo, hi):
-    for i in range(lo, hi):
-        j = _fill_side(root, frame0, offsets, omega, length, strand[i, 0], s[i, 0], frame[i], 1.0, ptr[i], cols, vals)
-        if strand[i, 1] >= 0:
-            _fill_side(root, frame0, offsets, omega, length, strand[i, 1], s[i, 1], frame[i], -1.0, j, cols, vals)
+def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, vals, order, lo, hi):
+    """Rows of contacts ``order[lo:hi]``; consecutive contacts on one strand A share its element
+    chain and element derivatives."""
+    last = -1
+    xs = np.empty((1, 3))
+    Fs = np.empty((1, 3, 3))
+    dX = np.empty((1, 3, 3))
+    dTh = np.empty((1, 3, 3))
+    done = 0
+    for t in range(lo, hi):
+        i = order[t]
+        a = strand[i, 0]
+        first = offsets[a]
+        n = offsets[a + 1] - first
+        if a != last:
+            xs = np.empty((n + 1, 3))
+            Fs = np.empty((n + 1, 3, 3))
+            chain(root[a], frame0[a], omega[first:first + n], length[first:first + n], xs, Fs)
+            dX = np.empty((n, 3, 3))
+            dTh = np.empty((n, 3, 3))
+            done = 0
+            last = a
+        J = np.empty((n, 3, 3))
+        e_s = chained_point_jacobian(xs, Fs, omega[first:first + n], length[first:first + n], dX, dTh, done,
+                                     s[i, 0], J)
+        done = max(done, e_s)
+        j = _write_side(J, e_s, first, frame[i], 1.0, ptr[i], cols, vals)
+        b = strand[i, 1]
+        if b >= 0:
+            first_b = offsets[b]
+            hi_b = offsets[b + 1]
+            J = np.empty((hi_b - first_b, 3, 3))
+            e_b = point_jacobian(root[b], frame0[b], omega[first_b:hi_b], length[first_b:hi_b], s[i, 1], J)
+            _write_side(J, e_b, first_b, frame[i], -1.0, j, cols, vals)
 
 
 def contact_rows(helices, contacts, run=None) -> ContactRows:
@@ -146,9 +172,11 @@ def contact_rows(helices, contacts, run=None) -> ContactRows:
     cols = np.empty(ptr[-1], dtype=np.int64)
     vals = np.empty((ptr[-1], 3))
 
+    order = np.argsort(contacts.strand[:, 0], kind="stable")  # a strand's contacts share its chain
+
     def work(lo: int, hi: int) -> None:
         _fill(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
-              contacts.strand, contacts.s, contacts.frame, ptr, cols, vals, lo, hi)
+              contacts.strand, contacts.s, contacts.frame, ptr, cols, vals, order, lo, hi)
 
     if run is None or n_contacts == 0:
         work(0, n_contacts)
