@@ -167,3 +167,27 @@ def test_assembled_contact_rows_match_finite_differences_of_contact_gaps(rng):
         minus.ravel()[col] -= h
         fd[:, col] = (relative(plus) - relative(minus)) / (2 * h)
     np.testing.assert_allclose(H, fd, rtol=0, atol=FINITE_DIFFERENCE * np.abs(fd).max())
+
+
+@pytest.mark.parametrize("n,scale", [(1, 5.0), (4, 0.0), (6, 8.0), (5, 80.0)])
+def test_gravity_hessian_is_minus_the_derivative_of_the_gravity_force(rng, n, scale):
+    """The structured Hessian against central differences of F_g (itself checked against the potential
+    above), column by column, on straight, wavy and curly strands; and symmetric, as a Hessian is."""
+    from hairinv.rod.statics import gravity_hessian
+
+    root, frame0, omega, length = random_strand(rng, n, scale)
+    H = np.empty((3 * n, 3 * n))
+    gravity_hessian(root, frame0, omega, length, LAM, G, H)
+    fd = np.empty_like(H)
+    step = 1e-6 * (1.0 / length.sum() + np.abs(omega).max())
+    for col in range(3 * n):
+        fp, fm = np.empty((n, 3)), np.empty((n, 3))
+        plus, minus = omega.copy(), omega.copy()
+        plus.ravel()[col] += step
+        minus.ravel()[col] -= step
+        gravity_forces(root, frame0, plus, length, LAM, G, fp)
+        gravity_forces(root, frame0, minus, length, LAM, G, fm)
+        fd[:, col] = -(fp - fm).ravel() / (2 * step)
+    scale_h = np.abs(fd).max()
+    np.testing.assert_allclose(H, fd, rtol=0, atol=FINITE_DIFFERENCE * scale_h)
+    np.testing.assert_allclose(H, H.T, rtol=0, atol=1e-8 * scale_h)
