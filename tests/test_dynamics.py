@@ -250,3 +250,25 @@ def test_strand_blocks_solve_the_cone_problem_like_an_interior_point():
     ref, info = solve_socqp_dense_clarabel(W, b.ravel(), mu, tol=1e-10)
     assert ours.status == "CONVERGED" and info["status"] == "Solved"
     assert np.abs(ours.r - ref).max() <= 1e-6 * np.abs(ref).max()
+
+
+@pytest.mark.parametrize("size", [1e-6, 1e-3, 0.1])
+def test_the_detection_bound_holds_every_point_and_is_not_loose(rng, size):
+    """``_largest_move`` bounds the displacement of every centerline point (sampled densely here),
+    and for small changes it is within a few times the true largest displacement."""
+    from hairinv.dynamics.simulate import _largest_move
+    from hairinv.rod.helix import points_at
+
+    helices, _ = two_strand_scene()
+    q_to = helices.omega + size * rng.normal(size=helices.omega.shape) * (1.0 + np.abs(helices.omega))
+    true = 0.0
+    for k in range(helices.n_strands):
+        a, z = helices.offsets[k], helices.offsets[k + 1]
+        s = np.linspace(0.0, helices.length[a:z].sum(), 2001)
+        x0, x1 = np.empty((len(s), 3)), np.empty((len(s), 3))
+        points_at(helices.root[k], helices.frame0[k], helices.omega[a:z], helices.length[a:z], s, x0)
+        points_at(helices.root[k], helices.frame0[k], q_to[a:z], helices.length[a:z], s, x1)
+        true = max(true, np.linalg.norm(x1 - x0, axis=1).max())
+    bound = _largest_move(helices.root, helices.frame0, helices.offsets, helices.omega, q_to, helices.length)
+    assert true <= bound
+    assert bound <= 4.0 * true

@@ -336,6 +336,42 @@ def points_on(helices: Helices, omega: np.ndarray, strand: np.ndarray, s: np.nda
 
 
 @jit
+def _largest_move(root, frame0, offsets, q_from, q_to, length):
+    """A bound on how far any centerline point has moved from ``q_from`` to ``q_to``, m.
+
+    A point at ``sigma`` along element ``e`` is ``x_e + F_e^T P(sigma; omega_e)``, and ``P`` moves
+    by at most ``sigma^2 |d omega_e| / 2`` (its tangent turns by at most ``sigma |d omega_e|``), so
+    it moves by at most ``|dx_e| + ||dF_e||_F l_e + l_e^2 |d omega_e| / 2``.
+    """
+    worst = 0.0
+    for k in range(offsets.shape[0] - 1):
+        a = offsets[k]
+        z = offsets[k + 1]
+        n = z - a
+        xs0 = np.empty((n + 1, 3))
+        Fs0 = np.empty((n + 1, 3, 3))
+        xs1 = np.empty((n + 1, 3))
+        Fs1 = np.empty((n + 1, 3, 3))
+        chain(root[k], frame0[k], q_from[a:z], length[a:z], xs0, Fs0)
+        chain(root[k], frame0[k], q_to[a:z], length[a:z], xs1, Fs1)
+        for e in range(n + 1):
+            dx = 0.0
+            for i in range(3):
+                dx += (xs1[e, i] - xs0[e, i]) ** 2
+            bound = np.sqrt(dx)
+            if e < n:
+                dF = 0.0
+                dw = 0.0
+                for i in range(3):
+                    dw += (q_to[a + e, i] - q_from[a + e, i]) ** 2
+                    for j in range(3):
+                        dF += (Fs1[e, i, j] - Fs0[e, i, j]) ** 2
+                bound += np.sqrt(dF) * length[a + e] + 0.5 * length[a + e] ** 2 * np.sqrt(dw)
+            worst = max(worst, bound)
+    return worst
+
+
+@jit
 def _free_chunk(root, frame0, offsets, length, q, v, q0, stiff, lam, rot, damping, air, h, motion, gx, gw,
                 chol, chol_ptr, v_free, kinetic, hess, mass, fresh, factored_h, lo, hi):
     for k in range(lo, hi):
@@ -428,6 +464,9 @@ class Simulation:
             self._impulse = np.einsum("cji,cj->ci", initial.frame, self._initial_impulse)[order]
         self.contacts = initial if initial is not None else Contacts.empty()
         self._last_found = None
+        used = ([contacts.hair_distance] if contacts.hair_hair else []) + ([contacts.body_distance]
+                                                                         if contacts.body and body is not None else [])
+        self._detect_distance = min(used) if used else np.inf
         self._q_detected = None
         self._strand_length = (np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements
                                else np.zeros(helices.n_strands))
@@ -441,13 +480,14 @@ class Simulation:
 
     def _detect(self) -> Contacts:
         """This step's contacts: detected afresh once any strand point may have moved by more than a
-        quarter of the hair-hair contact distance since the last detection (a bound from the elements'
-        turns times the strand's length); until then the last detection is reused, and the remembered
-        contacts are measured again where they are (see :meth:`_persist`)."""
+        quarter of the smallest contact distance in use (the hair-hair one, or the body's without
+        hair-hair contact) since the last detection (bound: :func:`_largest_move`); until then the
+        last detection is reused, and the remembered contacts are measured again where they are
+        (see :meth:`_persist`)."""
         if self._last_found is not None and self.helices.n_elements:
-            turn = np.linalg.norm(self.q - self._q_detected, axis=1) * self.helices.length
-            bound = np.add.reduceat(turn, self.helices.offsets[:-1]) * self._strand_length
-            if float(bound.max()) < 0.25 * self.contact_settings.hair_distance:
+            h = self.helices
+            moved = _largest_move(h.root, h.frame0, h.offsets, self._q_detected, self.q, h.length)
+            if moved < 0.25 * self._detect_distance:
                 return self._last_found
         found, _ = detect_contacts(self.current(), self.body, self.contact_settings)
         self._last_found, self._q_detected = found, self.q.copy()
