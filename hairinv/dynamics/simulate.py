@@ -481,13 +481,18 @@ class Simulation:
     def _detect(self) -> Contacts:
         """This step's contacts: detected afresh once any strand point may have moved by more than a
         quarter of the smallest contact distance in use (the hair-hair one, or the body's without
-        hair-hair contact) since the last detection (bound: :func:`_largest_move`); until then the
+        hair-hair contact) since the last detection (bounds: the elements' turns times the strand's
+        length, cheap, then :func:`_largest_move`, tighter); until then the
         last detection is reused, and the remembered contacts are measured again where they are
         (see :meth:`_persist`)."""
         if self._last_found is not None and self.helices.n_elements:
             h = self.helices
-            moved = _largest_move(h.root, h.frame0, h.offsets, self._q_detected, self.q, h.length)
-            if moved < 0.25 * self._detect_distance:
+            reach = 0.25 * self._detect_distance
+            # first the cheap bound: every element's turn |d omega_e| l_e swings the whole strand
+            turn = np.linalg.norm(self.q - self._q_detected, axis=1) * h.length
+            if float((np.add.reduceat(turn, h.offsets[:-1]) * self._strand_length).max()) < reach:
+                return self._last_found
+            if _largest_move(h.root, h.frame0, h.offsets, self._q_detected, self.q, h.length) < reach:
                 return self._last_found
         found, _ = detect_contacts(self.current(), self.body, self.contact_settings)
         self._last_found, self._q_detected = found, self.q.copy()
