@@ -207,3 +207,34 @@ def test_a_strand_resting_along_the_body_stays_put():
     for _ in range(50):
         sim.step(Motion.still(mat.gravity))
     assert np.linalg.norm(_tip(helices, sim.q) - start) < 1e-7
+
+
+def test_hair_that_falls_into_the_body_within_one_step_is_pushed_back_out():
+    """A strand falling fast onto a floor in full steps (no halving): it crosses the whole detection
+    distance within one step, so its contacts are first found inside. They are pushed back out at
+    no more than ``push_speed``, not held at the depth they were found at."""
+    import trimesh
+
+    from hairinv.contacts.body import BodyMesh
+
+    helices = _strand(n=6, total=0.12)
+    floor = trimesh.creation.box(extents=(1.0, 0.2, 1.0))
+    floor.apply_translation((0.56, -0.1 - 4.5e-3, 0.0))  # top face 4.5 mm below, under the outer half
+    settings = Settings()
+    dynamics = dataclasses.replace(settings.dynamics, max_substeps=0)
+    mat = material()
+    sim = Simulation(helices, helices.omega.copy(), mat, BodyMesh.from_mesh(floor), settings.contacts, dynamics)
+    h, push = dynamics.time_step, dynamics.push_speed
+    assert 4.5e-3 > settings.contacts.body_distance
+    gaps = []
+    for _ in range(40):
+        sim.step(Motion.still(5.0 * mat.gravity))
+        body_gaps = sim.contacts.gap[sim.contacts.strand[:, 1] < 0]
+        gaps.append(float(body_gaps.min()) if len(body_gaps) else np.inf)
+    deepest = int(np.argmin(gaps))
+    assert gaps[deepest] < -1e-3, "the hair never went in: the scene does not test what it claims"
+    # out at push_speed: within depth / (push h) steps, and a few more
+    out = deepest + int(np.ceil(-gaps[deepest] / (push * h))) + 5
+    assert out < len(gaps)
+    assert min(gaps[out:]) > -1e-5
+    assert np.diff(gaps[deepest:out]).max() <= 1.1 * push * h  # never faster than push_speed

@@ -645,7 +645,8 @@ class Simulation:
         fresh = np.where(found.strand[:, 1] < 0, self.settings.body_thickness, self.settings.hair_thickness)
         if self._first:
             fresh = gap  # everything touching the starting shape touches at its own distance
-        thickness = np.minimum(gap, fresh)
+        # a new contact keeps the room it has, up to its thickness; one found inside is pushed out
+        thickness = np.minimum(gap if self._first else np.maximum(gap, 0.0), fresh)
         impulse = np.zeros((found.n_contacts, 3))
         if len(self._keys):
             thickness[known] = self._thickness[where[known]]
