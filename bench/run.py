@@ -50,6 +50,16 @@ def merge_sections(page: str, new: list[str]) -> list[str]:
     return merged + [s for s in new if s.splitlines()[0] in titles]
 
 
+def stamp(section: str, when: datetime.datetime, seconds: float, load) -> str:
+    """``section`` with a line under its title saying when it ran, for how long, and the load then
+    (a page rerun in parts mixes sections from different runs, and machines have good and bad days)."""
+    title, _, rest = section.partition("\n")
+    line = f"_Run on {when:%Y-%m-%d %H:%M} (UTC), {seconds / 60:.1f} min"
+    if load is not None:
+        line += ", load average at its start " + " / ".join(f"{v:.2f}" for v in load)
+    return f"{title}\n\n{line}._\n{rest}"
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     info = machine()
@@ -58,9 +68,12 @@ def main(argv=None) -> int:
     for name in discover(argv):
         log(f"== {name}")
         module = importlib.import_module(name)
+        when = datetime.datetime.now(datetime.timezone.utc)
+        load = machine().get("load")
         start = time.perf_counter()
-        sections.append(module.run().rstrip() + "\n")
+        text = module.run().rstrip() + "\n"
         durations.append((name, time.perf_counter() - start))
+        sections.append(stamp(text, when, durations[-1][1], load))
         log(f"== {name}: {durations[-1][1]:.0f} s")
     total = sum(d for _, d in durations)
     head = [
@@ -89,7 +102,8 @@ def main(argv=None) -> int:
         # a partial run: keep the other benchmarks' sections as they were, in their order
         sections = merge_sections(OUTPUT.read_text(), sections)
         head[4] = (f"Sections rerun on {started:%Y-%m-%d} (UTC): {', '.join(discover(argv))} "
-                   f"({total / 60:.1f} min); the others are from earlier runs on the same machine.")
+                   f"({total / 60:.1f} min); the others are from earlier runs on the same machine "
+                   "(a section rerun says when it ran). The machine table's load average is the last rerun's.")
     OUTPUT.parent.mkdir(parents=True, exist_ok=True)
     OUTPUT.write_text("\n".join(head) + "\n" + "\n".join(sections))
     log(f"wrote {OUTPUT}")
