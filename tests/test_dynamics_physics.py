@@ -238,3 +238,51 @@ def test_hair_that_falls_into_the_body_within_one_step_is_pushed_back_out():
     assert out < len(gaps)
     assert min(gaps[out:]) > -1e-5
     assert np.diff(gaps[deepest:out]).max() <= 1.1 * push * h  # never faster than push_speed
+
+
+def test_contact_gaps_are_this_shapes_even_when_the_last_detection_is_reused():
+    """Without hair-hair contact a detection is reused until a point may have moved by a quarter of
+    the body distance; the gaps the step uses must still be those of the shape at its start (the
+    exact signed distance at each contact point), never the older shape's the detection was made on."""
+    import trimesh
+
+    from hairinv.contacts.body import BodyMesh
+    from hairinv.dynamics.simulate import points_on
+
+    helices = _strand(n=6, total=0.12)
+    floor = trimesh.creation.box(extents=(1.0, 0.2, 1.0))
+    floor.apply_translation((0.56, -0.1 - 10e-3, 0.0))  # top face 10 mm below the straight strand
+    settings = Settings()
+    contacts = dataclasses.replace(settings.contacts, hair_hair=False)
+    dynamics = dataclasses.replace(settings.dynamics, max_substeps=0)
+    body = BodyMesh.from_mesh(floor)
+    # a curled shape whose lowest point is 0.3 mm inside the floor
+    s = np.linspace(0.0, 0.12, 400)
+
+    def lowest(c):
+        q = helices.omega.copy()
+        q[:, 1] = c
+        x = np.empty((len(s), 3))
+        points_at(helices.root[0], helices.frame0[0], q, helices.length, s, x)
+        return q, x[:, 1].min()
+
+    sign = 1.0 if lowest(1.0)[1] < 0 else -1.0
+    lo, hi = 0.0, 5.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if lowest(sign * mid)[1] < -10.3e-3 else (mid, hi)
+    curled = lowest(sign * hi)[0]
+    sim = Simulation(helices, curled.copy(), material(), body, contacts, dynamics)
+    sim.step(Motion.still(np.zeros(3)))  # the first step, straight and 10 mm above the floor
+    sim.q, sim.v = curled.copy(), np.zeros_like(sim.v)
+    reused = 0
+    for _ in range(10):
+        start, before = sim.q.copy(), sim._last_found
+        sim.step(Motion.still(material().gravity))
+        reused += sim._last_found is before
+        c = sim.contacts
+        on_body = c.strand[:, 1] < 0
+        x = points_on(helices, start, c.strand[on_body, 0], c.s[on_body, 0])
+        exact = body.closest(x)[0]
+        assert np.abs(c.gap[on_body] - exact).max(initial=0.0) < 1e-8
+    assert reused, "no detection was reused: the test does not test what it claims"

@@ -10,11 +10,15 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import numba
+import pytest
+
 from hairinv import _jit
 from hairinv.rod.statics import gravity_hessian
 from hairinv.solver.rows import _fill
 
 
+@pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT: the kernels are plain Python, nothing is cached")
 def test_kernels_use_the_package_stamped_cache():
     for kernel in (gravity_hessian, _fill):
         locator = kernel._cache._impl.locator

@@ -464,6 +464,7 @@ class Simulation:
             self._impulse = np.einsum("cji,cj->ci", initial.frame, self._initial_impulse)[order]
         self.contacts = initial if initial is not None else Contacts.empty()
         self._last_found = None
+        self._reused = False  # whether this step's detection is the last one, reused
         used = ([contacts.hair_distance] if contacts.hair_hair else []) + ([contacts.body_distance]
                                                                          if contacts.body and body is not None else [])
         self._detect_distance = min(used) if used else np.inf
@@ -490,11 +491,13 @@ class Simulation:
             reach = 0.25 * self._detect_distance
             # first the cheap bound: every element's turn |d omega_e| l_e swings the whole strand
             turn = np.linalg.norm(self.q - self._q_detected, axis=1) * h.length
+            self._reused = True
             if float((np.add.reduceat(turn, h.offsets[:-1]) * self._strand_length).max()) < reach:
                 return self._last_found
             if _largest_move(h.root, h.frame0, h.offsets, self._q_detected, self.q, h.length) < reach:
                 return self._last_found
         found, _ = detect_contacts(self.current(), self.body, self.contact_settings)
+        self._reused = False
         self._last_found, self._q_detected = found, self.q.copy()
         return found
 
@@ -532,6 +535,10 @@ class Simulation:
         arc lengths, its gap and normal are measured there, and it is kept as
         long as that gap stays within the detection distance.
 
+        A detection reused from an earlier shape (see :meth:`_detect`) was made
+        there: all its contacts are measured again at their arc lengths, and none
+        moves to its (stale) detected point.
+
         A body contact whose point has moved by less than ``tolerance g dt^2 / 4``
         since its gap was last measured exactly (its anchor) takes the gap to first
         order from there, ``gap + n . dx``, and keeps the normal: the signed
@@ -542,12 +549,13 @@ class Simulation:
         Returns the contacts and their anchors (point, normal, gap; NaN points for
         hair-hair contacts), for :meth:`_step` to remember.
         """
-        if not len(self._keys) or self._first:
-            # the first step meets the starting contacts as detected (see _remember)
+        if self._first or not (len(self._keys) or self._reused):
+            # the first step meets the starting contacts as detected (see _remember), and so does a
+            # fresh detection with nothing remembered
             return found, self._anchors_of(found, np.arange(found.n_contacts))
         keys = self._keys_of(found)
-        where = np.minimum(np.searchsorted(self._keys, keys), len(self._keys) - 1)
-        known = self._keys[where] == keys
+        where = np.minimum(np.searchsorted(self._keys, keys), max(len(self._keys) - 1, 0))
+        known = self._keys[where] == keys if len(self._keys) else np.zeros(len(keys), bool)
         missing = np.ones(len(self._keys), bool)
         missing[where[known]] = False
         # the union: what detection found, and the remembered contacts it did not find again
@@ -558,7 +566,10 @@ class Simulation:
         mu = np.concatenate([found.mu, self._mu[extra]])
         element = np.concatenate([self._elements_of(found), self._elements[extra]])
         old_frame = np.concatenate([found.frame, np.zeros((len(extra), 3, 3))])
-        redo = np.concatenate([np.flatnonzero(known), found.n_contacts + np.arange(len(extra))])
+        # measured again: the remembered contacts; with a reused detection, every contact (its points,
+        # gaps and normals are from the shape it was made on)
+        redo = (np.arange(len(strand)) if self._reused
+                else np.concatenate([np.flatnonzero(known), found.n_contacts + np.arange(len(extra))]))
         gap = np.concatenate([found.gap if found.gap is not None else np.zeros(found.n_contacts),
                               np.zeros(len(extra))])
         # each contact's anchor: the remembered one where it is remembered, else none yet
@@ -618,6 +629,8 @@ class Simulation:
         redetected = np.flatnonzero(known)
         detected_gap = found.gap[redetected] if found.gap is not None else gap[redetected]
         moved = redetected[gap[redetected] > detected_gap + _PERSIST_SLACK]
+        if self._reused:
+            moved = moved[:0]  # a reused detection's closest points are not this shape's
         arc[moved], point[moved], frame[moved], gap[moved] = (found.s[moved], found.point[moved], found.frame[moved],
                                                               detected_gap[np.searchsorted(redetected, moved)])
         keep[moved] = True
