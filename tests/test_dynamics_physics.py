@@ -286,3 +286,50 @@ def test_contact_gaps_are_this_shapes_even_when_the_last_detection_is_reused():
         exact = body.closest(x)[0]
         assert np.abs(c.gap[on_body] - exact).max(initial=0.0) < 1e-8
     assert reused, "no detection was reused: the test does not test what it claims"
+
+
+def test_first_order_body_gaps_are_exact_on_a_flat_floor(monkeypatch):
+    """On a flat face the signed distance is affine, so the first-order gap ``gap + n . dx`` of a
+    contact that has hardly moved must equal the exact distance to round-off (a missing, or flipped,
+    ``n . dx`` would be off by the whole normal motion, which is made large enough here to tell)."""
+    import trimesh
+
+    from hairinv.contacts import detect_contacts
+    from hairinv.contacts.body import BodyMesh
+    from hairinv.dynamics.simulate import points_on
+    from hairinv.invert import invert
+
+    helices = _strand(n=6, total=0.12)
+    floor = trimesh.creation.box(extents=(1.0, 0.2, 1.0))
+    floor.apply_translation((0.3, -0.1 - 1e-3, 0.0))  # top face 1 mm below the strand
+    settings = Settings()
+    body = BodyMesh.from_mesh(floor)
+    contacts, _ = detect_contacts(helices, body, settings.contacts)
+    mat = material()
+    model, _ = invert(helices, contacts, mat, settings.solver)
+    sim = Simulation(helices, model.omega_rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
+                     initial_force=model.force)
+    sim.step(Motion.still(mat.gravity))  # every gap measured exactly here
+    c = sim.contacts
+    on_body = c.strand[:, 1] < 0
+    before = points_on(helices, sim.q, c.strand[on_body, 0], c.s[on_body, 0])
+    # bend the strand so its contact points move by up to 1e-10 m, under the 2.5e-10 m the first-order
+    # gap is allowed for (tolerance g h^2 / 4)
+    bend = np.zeros_like(sim.q)
+    bend[:, 1] = 1.0
+    moved = points_on(helices, sim.q + 1e-6 * bend, c.strand[on_body, 0], c.s[on_body, 0]) - before
+    shifted = sim.q + 1e-6 * bend * (1e-10 / np.abs(moved).max())
+    after = points_on(helices, shifted, c.strand[on_body, 0], c.s[on_body, 0])
+    normal_motion = np.abs(np.einsum("ij,ij->i", after - before, c.frame[on_body, 0])).max()
+    assert normal_motion > 1e-11, "the contacts hardly move along the normal: the test would not tell"
+    queried = []
+    closest = BodyMesh.closest
+    monkeypatch.setattr(BodyMesh, "closest", lambda self, points: queried.append(len(points)) or closest(self, points))
+    sim.q = shifted
+    sim.step(Motion.still(mat.gravity))
+    monkeypatch.setattr(BodyMesh, "closest", closest)
+    assert not queried  # the first-order path was taken
+    c = sim.contacts
+    on_body = c.strand[:, 1] < 0
+    exact = body.closest(points_on(helices, shifted, c.strand[on_body, 0], c.s[on_body, 0]))[0]
+    assert np.abs(c.gap[on_body] - exact).max() < 1e-3 * normal_motion
