@@ -183,26 +183,40 @@ def test_extremes_stay_finite_and_lose_energy(name, youngs, h, curl):
     assert potential() + sim.kinetic_energy() <= start + 1e-12 * abs(start)
 
 
-def test_a_strand_resting_along_the_body_stays_put():
-    """A strand lying on a flat floor along its whole length (a box as the body), inverted with its
-    contacts: the simulation keeps it where it is."""
+def _floor(depth, x=0.3):
+    """A flat floor (a box as the body) whose top face is ``depth`` m below the strand's plane,
+    under x in ``x +- 0.5``."""
     import trimesh
 
-    from hairinv.contacts import detect_contacts
     from hairinv.contacts.body import BodyMesh
+
+    floor = trimesh.creation.box(extents=(1.0, 0.2, 1.0))
+    floor.apply_translation((x, -0.1 - depth, 0.0))
+    return BodyMesh.from_mesh(floor)
+
+
+def _inverted_on_a_floor():
+    """A horizontal strand lying on a floor 1 mm below it, inverted with its contacts, and the
+    simulation started from that model: (helices, body, material, simulation)."""
+    from hairinv.contacts import detect_contacts
     from hairinv.invert import invert
 
     helices = _strand(n=6, total=0.12)
-    floor = trimesh.creation.box(extents=(1.0, 0.2, 1.0))
-    floor.apply_translation((0.3, -0.1 - 1e-3, 0.0))  # top face 1 mm below the strand
+    body = _floor(1e-3)
     settings = Settings()
-    body = BodyMesh.from_mesh(floor)
     contacts, _ = detect_contacts(helices, body, settings.contacts)
     assert contacts.n_body >= 4
     mat = material()
     model, _ = invert(helices, contacts, mat, settings.solver)
     sim = Simulation(helices, model.omega_rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
                      initial_force=model.force)
+    return helices, body, mat, sim
+
+
+def test_a_strand_resting_along_the_body_stays_put():
+    """A strand lying on a flat floor along its whole length (a box as the body), inverted with its
+    contacts: the simulation keeps it where it is."""
+    helices, _, mat, sim = _inverted_on_a_floor()
     start = _tip(helices, helices.omega)
     for _ in range(50):
         sim.step(Motion.still(mat.gravity))
@@ -213,17 +227,12 @@ def test_hair_that_falls_into_the_body_within_one_step_is_pushed_back_out():
     """A strand falling fast onto a floor in full steps (no halving): it crosses the whole detection
     distance within one step, so its contacts are first found inside. They are pushed back out at
     no more than ``push_speed``, not held at the depth they were found at."""
-    import trimesh
-
-    from hairinv.contacts.body import BodyMesh
-
     helices = _strand(n=6, total=0.12)
-    floor = trimesh.creation.box(extents=(1.0, 0.2, 1.0))
-    floor.apply_translation((0.56, -0.1 - 4.5e-3, 0.0))  # top face 4.5 mm below, under the outer half
     settings = Settings()
     dynamics = dataclasses.replace(settings.dynamics, max_substeps=0)
     mat = material()
-    sim = Simulation(helices, helices.omega.copy(), mat, BodyMesh.from_mesh(floor), settings.contacts, dynamics)
+    body = _floor(4.5e-3, x=0.56)  # under the outer half
+    sim = Simulation(helices, helices.omega.copy(), mat, body, settings.contacts, dynamics)
     h, push = dynamics.time_step, dynamics.push_speed
     assert 4.5e-3 > settings.contacts.body_distance
     gaps = []
@@ -244,18 +253,13 @@ def test_contact_gaps_are_this_shapes_even_when_the_last_detection_is_reused():
     """Without hair-hair contact a detection is reused until a point may have moved by a quarter of
     the body distance; the gaps the step uses must still be those of the shape at its start (the
     exact signed distance at each contact point), never the older shape's the detection was made on."""
-    import trimesh
-
-    from hairinv.contacts.body import BodyMesh
     from hairinv.dynamics.simulate import points_on
 
     helices = _strand(n=6, total=0.12)
-    floor = trimesh.creation.box(extents=(1.0, 0.2, 1.0))
-    floor.apply_translation((0.56, -0.1 - 10e-3, 0.0))  # top face 10 mm below the straight strand
     settings = Settings()
     contacts = dataclasses.replace(settings.contacts, hair_hair=False)
     dynamics = dataclasses.replace(settings.dynamics, max_substeps=0)
-    body = BodyMesh.from_mesh(floor)
+    body = _floor(10e-3, x=0.56)  # 10 mm below the straight strand
     # a curled shape whose lowest point is 0.3 mm inside the floor
     s = np.linspace(0.0, 0.12, 400)
 
@@ -292,23 +296,10 @@ def test_first_order_body_gaps_are_exact_on_a_flat_floor(monkeypatch):
     """On a flat face the signed distance is affine, so the first-order gap ``gap + n . dx`` of a
     contact that has hardly moved must equal the exact distance to round-off (a missing, or flipped,
     ``n . dx`` would be off by the whole normal motion, which is made large enough here to tell)."""
-    import trimesh
-
-    from hairinv.contacts import detect_contacts
     from hairinv.contacts.body import BodyMesh
     from hairinv.dynamics.simulate import points_on
-    from hairinv.invert import invert
 
-    helices = _strand(n=6, total=0.12)
-    floor = trimesh.creation.box(extents=(1.0, 0.2, 1.0))
-    floor.apply_translation((0.3, -0.1 - 1e-3, 0.0))  # top face 1 mm below the strand
-    settings = Settings()
-    body = BodyMesh.from_mesh(floor)
-    contacts, _ = detect_contacts(helices, body, settings.contacts)
-    mat = material()
-    model, _ = invert(helices, contacts, mat, settings.solver)
-    sim = Simulation(helices, model.omega_rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
-                     initial_force=model.force)
+    helices, body, mat, sim = _inverted_on_a_floor()
     sim.step(Motion.still(mat.gravity))  # every gap measured exactly here
     c = sim.contacts
     on_body = c.strand[:, 1] < 0

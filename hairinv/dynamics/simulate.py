@@ -491,10 +491,9 @@ class Simulation:
             reach = 0.25 * self._detect_distance
             # first the cheap bound: every element's turn |d omega_e| l_e swings the whole strand
             turn = np.linalg.norm(self.q - self._q_detected, axis=1) * h.length
-            self._reused = True
-            if float((np.add.reduceat(turn, h.offsets[:-1]) * self._strand_length).max()) < reach:
-                return self._last_found
-            if _largest_move(h.root, h.frame0, h.offsets, self._q_detected, self.q, h.length) < reach:
+            if (float((np.add.reduceat(turn, h.offsets[:-1]) * self._strand_length).max()) < reach
+                    or _largest_move(h.root, h.frame0, h.offsets, self._q_detected, self.q, h.length) < reach):
+                self._reused = True
                 return self._last_found
         found, _ = detect_contacts(self.current(), self.body, self.contact_settings)
         self._reused = False
@@ -508,6 +507,12 @@ class Simulation:
         n = self.helices.n_elements
         return np.where(contacts.element[:, 1] < 0, contacts.element[:, 0],
                         n * (1 + contacts.element[:, 0]) + contacts.element[:, 1])
+
+    def _match(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """For each key, its index among the remembered contacts' (sorted) keys, and whether it is one."""
+        where = np.minimum(np.searchsorted(self._keys, keys), max(len(self._keys) - 1, 0))
+        known = self._keys[where] == keys if len(self._keys) else np.zeros(len(keys), bool)
+        return where, known
 
     def _elements_of(self, contacts: Contacts) -> np.ndarray:
         if contacts.element is not None:
@@ -554,8 +559,7 @@ class Simulation:
             # fresh detection with nothing remembered
             return found, self._anchors_of(found, np.arange(found.n_contacts))
         keys = self._keys_of(found)
-        where = np.minimum(np.searchsorted(self._keys, keys), max(len(self._keys) - 1, 0))
-        known = self._keys[where] == keys if len(self._keys) else np.zeros(len(keys), bool)
+        where, known = self._match(keys)
         missing = np.ones(len(self._keys), bool)
         missing[where[known]] = False
         # the union: what detection found, and the remembered contacts it did not find again
@@ -628,9 +632,9 @@ class Simulation:
         # closest one unconstrained
         redetected = np.flatnonzero(known)
         detected_gap = found.gap[redetected] if found.gap is not None else gap[redetected]
-        moved = redetected[gap[redetected] > detected_gap + _PERSIST_SLACK]
-        if self._reused:
-            moved = moved[:0]  # a reused detection's closest points are not this shape's
+        # (not from a reused detection: its closest points are not this shape's)
+        moved = (redetected[gap[redetected] > detected_gap + _PERSIST_SLACK] if not self._reused
+                 else redetected[:0])
         arc[moved], point[moved], frame[moved], gap[moved] = (found.s[moved], found.point[moved], found.frame[moved],
                                                               detected_gap[np.searchsorted(redetected, moved)])
         keep[moved] = True
@@ -653,8 +657,7 @@ class Simulation:
                 and np.array_equal(initial.strand, found.strand) and np.allclose(initial.s, found.s, rtol=0, atol=1e-12):
             # the starting shape meets the contacts it was inverted with: their forces, one for one
             return keys, gap.copy(), h * self._initial_impulse
-        where = np.minimum(np.searchsorted(self._keys, keys), max(len(self._keys) - 1, 0))
-        known = self._keys[where] == keys if len(self._keys) else np.zeros(len(keys), bool)
+        where, known = self._match(keys)
         fresh = np.where(found.strand[:, 1] < 0, self.settings.body_thickness, self.settings.hair_thickness)
         if self._first:
             fresh = gap  # everything touching the starting shape touches at its own distance
