@@ -80,7 +80,7 @@ def test_recovers_a_known_super_helix_to_roundoff(seed, scale):
     assert_same_curve(root, F0, om, ln, frame0, omega, length, atol=1e-12)
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=25, deadline=None, derandomize=True)  # the same cases on every run
 @given(
     n=st.integers(1, 8),
     seed=st.integers(0, 2**31 - 1),
