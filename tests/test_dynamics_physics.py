@@ -10,7 +10,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from hairinv.config import DynamicsSettings, Settings
-from hairinv.dynamics.contact import contact_velocities, solve_coulomb
+from hairinv.dynamics.contact import REACH, contact_velocities, reachable, solve_coulomb
 from hairinv.dynamics.inertia import inertia_terms
 from hairinv.dynamics.simulate import Motion, Simulation
 from hairinv.rod.helix import points_at
@@ -79,6 +79,61 @@ def test_two_contacts_one_sticking_one_sliding():
 def test_zero_friction_has_no_tangential_force():
     result, _ = _solve([1.5], [[-3.0, 2.0, 1.0]], [0.0])
     assert np.allclose(result.r[0], [2.0, 0.0, 0.0], atol=1e-9)
+
+
+def _rows_of(W):
+    """Rows Z^T of one contact on three private coordinates with Z^T Z = W (W symmetric, PSD)."""
+    lam, Q = np.linalg.eigh(W)
+    vals = (Q * np.sqrt(np.maximum(lam, 0.0))).T.copy()  # column c of H: sqrt(lam_c) q_c
+    return ContactRows(np.array([0, 3], np.int64), np.arange(3, dtype=np.int64), vals, 3)
+
+
+def _rotation(seed):
+    q, _ = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
+    return q
+
+
+@pytest.mark.parametrize("ratio, kept", [(1e-12, False), (0.5 * REACH, False), (2.0 * REACH, True)])
+def test_only_the_velocities_a_contact_can_reach_are_asked_for(ratio, kept):
+    """Along each eigenvector of W_ii the demand is kept whole or dropped whole, by its eigenvalue."""
+    Q = _rotation(3)
+    lam = np.array([ratio, 0.4, 1.0]) * 7.0
+    W = (Q * lam) @ Q.T
+    demand = np.array([[0.3, -1.2, 0.7]])
+    out = reachable(W[None], demand)[0]
+    along = Q.T @ demand[0]
+    expected = np.array([along[0] if kept else 0.0, along[1], along[2]])
+    assert np.allclose(Q.T @ out, expected, atol=1e-12)
+
+
+def test_a_push_the_contact_point_cannot_follow_takes_no_huge_impulse():
+    """A point near a root that cannot move along ``n0`` (a direction inside the friction cone),
+    with a push out along the normal: asked as is, the compliance of 1e-9 alone bounds the impulse
+    along ``n0`` (``-(b . n0) / gamma``, newton-seconds on hair); asked only what it can reach, the
+    impulse is that of an ordinary contact and the reachable part of the push is met."""
+    a, mu, w = np.radians(10.0), 0.3, 2.0
+    n0 = np.array([np.cos(a), np.sin(a), 0.0])
+    W = w * (np.eye(3) - np.outer(n0, n0))  # the point moves freely across n0, not along it
+    rows = _rows_of(W)
+    gamma = np.array([1e-9 * w])
+    free = W @ np.array([-0.1, 0.05, 0.02])  # the free motion: in the range of H, so of W (approaching)
+    push = np.array([[0.05, 0.0, 0.0]])  # a contact found inside, pushed out
+    strand = np.array([[0, -1]], np.int64)
+
+    def solve(b):
+        return solve_coulomb(rows, gamma, b, np.array([mu]), strand, 1, 1.0, 1e-10, 2000, np.zeros((1, 3)))
+
+    raw = solve(free[None] - push)
+    assert np.linalg.norm(raw.r) > 1e6 / w, "the scene does not test what it claims"
+    Wd = W[None]
+    asked = free[None] - reachable(Wd, push)
+    result = solve(asked)
+    assert result.status == "CONVERGED"
+    assert np.linalg.norm(result.r) < 10.0 * np.linalg.norm(asked) / w
+    u = contact_velocities(rows, gamma, asked, result.r)[0]
+    # the solution of the law: normal velocity at least what was asked across n0, and complementary
+    assert u[0] >= -1e-9
+    assert abs(u[0] * result.r[0, 0]) < 1e-9
 
 
 # ---------------------------------------------------------------- free motion of one strand

@@ -24,8 +24,12 @@ from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult
 from ..solver.local import LOCAL_TOL, NUMERICAL_ERROR, solve_contact
 from ..solver.rows import ContactRows
 
-__all__ = ["back_substitute", "contact_keys", "contact_velocities", "desaxce_residual", "factored_rows",
-           "solve_coulomb", "solve_strand_blocks"]
+__all__ = ["REACH", "back_substitute", "contact_keys", "contact_velocities", "desaxce_residual", "factored_rows",
+           "reachable", "solve_coulomb", "solve_strand_blocks"]
+
+#: a contact is not asked to move its point along a direction that a unit impulse moves it less than
+#: this fraction as fast as along the easiest one (eigenvalues of ``W_ii``; see :func:`reachable`)
+REACH = 1e-2
 
 
 @jit
@@ -143,6 +147,37 @@ def contact_keys(strand: np.ndarray, s: np.ndarray, offsets: np.ndarray, length:
     if hair.any():
         keys[hair] = n_elements * (1 + keys[hair]) + element(strand[hair, 1], s[hair, 1])
     return keys
+
+
+def reachable(Wd: np.ndarray, demand: np.ndarray, reach: float = REACH) -> np.ndarray:
+    """``demand`` (C, 3) without its parts along directions its contact's point can hardly move.
+
+    ``Wd`` (C, 3, 3) are the blocks ``W_ii``: the velocity of contact ``i``
+    under a unit impulse at ``i``. Along an eigenvector of ``W_ii`` with
+    eigenvalue ``lambda``, meeting a velocity ``v`` takes the impulse
+    ``v / lambda``, which moves the strand's coordinates by about
+    ``v / sqrt(lambda)``. A point on a strand's first element, a few
+    millimetres from its root, cannot move along the strand (``lambda`` is
+    zero there up to round-off): asked to, the solver answers with impulses
+    of newton-seconds and the strand's tip with radians per step. So a
+    velocity the solver is asked for on top of the free motion (the push out
+    of a contact found too close, :class:`~hairinv.dynamics.simulate.Simulation`)
+    keeps only its parts along eigenvectors with ``lambda >= reach *
+    lambda_max``. The free motion's own part, ``H v``, needs no such care:
+    it lies in the range of ``H``.
+    """
+    out = np.array(demand, dtype=np.float64, copy=True)
+    # lambda_min < reach lambda_max implies det < reach trace^3: only those are decomposed
+    w = Wd.reshape(-1, 9)
+    det = (w[:, 0] * (w[:, 4] * w[:, 8] - w[:, 5] * w[:, 7]) - w[:, 1] * (w[:, 3] * w[:, 8] - w[:, 5] * w[:, 6])
+           + w[:, 2] * (w[:, 3] * w[:, 7] - w[:, 4] * w[:, 6]))
+    some = np.flatnonzero((det < reach * (w[:, 0] + w[:, 4] + w[:, 8]) ** 3) & np.any(out != 0.0, axis=1))
+    if len(some):
+        lam, V = np.linalg.eigh(Wd[some])
+        weak = lam < reach * lam[:, 2:3]
+        along = np.einsum("cik,ci->ck", V, out[some]) * weak
+        out[some] -= np.einsum("cik,ck->ci", V, along)
+    return out
 
 
 def contact_velocities(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -383,15 +418,18 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         u = contact_velocities(rows, gamma, b, r)
         shifted = b.copy()
         shifted[:, 0] += mu * np.hypot(u[:, 1], u[:, 2])
+        # each round only as exact as the shift it starts from deserves
+        inner_tol = max(tolerance, 0.1 * best / velocity_scale)
         if blocks:
-            # each round only as exact as the shift it starts from deserves
-            inner_tol = max(tolerance, 0.1 * best / velocity_scale)
             groups = strand_groups(rows, gamma, strand) if groups is None else groups
             inner = solve_strand_blocks(rows, gamma, shifted, mu, strand, velocity_scale, inner_tol,
                                         max_sweeps - sweeps, r, groups=groups)
         else:
-            inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, tolerance,
-                                  max_sweeps - sweeps, 5, r0=r, s=s, part_of=part_of, velocity=True)
+            # and at most a tenth of the sweeps each: with hair-hair contact Gauss-Seidel is slow, and one
+            # round spending every sweep on a stale shift left ruby's moving groom at 0.35 g h for good
+            inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, inner_tol,
+                                  min(max(20, max_sweeps // 10), max_sweeps - sweeps), 5, r0=r,
+                                  s=s, part_of=part_of, velocity=True)
         if inner.status == NUMERICAL:
             return dataclasses.replace(inner, r=best_r, status=NUMERICAL, sweeps=sweeps + inner.sweeps)
         sweeps += inner.sweeps

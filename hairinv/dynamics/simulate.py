@@ -38,9 +38,9 @@ from ..errors import InputError
 from ..fit import Helices
 from ..invert import Material, stiffness
 from ..rod.statics import gravity_forces, gravity_hessian
-from ..solver.gauss_seidel import NUMERICAL, split_strands
+from ..solver.gauss_seidel import NUMERICAL, diagonal_blocks, split_strands
 from ..solver.rows import contact_rows
-from .contact import back_substitute, contact_keys, factored_rows, solve_coulomb
+from .contact import back_substitute, contact_keys, factored_rows, reachable, solve_coulomb
 from .inertia import node_forces_to_generalized, strand_bias_forces, strand_mass, strand_nodes
 
 __all__ = ["Motion", "Simulation", "StepReport", "strand_dynamics", "validate_settings"]
@@ -731,32 +731,38 @@ class Simulation:
         v_new = v_free
         if found.n_contacts:
             rows = contact_rows(self.current(), found, run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
-            b = rows.matvec(v_free.ravel())
-            gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
-            room = gap - thickness
-            b[:, 0] += np.maximum(room / h, -self.settings.push_speed)
             z_rows = factored_rows(rows, found.strand, offsets, self.chol, self.chol_ptr,
                                    run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
+            Wd = np.empty((found.n_contacts, 3, 3))
+            diagonal_blocks(z_rows.ptr, z_rows.cols, z_rows.vals, np.ones(z_rows.n_dofs), np.zeros(found.n_contacts),
+                            Wd)
+            gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
+            push = np.zeros((found.n_contacts, 3))
+            push[:, 0] = np.maximum((gap - thickness) / h, -self.settings.push_speed)
+            b = rows.matvec(v_free.ravel()) + reachable(Wd, push)
             # a contact close to the root may be unable to move along one direction (W_ii of rank 2);
             # a compliance of 1e-9 of its own W_ii picks the smallest force along it
-            own = np.add.reduceat(np.einsum("ij,ij->i", z_rows.vals, z_rows.vals), z_rows.ptr[:-1]) / 3.0
-            own[np.diff(z_rows.ptr) == 0] = 0.0
+            own = np.trace(Wd, axis1=1, axis2=2) / 3.0
             result = solve_coulomb(z_rows, 1e-9 * own, b, found.mu, found.strand, helices.n_strands,
                                    self.velocity_scale * h, self.settings.tolerance, self.settings.max_sweeps,
                                    impulse, s=found.s, part_of=split_strands(helices.root, found.strand))
-            if result.status == NUMERICAL:
-                raise FloatingPointError("the contact solve failed")
-            z = z_rows.rmatvec(result.r)
-            correction = np.zeros(rows.n_dofs)
-            back_substitute(offsets, self.chol, self.chol_ptr, z, correction, 0, helices.n_strands)
-            v_new = v_free + correction.reshape(-1, 3)
-            impulse = result.r
-            report = StepReport(found.n_contacts, found.n_body, result.sweeps, result.relative_residual,
-                                result.status, result.local_failures, 0.0)
+            failed = result.status == NUMERICAL
+            if not failed:
+                z = z_rows.rmatvec(result.r)
+                correction = np.zeros(rows.n_dofs)
+                back_substitute(offsets, self.chol, self.chol_ptr, z, correction, 0, helices.n_strands)
+                v_new = v_free + correction.reshape(-1, 3)
+                impulse = result.r
+                report = StepReport(found.n_contacts, found.n_body, result.sweeps, result.relative_residual,
+                                    result.status, result.local_failures, 0.0)
+        else:
+            failed = False
         turn = h * float(np.max(np.linalg.norm(v_new, axis=1) * helices.length)) if helices.n_elements else 0.0
         if not np.isfinite(turn):
-            raise FloatingPointError("the velocity is not finite")
-        if turn > self.settings.max_turn and depth < self.settings.max_substeps:
+            failed = True
+        if failed and depth >= self.settings.max_substeps:
+            raise FloatingPointError("the contact solve failed" if found.n_contacts else "the velocity is not finite")
+        if (failed or turn > self.settings.max_turn) and depth < self.settings.max_substeps:
             # nothing is kept of this attempt: two half steps instead
             first = self._step(motion, 0.5 * h, depth + 1)
             second = self._step(motion, 0.5 * h, depth + 1)
