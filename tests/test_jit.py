@@ -42,3 +42,30 @@ def test_functions_outside_the_package_keep_numbas_locators(tmp_path):
         return 1
 
     assert _jit._PackageStampedLocator.from_function(outside, str(tmp_path / "elsewhere.py")) is None
+
+
+def test_a_read_only_install_caches_in_the_users_cache_directory(tmp_path, monkeypatch):
+    """Where the package's ``__pycache__`` cannot be written, the cache goes to ``$XDG_CACHE_HOME/hairinv``,
+    still package-stamped; where nothing can be written, numba's own locators decide."""
+    monkeypatch.setattr(_jit.config, "CACHE_DIR", "")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    writable = _jit._PackageStampedLocator.ensure_cache_path
+    beside = Path(_jit.__file__).parent
+
+    def read_only_package(self):
+        if Path(self.get_cache_path()).is_relative_to(beside):
+            raise PermissionError(f"read-only: {self.get_cache_path()}")
+        writable(self)
+
+    monkeypatch.setattr(_jit._PackageStampedLocator, "ensure_cache_path", read_only_package)
+    source = str(beside / "rod" / "statics.py")
+    locator = _jit._PackageStampedLocator.from_function(gravity_hessian.py_func, source)
+    assert Path(locator.get_cache_path()).is_relative_to(tmp_path / "hairinv")
+    assert Path(locator.get_cache_path()).is_dir()
+    assert locator.get_source_stamp() == _jit.package_stamp()
+
+    def nowhere(self):
+        raise PermissionError(f"read-only: {self.get_cache_path()}")
+
+    monkeypatch.setattr(_jit._PackageStampedLocator, "ensure_cache_path", nowhere)
+    assert _jit._PackageStampedLocator.from_function(gravity_hessian.py_func, source) is None
