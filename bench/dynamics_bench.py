@@ -63,6 +63,8 @@ TRIM_SECONDS = 1.0
 SPEED_GUIDES = 300
 SPEED_MOTION_SECONDS = 1.0
 RUBY_SECONDS = 0.04  # one frame: the drawn groom has strands that no rest shape holds (see speed())
+RUBY_MOTION_START = 0.5  # s into the motion scene: the head turns fastest (about 95 degrees/s)
+RUBY_MOTION_SECONDS = 0.08  # two frames
 PLOT_STILL = IMG / "bench_dynamics_still.png"
 PLOT_SHAPES = IMG / "bench_dynamics_shapes.png"
 
@@ -294,10 +296,18 @@ def speed() -> list[dict]:
         rscene = prepare(ruby, DATA / "ruby" / "ruby_head.obj", rs)
         rmat = Material.from_settings(rs.material, rscene.up)
         rmodel, _ = invert(rscene.helices, rscene.contacts, rmat, rs.solver, check_stability=False)
-        sim = Simulation(rscene.helices, rmodel.omega_rest, rmat, BodyMesh.from_mesh(rscene.body), rs.contacts,
-                         rs.dynamics, initial=rscene.contacts, initial_force=rmodel.force)
+        rbody = BodyMesh.from_mesh(rscene.body)
+        sim = Simulation(rscene.helices, rmodel.omega_rest, rmat, rbody, rs.contacts, rs.dynamics,
+                         initial=rscene.contacts, initial_force=rmodel.force)
         points.append(_speed_row("ruby short (as drawn), inverted, still, one frame", sim, RUBY_SECONDS,
                                  lambda t: Motion.still(rmat.gravity), True, rmat))
+        log(f"speed: ruby short, motion scene from {RUBY_MOTION_START:g} s")
+        sim = Simulation(rscene.helices, rmodel.omega_rest, rmat, rbody, rs.contacts, rs.dynamics,
+                         initial=rscene.contacts, initial_force=rmodel.force)
+        turning = _moving(rmat, rscene.helices.root)
+        points.append(_speed_row(f"ruby short (as drawn), inverted, motion scene from {RUBY_MOTION_START:g} s, "
+                                 f"{RUBY_MOTION_SECONDS / 0.04:.0f} frames", sim, RUBY_MOTION_SECONDS,
+                                 lambda t: turning(RUBY_MOTION_START + t), True, rmat))
     return points
 
 
@@ -410,9 +420,11 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
     m = mt["motion"]
     lines += [f"The `motion` scene (a 50 degree head turn and a 20 degree nod, back by 2.2 s) for "
               f"{MOTION_SECONDS:g} s on the inverted model: kinetic energy at most {max(m['kinetic']):.3g} J and "
-              f"{m['kinetic'][-1]:.3g} J at the end; contacts {min(m['contacts'])}-{max(m['contacts'])}; the deepest "
-              f"body contact {_mm(max(0.0, -m['deepest']))} mm inside the surface (the contact radius is "
-              f"{_mm(v['settings'].contacts.body_distance)} mm); {m['substeps']} extra half steps; wall time "
+              f"{m['kinetic'][-1]:.3g} J at the end; contacts {min(m['contacts'])}-{max(m['contacts'])}; "
+              + (f"the deepest body contact {_mm(-m['deepest'])} mm inside the surface" if m['deepest'] < 0 else
+                 "no body contact inside the surface")
+              + f" (the contact radius is {_mm(v['settings'].contacts.body_distance)} mm); {m['substeps']} extra "
+              f"half steps; wall time "
               f"{m['seconds']:.1f} s.", "",
               f"Trim: {mt['cut_strands']} strands of the curly sample with their drawn shape as the rest shape "
               f"(the reference) were settled on the bust for {SETTLE_SECONDS:g} s and inverted with target "
@@ -436,7 +448,9 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               "and from the model inverted with target zero, with the body still and in the `motion` scene "
               "(head turn and lean); and ruby short as drawn, inverted, still, over one frame (a drawn groom "
               "has strands that no rest shape holds, see below; over longer runs ruby's set off and slow "
-              "the steps down). Each run starts after one "
+              f"the steps down), and in the `motion` scene over {RUBY_MOTION_SECONDS / 0.04:.0f} frames from "
+              f"{RUBY_MOTION_START:g} s, where the head turns fastest (the simulation starts there from the "
+              "inverted model at rest on the body, so the hair is jerked into the turn). Each run starts after one "
               "warm-up step; `moved` is the largest displacement of any strand point at the end. A drawn "
               "groom is not used for the small case: many of its strands rest in an unstable equilibrium "
               "whatever their rest shape (docs/dynamics.md), and once round-off has grown, after about "

@@ -425,11 +425,13 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
             inner = solve_strand_blocks(rows, gamma, shifted, mu, strand, velocity_scale, inner_tol,
                                         max_sweeps - sweeps, r, groups=groups)
         else:
-            # and at most a tenth of the sweeps each: with hair-hair contact Gauss-Seidel is slow, and one
-            # round spending every sweep on a stale shift left ruby's moving groom at 0.35 g h for good
+            # and, until it is the final tolerance, at most a tenth of the sweeps: with hair-hair contact
+            # Gauss-Seidel is slow, and one round spending every sweep on a stale shift left ruby's moving
+            # groom at 0.35 g h for good
+            budget = max_sweeps - sweeps if inner_tol <= tolerance else min(max(20, max_sweeps // 10),
+                                                                            max_sweeps - sweeps)
             inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, inner_tol,
-                                  min(max(20, max_sweeps // 10), max_sweeps - sweeps), 5, r0=r,
-                                  s=s, part_of=part_of, velocity=True)
+                                  budget, 5, r0=r, s=s, part_of=part_of, velocity=True)
         if inner.status == NUMERICAL:
             return dataclasses.replace(inner, r=best_r, status=NUMERICAL, sweeps=sweeps + inner.sweeps)
         sweeps += inner.sweeps
