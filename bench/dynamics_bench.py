@@ -65,6 +65,7 @@ SPEED_MOTION_SECONDS = 1.0
 RUBY_SECONDS = 0.04  # one frame: the drawn groom has strands that no rest shape holds (see speed())
 RUBY_MOTION_START = 0.5  # s into the motion scene: the head turns fastest (about 95 degrees/s)
 RUBY_MOTION_SECONDS = 0.08  # two frames
+RUBY_COARSE_TURN = 0.1  # rad
 PLOT_STILL = IMG / "bench_dynamics_still.png"
 PLOT_SHAPES = IMG / "bench_dynamics_shapes.png"
 
@@ -308,6 +309,13 @@ def speed() -> list[dict]:
         points.append(_speed_row(f"ruby short (as drawn), inverted, motion scene from {RUBY_MOTION_START:g} s, "
                                  f"{RUBY_MOTION_SECONDS / 0.04:.0f} frames", sim, RUBY_MOTION_SECONDS,
                                  lambda t: turning(RUBY_MOTION_START + t), True, rmat))
+        # the same with steps halved only past twice the default turn: the speed a coarser linearisation buys
+        coarse = dataclasses.replace(rs.dynamics, max_turn=RUBY_COARSE_TURN)
+        log(f"speed: ruby short, motion scene, dynamics.max_turn {RUBY_COARSE_TURN:g}")
+        sim = Simulation(rscene.helices, rmodel.omega_rest, rmat, rbody, rs.contacts, coarse,
+                         initial=rscene.contacts, initial_force=rmodel.force)
+        points.append(_speed_row(f"same, dynamics.max_turn {RUBY_COARSE_TURN:g} (default {rs.dynamics.max_turn:g})",
+                                 sim, RUBY_MOTION_SECONDS, lambda t: turning(RUBY_MOTION_START + t), True, rmat))
     return points
 
 
