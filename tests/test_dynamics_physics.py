@@ -278,6 +278,38 @@ def test_a_strand_resting_along_the_body_stays_put():
     assert np.linalg.norm(_tip(helices, sim.q) - start) < 1e-7
 
 
+def test_a_failed_contact_solve_halves_the_step_and_stops_the_run_only_at_the_last_halving(monkeypatch):
+    """The fail-safe of a contact solve that returns NUMERICAL_ERROR: nothing of the attempt is kept,
+    the step is taken as two halves; only a failure at ``max_substeps`` halvings ends the run."""
+    import hairinv.dynamics.simulate as simulate
+
+    helices, _, mat, sim = _inverted_on_a_floor()
+    real = simulate.solve_coulomb
+    calls = []
+
+    def failing(first_n):
+        def solve(*args, **kwargs):
+            calls.append(1)
+            result = real(*args, **kwargs)
+            return dataclasses.replace(result, status="NUMERICAL_ERROR") if len(calls) <= first_n else result
+        return solve
+
+    start = _tip(helices, helices.omega)
+    monkeypatch.setattr(simulate, "solve_coulomb", failing(1))
+    report = sim.step(Motion.still(mat.gravity))
+    assert len(calls) == 3 and report.substeps == 2  # the failed attempt, then two half steps
+    assert np.all(np.isfinite(sim.q)) and np.linalg.norm(_tip(helices, sim.q) - start) < 1e-7
+
+    calls.clear()
+    sim.settings = dataclasses.replace(sim.settings, max_substeps=2)
+    q = sim.q.copy()
+    monkeypatch.setattr(simulate, "solve_coulomb", failing(10**9))
+    with pytest.raises(FloatingPointError, match="contact solve failed"):
+        sim.step(Motion.still(mat.gravity))
+    assert len(calls) == 3  # the step, its first half, that half's first half
+    assert np.array_equal(sim.q, q)  # nothing of a failed step is kept
+
+
 def test_hair_that_falls_into_the_body_within_one_step_is_pushed_back_out():
     """A strand falling fast onto a floor in full steps (no halving): it crosses the whole detection
     distance within one step, so its contacts are first found inside. They are pushed back out at
