@@ -10,7 +10,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from hairinv.config import DynamicsSettings, Settings
-from hairinv.dynamics.contact import REACH, contact_velocities, reachable, solve_coulomb
+from hairinv.dynamics import contact
+from hairinv.dynamics.contact import REACH, contact_velocities, desaxce_residual, reachable, solve_coulomb
 from hairinv.dynamics.inertia import inertia_terms
 from hairinv.dynamics.simulate import Motion, Simulation
 from hairinv.rod.helix import points_at
@@ -79,6 +80,48 @@ def test_two_contacts_one_sticking_one_sliding():
 def test_zero_friction_has_no_tangential_force():
     result, _ = _solve([1.5], [[-3.0, 2.0, 1.0]], [0.0])
     assert np.allclose(result.r[0], [2.0, 0.0, 0.0], atol=1e-9)
+
+
+def test_a_contact_solve_that_stops_improving_stops_there_and_keeps_its_best_iterate(monkeypatch):
+    """Hair-hair contact (solved contact by contact): once ``stall_rounds`` rounds in a row have not
+    halved the residual, the solve ends with its best iterate; with 0 it goes on to the fail-safe."""
+    weights, mu = [1.0, 3.0], [0.5, 0.2]
+    b = np.array([[-2.0, 0.1, 0.0], [-3.0, 0.0, 5.0]])
+    exact = np.array([[2.0, -0.1, 0.0], [1.0, 0.0, -0.2]])  # test_two_contacts_one_sticking_one_sliding
+    rows = _isotropic_rows(weights)
+    strand = np.array([[0, 1], [1, 2]], np.int64)  # hair-hair: no strand-by-strand blocks
+    real = contact.solve_cone_qp
+    rounds, iterates = [], []
+
+    def stalled(*args, **kwargs):
+        # every convex round lands at the same distance from the answer, as a stalled Gauss-Seidel
+        # does; the direct De Saxce fail-safe is left as it is
+        result = real(*args, **kwargs)
+        if kwargs.get("desaxce"):
+            return result
+        rounds.append(result.sweeps)
+        iterates.append(1.5 * result.r)
+        return dataclasses.replace(result, r=iterates[-1])
+
+    monkeypatch.setattr(contact, "solve_cone_qp", stalled)
+
+    def solve(stall_rounds):
+        rounds.clear()
+        iterates.clear()
+        return solve_coulomb(rows, np.zeros(2), b, np.array(mu), strand, 3, 1.0, 1e-10, 10_000, np.zeros((2, 3)),
+                             stall_rounds=stall_rounds)
+
+    early = solve(3)
+    assert len(rounds) == 4  # the first round, then three that do not halve its residual
+    assert early.status == "MAX_ITERS" and early.sweeps == sum(rounds)
+    best = min(h for _, h in early.history)
+    assert early.residual == best > 1e-3
+    residuals = [desaxce_residual(rows, np.zeros(2), b, np.array(mu), r) for r in iterates]
+    assert np.array_equal(early.r, iterates[int(np.argmin(residuals))]) and min(residuals) == best
+    full = solve(0)
+    assert len(rounds) == 20  # max_rounds
+    assert full.status == "CONVERGED"
+    assert np.allclose(full.r, exact, atol=1e-9)
 
 
 def _rows_of(W):

@@ -58,6 +58,8 @@ def validate_settings(settings: DynamicsSettings) -> None:
             raise InputError(f"dynamics.{name} must be >= 0 and finite, got {value}")
     if not 0 <= settings.max_substeps <= 12:
         raise InputError(f"dynamics.max_substeps must be between 0 and 12, got {settings.max_substeps}")
+    if settings.stall_rounds < 0:
+        raise InputError(f"dynamics.stall_rounds must be >= 0, got {settings.stall_rounds}")
     if settings.max_sweeps < 1:
         raise InputError(f"dynamics.max_sweeps must be >= 1, got {settings.max_sweeps}")
     if not 1 <= settings.quadrature <= 8:
@@ -745,7 +747,8 @@ class Simulation:
             own = np.trace(Wd, axis1=1, axis2=2) / 3.0
             result = solve_coulomb(z_rows, 1e-9 * own, b, found.mu, found.strand, helices.n_strands,
                                    self.velocity_scale * h, self.settings.tolerance, self.settings.max_sweeps,
-                                   impulse, s=found.s, part_of=split_strands(helices.root, found.strand))
+                                   impulse, s=found.s, part_of=split_strands(helices.root, found.strand),
+                                   stall_rounds=self.settings.stall_rounds)
             failed = result.status == NUMERICAL
             if not failed:
                 z = z_rows.rmatvec(result.r)
