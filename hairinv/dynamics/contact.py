@@ -397,9 +397,9 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     better of the two is kept. Once ``stall_rounds`` rounds in a row (after
     the first) have not halved the best residual, the solve stops there with
     its best iterate and no fail-safe (0: never): on ruby short's moving groom,
-    hair-hair contact by contact, 200 sweeps per step then become about 100,
+    hair-hair contact by contact, 200 sweeps per step then become about 120,
     and the strands' median distance after two frames from a 1,000-sweep
-    reference goes from 0.14 to 0.19 mm (docs/dynamics.md).
+    reference goes from 0.25 to 0.27 mm (docs/benchmarks.md).
 
     ``rows`` are the factored rows ``Z_i^T`` (:func:`factored_rows`); the
     tolerance is on the De Saxce residual in velocity units, relative to
