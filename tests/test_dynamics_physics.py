@@ -149,6 +149,27 @@ def test_only_the_velocities_a_contact_can_reach_are_asked_for(ratio, kept):
     assert np.allclose(Q.T @ out, expected, atol=1e-12)
 
 
+def test_the_blocks_left_undecomposed_have_no_weak_direction():
+    """``reachable`` decomposes only blocks that pass a cheap test; on blocks of every shape, from
+    isotropic to rank one, near REACH on both sides, it equals the decomposition of every block."""
+    rng = np.random.default_rng(11)
+    n = 3000
+    lam = np.sort(10.0 ** rng.uniform(-14, 0, size=(n, 3)), axis=1) * 10.0 ** rng.uniform(-3, 6, size=(n, 1))
+    lam[:300, 0] = lam[:300, 2] * REACH * rng.uniform(0.9, 1.1, 300)  # at the threshold
+    lam[300:600, :2] = lam[300:600, 2:3] * REACH * rng.uniform(0.9, 1.1, (300, 2))  # two weak directions
+    Q = np.array([_rotation(k) for k in range(n)])
+    W = np.einsum("cij,cj,ckj->cik", Q, lam, Q)
+    demand = rng.normal(size=(n, 3))
+    out = reachable(W, demand)
+    l, V = np.linalg.eigh(W)
+    along = np.einsum("cik,ci->ck", V, demand) * (l >= REACH * l[:, 2:3])
+    expected = np.einsum("cik,ck->ci", V, along)
+    assert np.allclose(out, expected, rtol=0, atol=1e-9 * np.abs(demand).max())
+    weak = (l < REACH * l[:, 2:3]).any(axis=1)
+    assert 0.2 * n < weak.sum() < 0.95 * n  # the sample has both kinds
+    assert np.array_equal(out[~weak], demand[~weak])
+
+
 def test_a_push_the_contact_point_cannot_follow_takes_no_huge_impulse():
     """A point near a root that cannot move along ``n0`` (a direction inside the friction cone),
     with a push out along the normal: asked as is, the compliance of 1e-9 alone bounds the impulse

@@ -167,11 +167,15 @@ def reachable(Wd: np.ndarray, demand: np.ndarray, reach: float = REACH) -> np.nd
     it lies in the range of ``H``.
     """
     out = np.array(demand, dtype=np.float64, copy=True)
-    # lambda_min < reach lambda_max implies det < reach trace^3: only those are decomposed
+    # only blocks that may have a weak direction are decomposed: with m2 the sum of the principal 2x2
+    # minors (l1 l2 + l1 l3 + l2 l3 >= l2 l3), lambda_min >= det / m2, and lambda_max <= trace, so
+    # lambda_min < reach lambda_max implies det < reach trace m2
     w = Wd.reshape(-1, 9)
     det = (w[:, 0] * (w[:, 4] * w[:, 8] - w[:, 5] * w[:, 7]) - w[:, 1] * (w[:, 3] * w[:, 8] - w[:, 5] * w[:, 6])
            + w[:, 2] * (w[:, 3] * w[:, 7] - w[:, 4] * w[:, 6]))
-    some = np.flatnonzero((det < reach * (w[:, 0] + w[:, 4] + w[:, 8]) ** 3) & np.any(out != 0.0, axis=1))
+    m2 = (w[:, 0] * w[:, 4] - w[:, 1] * w[:, 3]) + (w[:, 0] * w[:, 8] - w[:, 2] * w[:, 6]) \
+        + (w[:, 4] * w[:, 8] - w[:, 5] * w[:, 7])
+    some = np.flatnonzero((det < reach * (w[:, 0] + w[:, 4] + w[:, 8]) * m2) & np.any(out != 0.0, axis=1))
     if len(some):
         lam, V = np.linalg.eigh(Wd[some])
         weak = lam < reach * lam[:, 2:3]

@@ -753,7 +753,8 @@ class Simulation:
             if not failed:
                 z = z_rows.rmatvec(result.r)
                 correction = np.zeros(rows.n_dofs)
-                back_substitute(offsets, self.chol, self.chol_ptr, z, correction, 0, helices.n_strands)
+                run_chunks(lambda lo, hi: back_substitute(offsets, self.chol, self.chol_ptr, z, correction, lo, hi),
+                           helices.n_strands, 64)
                 v_new = v_free + correction.reshape(-1, 3)
                 impulse = result.r
                 report = StepReport(found.n_contacts, found.n_body, result.sweeps, result.relative_residual,
