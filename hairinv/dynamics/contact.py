@@ -24,8 +24,8 @@ from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult
 from ..solver.local import LOCAL_TOL, NUMERICAL_ERROR, solve_contact
 from ..solver.rows import ContactRows
 
-__all__ = ["REACH", "back_substitute", "contact_keys", "contact_velocities", "desaxce_residual", "factored_rows",
-           "reachable", "solve_coulomb", "solve_strand_blocks"]
+__all__ = ["REACH", "back_substitute", "contact_keys", "contact_velocities", "delassus_blocks", "desaxce_residual",
+           "factored_rows", "reachable", "solve_coulomb", "solve_strand_blocks"]
 
 #: a contact is not asked to move its point along a direction that a unit impulse moves it less than
 #: this fraction as fast as along the easiest one (eigenvalues of ``W_ii``; see :func:`reachable`)
@@ -189,7 +189,7 @@ def contact_velocities(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, r: n
     return rows.matvec(rows.rmatvec(r)) + b + gamma[:, None] * r
 
 
-def _diagonal(rows: ContactRows, gamma: np.ndarray) -> np.ndarray:
+def delassus_blocks(rows: ContactRows, gamma: np.ndarray) -> np.ndarray:
     """The blocks ``W_ii`` of ``W = Z^T Z + diag(gamma)``, (C, 3, 3)."""
     Wd = np.empty((rows.n_contacts, 3, 3))
     diagonal_blocks(rows.ptr, rows.cols, rows.vals, np.ones(rows.n_dofs), gamma, Wd)
@@ -205,7 +205,7 @@ def desaxce_residual(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np
     n = rows.n_contacts
     if n == 0:
         return 0.0
-    Wd = _diagonal(rows, gamma) if Wd is None else Wd
+    Wd = delassus_blocks(rows, gamma) if Wd is None else Wd
     f = np.empty(rows.n_dofs)
     _accumulate_f(rows.ptr, rows.cols, rows.vals, np.ones(rows.n_dofs), r, f)
     per = np.empty(n)
@@ -308,8 +308,11 @@ def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, b
     errors[g_lo] += numerical
 
 
-def strand_groups(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray) -> tuple:
-    """The groups of :func:`solve_strand_blocks` and their dense blocks (for several solves on the same rows)."""
+def strand_groups(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray, Wd: np.ndarray | None = None) -> tuple:
+    """The groups of :func:`solve_strand_blocks` and their dense blocks (for several solves on the same rows).
+
+    ``Wd``: the blocks ``W_ii`` (:func:`delassus_blocks`), if already at hand.
+    """
     n = rows.n_contacts
     body = strand[:, 1] < 0
     key = np.where(body, strand[:, 0], len(strand) + np.arange(n)) if n else np.zeros(0, np.int64)
@@ -321,7 +324,7 @@ def strand_groups(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray) -> t
     block_ptr = np.r_[0, np.cumsum(sizes)].astype(np.int64)
     blocks = np.zeros(int(block_ptr[-1]))
     _group_blocks(rows.ptr, rows.cols, rows.vals, gamma, members, group_ptr, block_ptr, blocks, rows.n_dofs)
-    return members, group_ptr, block_ptr, blocks, _diagonal(rows, gamma)
+    return members, group_ptr, block_ptr, blocks, delassus_blocks(rows, gamma) if Wd is None else Wd
 
 
 def solve_strand_blocks(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, strand: np.ndarray,
@@ -385,7 +388,7 @@ def solve_strand_blocks(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu:
 def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, strand: np.ndarray,
                   n_strands: int, velocity_scale: float, tolerance: float, max_sweeps: int, r0: np.ndarray,
                   s: np.ndarray | None = None, part_of: np.ndarray | None = None, max_rounds: int = 20,
-                  stall_rounds: int = 3) -> SolverResult:
+                  stall_rounds: int = 3, Wd: np.ndarray | None = None) -> SolverResult:
     """Coulomb friction of one step: the De Saxce problem ``K ∋ r ⟂ u + mu |u_T| e_N ∈ K*``.
 
     As a fixed point of convex problems (Acary, Cadoux et al.): with the
@@ -407,7 +410,9 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
 
     ``rows`` are the factored rows ``Z_i^T`` (:func:`factored_rows`); the
     tolerance is on the De Saxce residual in velocity units, relative to
-    ``velocity_scale``. Returns the best iterate; ``sweeps`` counts all rounds.
+    ``velocity_scale``; ``Wd``: the blocks ``W_ii`` (:func:`delassus_blocks`,
+    ``gamma`` included), if already at hand. Returns the best iterate;
+    ``sweeps`` counts all rounds.
     """
     started = time.perf_counter()
     ones = np.ones(rows.n_dofs)
@@ -418,7 +423,8 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     groups = None  # made once a round is needed (a still groom's warm start often meets the tolerance)
     stalled = False
     r = np.array(r0, dtype=np.float64, copy=True)
-    Wd = _diagonal(rows, gamma) if rows.n_contacts else None
+    if Wd is None and rows.n_contacts:
+        Wd = delassus_blocks(rows, gamma)
     best_r, best = r.copy(), desaxce_residual(rows, gamma, b, mu, r, Wd)
     history = [(0, best)]
     sweeps = 0
@@ -431,7 +437,7 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         # each round only as exact as the shift it starts from deserves
         inner_tol = max(tolerance, 0.1 * best / velocity_scale)
         if blocks:
-            groups = strand_groups(rows, gamma, strand) if groups is None else groups
+            groups = strand_groups(rows, gamma, strand, Wd) if groups is None else groups
             inner = solve_strand_blocks(rows, gamma, shifted, mu, strand, velocity_scale, inner_tol,
                                         max_sweeps - sweeps, r, groups=groups)
         else:

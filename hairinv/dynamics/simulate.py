@@ -38,9 +38,9 @@ from ..errors import InputError
 from ..fit import Helices
 from ..invert import Material, stiffness
 from ..rod.statics import gravity_forces, gravity_hessian
-from ..solver.gauss_seidel import NUMERICAL, diagonal_blocks, split_strands
+from ..solver.gauss_seidel import NUMERICAL, split_strands
 from ..solver.rows import contact_rows
-from .contact import back_substitute, contact_keys, factored_rows, reachable, solve_coulomb
+from .contact import back_substitute, contact_keys, delassus_blocks, factored_rows, reachable, solve_coulomb
 from .inertia import node_forces_to_generalized, strand_bias_forces, strand_mass, strand_nodes
 
 __all__ = ["Motion", "Simulation", "StepReport", "strand_dynamics", "validate_settings"]
@@ -735,20 +735,19 @@ class Simulation:
             rows = contact_rows(self.current(), found, run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
             z_rows = factored_rows(rows, found.strand, offsets, self.chol, self.chol_ptr,
                                    run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
-            Wd = np.empty((found.n_contacts, 3, 3))
-            diagonal_blocks(z_rows.ptr, z_rows.cols, z_rows.vals, np.ones(z_rows.n_dofs), np.zeros(found.n_contacts),
-                            Wd)
+            Wd = delassus_blocks(z_rows, np.zeros(found.n_contacts))
             gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
             push = np.zeros((found.n_contacts, 3))
             push[:, 0] = np.maximum((gap - thickness) / h, -self.settings.push_speed)
             b = rows.matvec(v_free.ravel()) + reachable(Wd, push)
             # a contact close to the root may be unable to move along one direction (W_ii of rank 2);
             # a compliance of 1e-9 of its own W_ii picks the smallest force along it
-            own = np.trace(Wd, axis1=1, axis2=2) / 3.0
-            result = solve_coulomb(z_rows, 1e-9 * own, b, found.mu, found.strand, helices.n_strands,
+            gamma = 1e-9 * np.trace(Wd, axis1=1, axis2=2) / 3.0
+            Wd[:, [0, 1, 2], [0, 1, 2]] += gamma[:, None]
+            result = solve_coulomb(z_rows, gamma, b, found.mu, found.strand, helices.n_strands,
                                    self.velocity_scale * h, self.settings.tolerance, self.settings.max_sweeps,
                                    impulse, s=found.s, part_of=split_strands(helices.root, found.strand),
-                                   stall_rounds=self.settings.stall_rounds)
+                                   stall_rounds=self.settings.stall_rounds, Wd=Wd)
             failed = result.status == NUMERICAL
             if not failed:
                 z = z_rows.rmatvec(result.r)
