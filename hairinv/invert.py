@@ -180,58 +180,99 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
                                material.linear_density, material.gravity, lo, hi, hess_ptr, hess)
 
     run_chunks(work, S, 256)
-    # supports per strand: the rows of H on that strand's columns for contacts carrying force
-    support: dict[int, list[np.ndarray]] = {}
-    held: dict[int, list[np.ndarray]] = {}  # the same for every declared contact
+    # each strand's contact sides (a hair-hair contact counts on both its strands), strand by strand
     if rows is not None and contacts is not None and rows.n_contacts:
-        loaded = np.zeros(rows.n_contacts, bool) if carrying is None else carrying
-        for i in range(rows.n_contacts):
-            a, b = rows.ptr[i], rows.ptr[i + 1]
-            cols = rows.cols[a:b]
-            vals = rows.vals[a:b]
-            for side in contacts.strand[i]:
-                if side < 0:
-                    continue
-                lo = 3 * helices.offsets[side]
-                hi = 3 * helices.offsets[side + 1]
-                mask = (cols >= lo) & (cols < hi)
-                block = np.zeros((3, hi - lo))
-                block[:, cols[mask] - lo] = vals[mask].T
-                held.setdefault(int(side), []).append(block)
-                if loaded[i]:
-                    support.setdefault(int(side), []).append(block)
+        side_strand = contacts.strand.ravel()
+        side_contact = np.repeat(np.arange(rows.n_contacts, dtype=np.int64), 2)
+        keep = side_strand >= 0
+        side_strand, side_contact = side_strand[keep], side_contact[keep]
+        order = np.argsort(side_strand, kind="stable")
+        incident = side_contact[order]
+        incident_ptr = np.searchsorted(side_strand[order], np.arange(S + 1)).astype(np.int64)
+        loaded = np.zeros(rows.n_contacts, bool) if carrying is None else np.asarray(carrying, bool)
+        ptr, cols, vals = rows.ptr, rows.cols, rows.vals
+    else:
+        incident, incident_ptr = np.zeros(0, np.int64), np.zeros(S + 1, np.int64)
+        loaded = np.zeros(0, bool)
+        ptr, cols, vals = np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
     unstable = np.zeros(S, dtype=bool)
     free = np.zeros(S, dtype=bool)
     always = np.zeros(S, dtype=bool)
-    for s in range(S):
-        m = counts[s]
-        k = stiff[3 * helices.offsets[s]:3 * helices.offsets[s + 1]]
-        A = hess[hess_ptr[s]:hess_ptr[s + 1]].reshape(m, m)
-        A = 0.5 * (A + A.T)
-        # scale by K^-1/2 so the test reads "eigenvalue of I + K^-1/2 V'' K^-1/2 below zero"
-        scale = 1.0 / np.sqrt(k)
-        A = scale[:, None] * A * scale[None, :] + np.eye(m)
-        free[s] = np.linalg.eigvalsh(A)[0] < -1e-6
-        unstable[s] = free[s] if s not in support else _unstable_held(A, support[s], scale)
-        always[s] = free[s] if s not in held else _unstable_held(A, held[s], scale)
+
+    def check(lo: int, hi: int) -> None:
+        _stability_chunk(helices.offsets, hess_ptr, hess, stiff, incident_ptr, incident, loaded, ptr, cols, vals,
+                         lo, hi, unstable, free, always)
+
+    run_chunks(check, S, 64)
     return unstable, free, always
 
 
-def _unstable_held(A: np.ndarray, blocks: list[np.ndarray], scale: np.ndarray) -> bool:
+@jit
+def _stability_chunk(offsets, hess_ptr, hess, stiff, incident_ptr, incident, loaded, ptr, cols, vals, lo, hi,
+                     unstable, free, always):
+    """:func:`stability` for strands ``lo`` to ``hi``."""
+    for s in range(lo, hi):
+        c0 = 3 * offsets[s]
+        m = 3 * (offsets[s + 1] - offsets[s])
+        base = hess_ptr[s]
+        # scaled by K^-1/2, so the test reads "eigenvalue of I + K^-1/2 V'' K^-1/2 below zero"
+        scale = 1.0 / np.sqrt(stiff[c0:c0 + m])
+        A = np.empty((m, m))
+        for i in range(m):
+            for j in range(m):
+                A[i, j] = 0.5 * (hess[base + i * m + j] + hess[base + j * m + i]) * scale[i] * scale[j]
+            A[i, i] += 1.0
+        free[s] = np.linalg.eigvalsh(A)[0] < -1e-6
+        n = incident_ptr[s + 1] - incident_ptr[s]
+        if n == 0:
+            unstable[s] = free[s]
+            always[s] = free[s]
+            continue
+        # the rows of H on this strand's columns: those of the contacts carrying force first, then the others
+        C = np.zeros((3 * n, m))
+        j = 0
+        n_loaded = 0
+        for first in (True, False):
+            for k in range(incident_ptr[s], incident_ptr[s + 1]):
+                i = incident[k]
+                if loaded[i] != first:
+                    continue
+                for t in range(ptr[i], ptr[i + 1]):
+                    c = cols[t] - c0
+                    if 0 <= c < m:
+                        for row in range(3):
+                            C[3 * j + row, c] = vals[t, row] * scale[c]
+                j += 1
+                n_loaded += first
+        unstable[s] = free[s] if n_loaded == 0 else _unstable_held(A, C[:3 * n_loaded])
+        always[s] = _unstable_held(A, C)
+
+
+@jit
+def _unstable_held(A, C):
     """Whether the scaled Hessian ``A`` has a negative direction among the motions that keep the
-    contact points of ``blocks`` (rows of H on the strand's columns) in place."""
-    C = np.vstack(blocks) * scale[None, :]
+    contact points whose rows of H (on the strand's columns, scaled as ``A``) are ``C`` in place."""
     # rows of unit length first: a contact near the root moves little, and its rows would otherwise
     # read as rank-deficient next to a far one's (on samples/settled.h5 that counted 4 stable strands
     # as unstable); what remains below 1e-12 is true dependence (two contacts on one spot, ~1e-17)
-    norms = np.linalg.norm(C, axis=1)
-    C = C[norms > 0.0] / norms[norms > 0.0, None]
-    if not len(C):
-        return bool(np.linalg.eigvalsh(A)[0] < -1e-6)
-    _, sv, vt = np.linalg.svd(C)
-    rank = int((sv > 1e-12 * sv.max()).sum())
-    Z = vt[rank:].T
-    return bool(Z.shape[1] > 0 and np.linalg.eigvalsh(Z.T @ A @ Z)[0] < -1e-6)
+    m = A.shape[0]
+    U = np.empty(C.shape)
+    k = 0
+    for i in range(C.shape[0]):
+        norm = np.sqrt(np.sum(C[i] ** 2))
+        if norm > 0.0:
+            U[k] = C[i] / norm
+            k += 1
+    if k == 0:
+        return np.linalg.eigvalsh(A)[0] < -1e-6
+    _, sv, vt = np.linalg.svd(U[:k])
+    rank = 0
+    for x in sv:
+        rank += x > 1e-12 * sv[0]
+    if rank == m:
+        return False
+    Z = np.ascontiguousarray(vt[rank:].T)
+    return np.linalg.eigvalsh(Z.T @ A @ Z)[0] < -1e-6
 
 
 @dataclass
