@@ -738,12 +738,7 @@ class Simulation:
             Wd = delassus_blocks(z_rows, np.zeros(found.n_contacts))
             gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
             push = np.zeros((found.n_contacts, 3))
-            room = gap - thickness
-            # room left may close within this step; a contact too close is pushed out at the speed a full
-            # step asks (room / time_step, at most push_speed) whatever the step, so the turn a push
-            # causes halves with a halved step (at room / h it would not, and halving would cascade)
-            push[:, 0] = np.where(room >= 0.0, room / h,
-                                  np.maximum(room / max(h, self.settings.time_step), -self.settings.push_speed))
+            push[:, 0] = np.maximum((gap - thickness) / h, -self.settings.push_speed)
             b = rows.matvec(v_free.ravel()) + reachable(Wd, push)
             # a contact close to the root may be unable to move along one direction (W_ii of rank 2);
             # a compliance of 1e-9 of its own W_ii picks the smallest force along it
