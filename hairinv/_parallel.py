@@ -66,6 +66,12 @@ def blas_pinned():
         return
     with _lock:
         if _controller is None:
+            # the scan sees only the libraries loaded by then: load scipy's LAPACK first, which numba's
+            # np.linalg calls into (its own OpenBLAS, apart from numpy's). Left out of the scan, it ran
+            # two threads inside each worker's small SVDs: the stability check of a 24,335-strand groom
+            # took 26 s instead of 6.6 s.
+            import scipy.linalg.cython_lapack  # noqa: F401
+
             _controller = ThreadpoolController()
     _pinned.depth = 1
     try:
