@@ -965,8 +965,9 @@ def render(comp, full, prob, tols, seq, full_clarabel, sub, sprob, sub_seq, sub_
         )
         out.append("")
         out.append(table(["", "value", "target", ""], [
-            (f"Pipeline wall time with {p['sweeps']} sweeps (measured)", _s(pipe), f"< {TARGET_SECONDS:g} s",
-             _pass(pipe < TARGET_SECONDS)),
+            # not judged: so few sweeps leave the forces far from optimal (the relative residual says how far)
+            (f"Pipeline wall time with {p['sweeps']} sweeps (measured; relative residual {_g(p['relres'])}, "
+             "not an inversion to judge by the target)", _s(pipe), "", ""),
             (f"Pipeline wall time with {SCALING_SWEEPS} sweeps (extrapolated)", _s(pipe_est) if pipe_est else "n/a",
              f"< {TARGET_SECONDS:g} s", _pass(pipe_est < TARGET_SECONDS) if pipe_est else ""),
             ("Peak memory (ru_maxrss)", f"{p['rss_peak'] / 1e9:.2f} GB ({p['rss_peak'] / 2 ** 30:.2f} GiB)",
