@@ -409,6 +409,24 @@ def test_warm_start_from_the_answer_returns_it_unchanged(desaxce, rng):
         np.testing.assert_array_equal(out, r)  # bit for bit: no Newton step was taken
 
 
+@pytest.mark.parametrize("turn", [0.3, 2.0, np.pi])
+def test_a_warm_start_with_the_wrong_slip_angle_still_finds_the_sliding_answer(turn, rng):
+    """A sliding contact first tries the slip angle of its warm start, refined on the sliding
+    equation ``g(a) = 0``; that root may be another one (``g`` has up to four), whose force must be
+    rejected. From warm starts turned by ``turn`` and twice too strong, the answer is the cold
+    solve's (convex: unique) to round-off, and it meets the optimality conditions."""
+    for _ in range(20):
+        W, b = sliding_problem(rng, 0.4, cond=1e2)
+        status, _, r = solve(W, b, 0.4)
+        assert status == OK
+        c, s = np.cos(turn), np.sin(turn)
+        warm = 2.0 * np.array([r[0], c * r[1] - s * r[2], s * r[1] + c * r[2]])
+        status, res, out = solve(W, b, 0.4, r0=warm)
+        assert status == OK and res <= LOCAL_TOL
+        assert_ccp(W, b, 0.4, out, OPTIMALITY)
+        np.testing.assert_allclose(out, r, rtol=1e-9, atol=1e-9 * np.linalg.norm(r))
+
+
 def test_not_converged_returns_the_best_point(rng):
     W, b = sliding_problem(rng, 0.3, cond=1e2)
     status, res, r = solve(W, b, 0.3, max_iter=0)  # no Newton step; the fail-safe still runs

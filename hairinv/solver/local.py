@@ -565,23 +565,16 @@ def _slide_angles(A0, A1, B1, A2, B2, angles):
     return n
 
 
-@jit(error_model="numpy")
-def _slide_failsafe(W, b, bnorm, mu, desaxce, best):
-    """Sliding solutions on the boundary ray ``r = rho v(a)``, ``v = (cN, cT cos a, cT sin a)``.
+@jit(error_model="numpy", inline="always")
+def _slide_setup(W, b, mu, desaxce):
+    """The sliding equation's terms (see :func:`_slide_failsafe`), as one tuple.
 
-    Sliding means ``W rho v(a) + b = beta w(a)`` with ``rho > 0``, ``beta >= 0`` and
-    ``w = (cT, -cN cos a, -cN sin a)`` (statics: the dual-cone generator orthogonal to
-    ``v``) or ``w = (0, -cos a, -sin a)`` (De Saxce: ``u_N = 0``, ``u_T`` against ``r_T``).
-    Then ``-b`` is in the span of ``W v(a)`` and ``w(a)``: ``g(a) = det[W v, w, b] = 0``,
-    a trigonometric polynomial of degree 2 (the quartic of Daviet et al. in
-    ``tan(a/2)``), whose real roots are bracketed and refined by ``_slide_angles``. The
-    candidate of smallest residual is written to ``best`` and its relative residual
-    returned (inf if there is none).
+    ``W v(a) = P0 + P1 cos a + P2 sin a`` (``p00..p22``), ``w(a) = (q0, qt cos a, qt sin a)``,
+    ``g(a) = A0 + A1 cos a + B1 sin a + A2 cos 2a + B2 sin 2a``; then ``cn``, ``ct``.
     """
     h = np.hypot(1.0, mu)
     cn = 1.0 / h
     ct = mu / h
-    # W v(a) = P0 + P1 cos a + P2 sin a;  w(a) = (q0, q1 cos a, q2 sin a)
     p00 = cn * W[0, 0]
     p01 = cn * W[1, 0]
     p02 = cn * W[2, 0]
@@ -610,12 +603,74 @@ def _slide_failsafe(W, b, bnorm, mu, desaxce, best):
     m02 = _cross_dot(p00, p01, p02, 0.0, 0.0, qt, b0, b1, b2)
     m12 = _cross_dot(p10, p11, p12, 0.0, 0.0, qt, b0, b1, b2)
     m22 = _cross_dot(p20, p21, p22, 0.0, 0.0, qt, b0, b1, b2)
-    # g(a) = A0 + A1 cos a + B1 sin a + A2 cos 2a + B2 sin 2a
-    A0 = m00 + 0.5 * (m11 + m22)
-    A1 = m01 + m10
-    B1 = m02 + m20
-    A2 = 0.5 * (m11 - m22)
-    B2 = 0.5 * (m12 + m21)
+    return (m00 + 0.5 * (m11 + m22), m01 + m10, m02 + m20, 0.5 * (m11 - m22), 0.5 * (m12 + m21),
+            p00, p01, p02, p10, p11, p12, p20, p21, p22, q0, qt, cn, ct)
+
+
+@jit(error_model="numpy", inline="always")
+def _slide_point(t, b, a):
+    """``(rho, r0, r1, r2)``: the force on the boundary ray of angle ``a`` that solves the sliding
+    equations if ``g(a) = 0`` (``t`` from :func:`_slide_setup`); ``rho <= 0`` or NaN: none there."""
+    p00, p01, p02, p10, p11, p12, p20, p21, p22, q0, qt, cn, ct = t[5:]
+    c = np.cos(a)
+    s = np.sin(a)
+    wv0 = p00 + p10 * c + p20 * s
+    wv1 = p01 + p11 * c + p21 * s
+    wv2 = p02 + p12 * c + p22 * s
+    w1 = qt * c
+    w2 = qt * s
+    # -b = rho Wv - beta w  =>  -b x w = rho (Wv x w)
+    n0 = wv1 * w2 - wv2 * w1
+    n1 = wv2 * q0 - wv0 * w2
+    n2 = wv0 * w1 - wv1 * q0
+    nn = n0 * n0 + n1 * n1 + n2 * n2
+    bw0 = b[1] * w2 - b[2] * w1
+    bw1 = b[2] * q0 - b[0] * w2
+    bw2 = b[0] * w1 - b[1] * q0
+    rho = -(bw0 * n0 + bw1 * n1 + bw2 * n2) / nn if nn > 0.0 else np.nan
+    return rho, rho * cn, rho * ct * c, rho * ct * s
+
+
+@jit(error_model="numpy")
+def _slide_newton(W, b, bnorm, mu, desaxce, a, out):
+    """The sliding solution nearest the slip angle ``a``: Newton on ``g(a) = 0`` (a handful of scalar
+    steps from a warm start's angle), its force written to ``out``; returns its relative residual
+    (inf if the root gives none). Only a candidate: the caller keeps it if it meets the tolerance,
+    which makes it the solution (convex: the only one)."""
+    t = _slide_setup(W, b, mu, desaxce)
+    A0, A1, B1, A2, B2 = t[0], t[1], t[2], t[3], t[4]
+    for _ in range(12):
+        g, dg = _trig(np.cos(a), np.sin(a), 0, A0, A1, B1, A2, B2)
+        if not (dg != 0.0):
+            return np.inf
+        step = g / dg
+        a -= step
+        if abs(step) <= 1e-15:
+            break
+    rho, r0, r1, r2 = _slide_point(t, b, a)
+    if not (rho > 0.0):
+        return np.inf
+    out[0] = r0
+    out[1] = r1
+    out[2] = r2
+    return _rel(W, b, bnorm, mu, desaxce, r0, r1, r2)
+
+
+@jit(error_model="numpy")
+def _slide_failsafe(W, b, bnorm, mu, desaxce, best):
+    """Sliding solutions on the boundary ray ``r = rho v(a)``, ``v = (cN, cT cos a, cT sin a)``.
+
+    Sliding means ``W rho v(a) + b = beta w(a)`` with ``rho > 0``, ``beta >= 0`` and
+    ``w = (cT, -cN cos a, -cN sin a)`` (statics: the dual-cone generator orthogonal to
+    ``v``) or ``w = (0, -cos a, -sin a)`` (De Saxce: ``u_N = 0``, ``u_T`` against ``r_T``).
+    Then ``-b`` is in the span of ``W v(a)`` and ``w(a)``: ``g(a) = det[W v, w, b] = 0``,
+    a trigonometric polynomial of degree 2 (the quartic of Daviet et al. in
+    ``tan(a/2)``), whose real roots are bracketed and refined by ``_slide_angles``. The
+    candidate of smallest residual is written to ``best`` and its relative residual
+    returned (inf if there is none).
+    """
+    t = _slide_setup(W, b, mu, desaxce)
+    A0, A1, B1, A2, B2 = t[0], t[1], t[2], t[3], t[4]
     angles = np.empty(16)
     n = _slide_angles(A0, A1, B1, A2, B2, angles)
     # g may vanish identically (b with a symmetry): then try a few fixed angles
@@ -627,30 +682,9 @@ def _slide_failsafe(W, b, bnorm, mu, desaxce, best):
                 n += 1
     best_res = np.inf
     for k in range(n):
-        a = angles[k]
-        c = np.cos(a)
-        s = np.sin(a)
-        wv0 = p00 + p10 * c + p20 * s
-        wv1 = p01 + p11 * c + p21 * s
-        wv2 = p02 + p12 * c + p22 * s
-        w1 = qt * c
-        w2 = qt * s
-        # -b = rho Wv - beta w  =>  -b x w = rho (Wv x w)
-        n0 = wv1 * w2 - wv2 * w1
-        n1 = wv2 * q0 - wv0 * w2
-        n2 = wv0 * w1 - wv1 * q0
-        nn = n0 * n0 + n1 * n1 + n2 * n2
-        if not (nn > 0.0):
-            continue
-        bw0 = b1 * w2 - b2 * w1
-        bw1 = b2 * q0 - b0 * w2
-        bw2 = b0 * w1 - b1 * q0
-        rho = -(bw0 * n0 + bw1 * n1 + bw2 * n2) / nn
+        rho, r0, r1, r2 = _slide_point(t, b, angles[k])
         if not (rho > 0.0):
             continue
-        r0 = rho * cn
-        r1 = rho * ct * c
-        r2 = rho * ct * s
         res = _rel(W, b, bnorm, mu, desaxce, r0, r1, r2)
         if res < best_res:
             best_res = res
@@ -801,7 +835,15 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
         rh[0] = p0
         rh[1] = p1
         rh[2] = p2
-    res = _newton(Wh, bh, bnorm, mu, desaxce, rh, tol, max_iter, best, M, V)
+    # first the slip angle of that start, refined on the sliding equation: from a warm start a few
+    # scalar Newton steps, where the FB Newton takes 4-5 steps of 3x3 Jordan algebra
+    res = np.inf
+    slip = np.hypot(rh[1], rh[2])
+    if slip > 0.0 or np.hypot(bh[1], bh[2]) > 0.0:
+        a = np.arctan2(rh[2], rh[1]) if slip > 0.0 else np.arctan2(-bh[2], -bh[1])
+        res = _slide_newton(Wh, bh, bnorm, mu, desaxce, a, best)
+    if not (res <= tol):
+        res = _newton(Wh, bh, bnorm, mu, desaxce, rh, tol, max_iter, best, M, V)
     if not (res <= tol):
         # fail-safe: the sliding case in closed form
         fs = np.empty(3)
