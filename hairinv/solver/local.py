@@ -37,9 +37,13 @@ the paper's A.1, whose printed Jacobian has a published erratum, and is checked
 against finite differences in tests/test_solver_local.py.)
 
 Local solve (``solve_contact``): closed forms first (take-off, ``mu = 0``,
-``mu = inf``, sticking), then the FB Newton, then a fail-safe that finds every
-sliding solution as a root of a degree-2 trigonometric polynomial in the slip
-angle. The tolerance applies to ``relative_residual``, the natural-map residual
+``mu = inf``, sticking); then, for a sliding contact, the slip angle of the
+start (the warm start, else the projected sticking force) refined by scalar
+Newton steps on the sliding equation ``g(a) = 0``, kept if its force meets the
+tolerance (from a Gauss-Seidel warm start it nearly always does: sweeps on
+ruby's inverse problem became 1.4 times faster); else the FB Newton, then a
+fail-safe that finds every sliding solution as a root of that degree-2
+trigonometric polynomial in the slip angle. The tolerance applies to ``relative_residual``, the natural-map residual
 relative to ``|b| + rho |r|``; ``LOCAL_TOL = eps^(3/4)``.
 
 Numba options: every kernel uses ``error_model="numpy"`` (a division by zero
@@ -701,9 +705,10 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
     Steps (Daviet et al. 2011, appendix A; So-bogus ``SOCLaw``): take-off (``b`` in the
     dual cone: ``r = 0``); ``mu = 0`` (``r_N = max(0, -b_N / W_NN)``); ``mu = inf``
     (the half-space, two closed-form candidates); the sticking candidate
-    ``-W^-1 b`` if it lies in ``K_mu``; else a nonsmooth Newton on ``|FB|^2 / 2`` from
-    the better of the warm start and ``P_K(-W^-1 b)``, then, if it has not converged,
-    the sliding fail-safe (roots of a quartic in the slip angle), keeping the better
+    ``-W^-1 b`` if it lies in ``K_mu``; else, from the better of the warm start and
+    ``P_K(-W^-1 b)``, its slip angle refined on the sliding equation (kept if it meets
+    the tolerance), then a nonsmooth Newton on ``|FB|^2 / 2`` from that start, then, if
+    it has not converged, the sliding fail-safe (roots of a quartic in the slip angle), keeping the better
     of the two. Works internally on ``W / rho``, ``b / max|b|`` (``rho = trace W / 3``).
 
     Parameters
