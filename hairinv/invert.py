@@ -138,21 +138,6 @@ def target_shape(helices: Helices, target: str) -> np.ndarray:
     raise InputError(f"unknown inversion target {target!r}; choose one of {', '.join(TARGETS)}")
 
 
-@jit
-def _gravity_hessian_chunk(root, frame0, offsets, omega, length, lam, gravity, lo, hi, hess_ptr, hess):
-    """The Hessian of the gravity potential per strand (dense, row-major at ``hess[hess_ptr[s]:]``)."""
-    for s in range(lo, hi):
-        a = offsets[s]
-        z = offsets[s + 1]
-        m = 3 * (z - a)
-        out = np.empty((m, m))
-        gravity_hessian(root[s], frame0[s], omega[a:z], length[a:z], lam, gravity, out)
-        base = hess_ptr[s]
-        for i in range(m):
-            for j in range(m):
-                hess[base + i * m + j] = out[i, j]
-
-
 def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None = None,
               contacts: Contacts | None = None,
               carrying: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -171,15 +156,6 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
     shape (its input shape is unstable on this rod model).
     """
     S = helices.n_strands
-    counts = 3 * np.diff(helices.offsets)
-    hess_ptr = np.concatenate([[0], np.cumsum(counts ** 2)]).astype(np.int64)
-    hess = np.empty(hess_ptr[-1])
-
-    def work(lo: int, hi: int) -> None:
-        _gravity_hessian_chunk(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
-                               material.linear_density, material.gravity, lo, hi, hess_ptr, hess)
-
-    run_chunks(work, S, 256)
     # each strand's contact sides (a hair-hair contact counts on both its strands), strand by strand
     if rows is not None and contacts is not None and rows.n_contacts:
         side_strand = contacts.strand.ravel()
@@ -200,29 +176,37 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
     always = np.zeros(S, dtype=bool)
 
     def check(lo: int, hi: int) -> None:
-        _stability_chunk(helices.offsets, hess_ptr, hess, stiff, incident_ptr, incident, loaded, ptr, cols, vals,
-                         lo, hi, unstable, free, always)
+        _stability_chunk(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
+                         material.linear_density, material.gravity, stiff, incident_ptr, incident, loaded, ptr,
+                         cols, vals, lo, hi, unstable, free, always)
 
     run_chunks(check, S, 64)
     return unstable, free, always
 
 
+# an eigenvalue of the scaled Hessian I + K^-1/2 V'' K^-1/2 below this is a direction of instability
+_NEGATIVE = -1e-6
+
+
 @jit
-def _stability_chunk(offsets, hess_ptr, hess, stiff, incident_ptr, incident, loaded, ptr, cols, vals, lo, hi,
-                     unstable, free, always):
+def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, incident_ptr, incident, loaded,
+                     ptr, cols, vals, lo, hi, unstable, free, always):
     """:func:`stability` for strands ``lo`` to ``hi``."""
     for s in range(lo, hi):
-        c0 = 3 * offsets[s]
-        m = 3 * (offsets[s + 1] - offsets[s])
-        base = hess_ptr[s]
+        e0 = offsets[s]
+        e1 = offsets[s + 1]
+        c0 = 3 * e0
+        m = 3 * (e1 - e0)
+        hess = np.empty((m, m))
+        gravity_hessian(root[s], frame0[s], omega[e0:e1], length[e0:e1], lam, gravity, hess)
         # scaled by K^-1/2, so the test reads "eigenvalue of I + K^-1/2 V'' K^-1/2 below zero"
         scale = 1.0 / np.sqrt(stiff[c0:c0 + m])
         A = np.empty((m, m))
         for i in range(m):
             for j in range(m):
-                A[i, j] = 0.5 * (hess[base + i * m + j] + hess[base + j * m + i]) * scale[i] * scale[j]
+                A[i, j] = 0.5 * (hess[i, j] + hess[j, i]) * scale[i] * scale[j]
             A[i, i] += 1.0
-        free[s] = np.linalg.eigvalsh(A)[0] < -1e-6
+        free[s] = np.linalg.eigvalsh(A)[0] < _NEGATIVE
         n = incident_ptr[s + 1] - incident_ptr[s]
         if n == 0:
             unstable[s] = free[s]
@@ -264,7 +248,7 @@ def _unstable_held(A, C):
             U[k] = C[i] / norm
             k += 1
     if k == 0:
-        return np.linalg.eigvalsh(A)[0] < -1e-6
+        return np.linalg.eigvalsh(A)[0] < _NEGATIVE
     _, sv, vt = np.linalg.svd(U[:k])
     rank = 0
     for x in sv:
@@ -272,7 +256,7 @@ def _unstable_held(A, C):
     if rank == m:
         return False
     Z = np.ascontiguousarray(vt[rank:].T)
-    return np.linalg.eigvalsh(Z.T @ A @ Z)[0] < -1e-6
+    return np.linalg.eigvalsh(Z.T @ A @ Z)[0] < _NEGATIVE
 
 
 @dataclass
