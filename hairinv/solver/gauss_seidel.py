@@ -199,7 +199,7 @@ def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, desaxce, velocity
     worst = 0.0
     for i in range(ptr.shape[0] - 1):
         _contact_u(i, ptr, cols, vals, f, gamma, b, r, u)
-        if desaxce:
+        if desaxce and mu[i] < np.inf:  # (mu = inf: the dual cone is the ray u_T = 0, no De Saxce term)
             u[0] += mu[i] * np.sqrt(u[1] * u[1] + u[2] * u[2])
         rho = (Wd[i, 0, 0] + Wd[i, 1, 1] + Wd[i, 2, 2]) / 3.0
         for a in range(3):
