@@ -339,14 +339,23 @@ def points_on(helices: Helices, omega: np.ndarray, strand: np.ndarray, s: np.nda
 
 @jit
 def _largest_move(root, frame0, offsets, q_from, q_to, length):
-    """A bound on how far any centerline point has moved from ``q_from`` to ``q_to``, m.
+    """A bound on how far any centerline point has moved from ``q_from`` to ``q_to``, m
+    (the largest of :func:`_strand_moves`)."""
+    out = np.zeros(offsets.shape[0] - 1)
+    _strand_moves(root, frame0, offsets, q_from, q_to, length, out)
+    return out.max() if out.shape[0] else 0.0
+
+
+@jit
+def _strand_moves(root, frame0, offsets, q_from, q_to, length, out):
+    """Per strand, a bound on how far any of its centerline points has moved from ``q_from`` to ``q_to``, m.
 
     A point at ``sigma`` along element ``e`` is ``x_e + F_e^T P(sigma; omega_e)``, and ``P`` moves
     by at most ``sigma^2 |d omega_e| / 2`` (its tangent turns by at most ``sigma |d omega_e|``), so
     it moves by at most ``|dx_e| + ||dF_e||_F l_e + l_e^2 |d omega_e| / 2``.
     """
-    worst = 0.0
     for k in range(offsets.shape[0] - 1):
+        worst = 0.0
         a = offsets[k]
         z = offsets[k + 1]
         n = z - a
@@ -370,7 +379,7 @@ def _largest_move(root, frame0, offsets, q_from, q_to, length):
                         dF += (Fs1[e, i, j] - Fs0[e, i, j]) ** 2
                 bound += np.sqrt(dF) * length[a + e] + 0.5 * length[a + e] ** 2 * np.sqrt(dw)
             worst = max(worst, bound)
-    return worst
+        out[k] = worst
 
 
 @jit
@@ -466,7 +475,10 @@ class Simulation:
             self._impulse = np.einsum("cji,cj->ci", initial.frame, self._initial_impulse)[order]
         self.contacts = initial if initial is not None else Contacts.empty()
         self._last_found = None
-        self._reused = False  # whether this step's detection is the last one, reused
+        # which of this step's detected contacts come from an earlier shape (a detection reused, in
+        # whole or for the strands that have hardly moved)
+        self._stale = np.zeros(0, dtype=np.bool_)
+        self._redetected = 0  # strands detected afresh at this step
         used = ([contacts.hair_distance] if contacts.hair_hair else []) + ([contacts.body_distance]
                                                                          if contacts.body and body is not None else [])
         self._detect_distance = min(used) if used else np.inf
@@ -485,21 +497,59 @@ class Simulation:
         """This step's contacts: detected afresh once any strand point may have moved by more than a
         quarter of the smallest contact distance in use (the hair-hair one, or the body's without
         hair-hair contact) since the last detection (bounds: the elements' turns times the strand's
-        length, cheap, then :func:`_largest_move`, tighter); until then the
-        last detection is reused, and the remembered contacts are measured again where they are
-        (see :meth:`_persist`)."""
-        if self._last_found is not None and self.helices.n_elements:
-            h = self.helices
+        length, cheap, then :func:`_strand_moves`, tighter); until then the last detection is reused,
+        and the remembered contacts are measured again where they are (see :meth:`_persist`).
+
+        Without hair-hair contact the strands are detected one by one: only those that may have moved
+        by that much since their own last detection are detected again (the body does not move in its
+        frame), and the others keep theirs. In the ``motion`` scene about half the strands of the
+        300-strand groom are detected at a step.
+        """
+        h = self.helices
+        S = h.n_strands
+        if self._last_found is not None and h.n_elements:
             reach = 0.25 * self._detect_distance
             # first the cheap bound: every element's turn |d omega_e| l_e swings the whole strand
             turn = np.linalg.norm(self.q - self._q_detected, axis=1) * h.length
-            if (float((np.add.reduceat(turn, h.offsets[:-1]) * self._strand_length).max()) < reach
-                    or _largest_move(h.root, h.frame0, h.offsets, self._q_detected, self.q, h.length) < reach):
-                self._reused = True
+            redo = np.add.reduceat(turn, h.offsets[:-1]) * self._strand_length >= reach
+            if redo.any():
+                moves = np.zeros(S)
+                _strand_moves(h.root, h.frame0, h.offsets, self._q_detected, self.q, h.length, moves)
+                redo &= moves >= reach
+            if not redo.any():
+                self._stale = np.ones(self._last_found.n_contacts, dtype=np.bool_)
+                self._redetected = 0
                 return self._last_found
+            if not self.contact_settings.hair_hair and not redo.all():
+                return self._detect_strands(np.flatnonzero(redo))
         found, _ = detect_contacts(self.current(), self.body, self.contact_settings)
-        self._reused = False
+        self._stale = np.zeros(found.n_contacts, dtype=np.bool_)
+        self._redetected = S
         self._last_found, self._q_detected = found, self.q.copy()
+        return found
+
+    def _detect_strands(self, which: np.ndarray) -> Contacts:
+        """Body contacts only: the strands ``which`` detected afresh, the others' last detection kept."""
+        h = self.helices
+        counts = np.diff(h.offsets)
+        elements = np.concatenate([np.arange(h.offsets[k], h.offsets[k + 1]) for k in which])
+        sub = Helices(h.root[which], h.frame0[which], np.r_[0, np.cumsum(counts[which])].astype(np.int64),
+                      h.length[elements], self.q[elements], h.fit_error[which])
+        fresh, _ = detect_contacts(sub, self.body, self.contact_settings)
+        # back to the groom's numbering: strands, and elements (a body contact's second is -1)
+        fresh.strand[:, 0] = which[fresh.strand[:, 0]]
+        fresh.element[:, 0] = elements[fresh.element[:, 0]]
+        last = self._last_found
+        kept = last.subset(~np.isin(last.strand[:, 0], which))
+        merged = Contacts(*(np.concatenate([a, b]) for a, b in zip(
+            (kept.strand, kept.s, kept.point, kept.frame, kept.mu, kept.gap, kept.element),
+            (fresh.strand, fresh.s, fresh.point, fresh.frame, fresh.mu, fresh.gap, fresh.element))))
+        order = np.lexsort((merged.s[:, 0], merged.strand[:, 0]))  # as detect_contacts orders body contacts
+        found = merged.subset(order)
+        self._stale = (order < kept.n_contacts)
+        self._redetected = len(which)
+        self._q_detected[elements] = self.q[elements]
+        self._last_found = found
         return found
 
     def _keys_of(self, contacts: Contacts) -> np.ndarray:
@@ -542,9 +592,9 @@ class Simulation:
         arc lengths, its gap and normal are measured there, and it is kept as
         long as that gap stays within the detection distance.
 
-        A detection reused from an earlier shape (see :meth:`_detect`) was made
-        there: all its contacts are measured again at their arc lengths, and none
-        moves to its (stale) detected point.
+        A detection reused from an earlier shape (see :meth:`_detect`), in whole
+        or for some strands, was made there: all its contacts are measured again at
+        their arc lengths, and none moves to its (stale) detected point.
 
         A body contact whose point has moved by less than ``tolerance g dt^2 / 4``
         since its gap was last measured exactly (its anchor) takes the gap to first
@@ -556,7 +606,7 @@ class Simulation:
         Returns the contacts and their anchors (point, normal, gap; NaN points for
         hair-hair contacts), for :meth:`_step` to remember.
         """
-        if self._first or not (len(self._keys) or self._reused):
+        if self._first or not (len(self._keys) or self._stale.any()):
             # the first step meets the starting contacts as detected (see _remember), and so does a
             # fresh detection with nothing remembered
             return found, self._anchors_of(found, np.arange(found.n_contacts))
@@ -572,10 +622,9 @@ class Simulation:
         mu = np.concatenate([found.mu, self._mu[extra]])
         element = np.concatenate([self._elements_of(found), self._elements[extra]])
         old_frame = np.concatenate([found.frame, np.zeros((len(extra), 3, 3))])
-        # measured again: the remembered contacts; with a reused detection, every contact (its points,
+        # measured again: the remembered contacts, and every contact of a reused detection (its points,
         # gaps and normals are from the shape it was made on)
-        redo = (np.arange(len(strand)) if self._reused
-                else np.concatenate([np.flatnonzero(known), found.n_contacts + np.arange(len(extra))]))
+        redo = np.flatnonzero(np.concatenate([known | self._stale, np.ones(len(extra), dtype=np.bool_)]))
         gap = np.concatenate([found.gap if found.gap is not None else np.zeros(found.n_contacts),
                               np.zeros(len(extra))])
         # each contact's anchor: the remembered one where it is remembered, else none yet
@@ -635,8 +684,7 @@ class Simulation:
         redetected = np.flatnonzero(known)
         detected_gap = found.gap[redetected] if found.gap is not None else gap[redetected]
         # (not from a reused detection: its closest points are not this shape's)
-        moved = (redetected[gap[redetected] > detected_gap + _PERSIST_SLACK] if not self._reused
-                 else redetected[:0])
+        moved = redetected[(gap[redetected] > detected_gap + _PERSIST_SLACK) & ~self._stale[redetected]]
         arc[moved], point[moved], frame[moved], gap[moved] = (found.s[moved], found.point[moved], found.frame[moved],
                                                               detected_gap[np.searchsorted(redetected, moved)])
         keep[moved] = True
