@@ -233,6 +233,44 @@ def _desaxce_violation(rows, gamma, b, mu, r):
     return max(cone.max(), dual.max(), gap.max())
 
 
+@pytest.mark.parametrize("mu", [0.0, 0.3, 1.0, 2.5, np.inf])
+def test_the_stacked_de_saxce_fb_jacobian_is_its_derivative(mu):
+    """The Jacobian the strand's Newton steps use, against central differences of the stacked FB
+    function ``phi_i = FB(x_i, u~_i)`` written here from ``fb_function`` (scaled forces
+    ``x_i = rho_i r_i``, a different rho per contact, contacts with different mu in one group)."""
+    from hairinv.dynamics.contact import _group_merit
+    from hairinv.solver.local import fb_function
+
+    rng = np.random.default_rng(3)
+    m = 4
+    n = 3 * m
+    A = rng.normal(size=(n, n)) * np.repeat([1.0, 10.0, 0.1, 3.0], 3)
+    W = A @ A.T + 0.1 * np.eye(n)
+    q = rng.normal(size=n)
+    rho = np.array([0.5, 30.0, 0.02, 2.0])
+    mus = np.array([mu, 0.3, mu, 1.0])
+    x = rng.normal(size=n)
+    x[::3] = np.abs(x[::3]) + 0.5  # in the interior of the cones' neighbourhood: away from the kinks
+
+    def phi_of(x):
+        u = W @ (x / np.repeat(rho, 3)) + q
+        out = np.empty(n)
+        for a in range(m):
+            ua = u[3 * a:3 * a + 3].copy()
+            if np.isfinite(mus[a]):
+                ua[0] += mus[a] * np.hypot(ua[1], ua[2])
+            fb_function(x[3 * a:3 * a + 3].copy(), ua, mus[a], out[3 * a:3 * a + 3])
+        return out
+
+    u, phi, G = np.empty(n), np.empty(n), np.empty((n, n))
+    merit, _ = _group_merit(W, n, q, rho, mus, x, u, phi, G, np.empty((3, 3)), np.empty((3, 3)), True)
+    np.testing.assert_allclose(phi, phi_of(x), rtol=0, atol=1e-12 * np.abs(phi).max())
+    assert merit == pytest.approx(0.5 * phi @ phi, rel=1e-12)
+    eps = 1e-6
+    numeric = np.column_stack([(phi_of(x + eps * e) - phi_of(x - eps * e)) / (2 * eps) for e in np.eye(n)])
+    assert np.abs(G - numeric).max() <= 1e-6 * np.abs(numeric).max()
+
+
 @pytest.mark.parametrize("mu", [0.0, 0.3, 1.0, np.inf])
 def test_a_strands_body_contacts_solved_together_meet_the_de_saxce_law(mu):
     """Each strand's body contacts solved at once (Newton on the stacked De Saxce FB function): the

@@ -684,8 +684,10 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
             best, best_r = residual, r.copy()
         if residual <= target:
             status = CONVERGED
-        else:
+        elif (~done).any():
             groups = _subset_groups(groups, ~done)  # the rounds need not touch the strands Newton solved
+        else:
+            rounds = max_rounds  # each strand met the tolerance by its own count: the fail-safe's sweeps polish
     while status == MAX_ITERS and sweeps < max_sweeps and rounds < max_rounds:
         u = contact_velocities(rows, gamma, b, r)
         shifted = b.copy()

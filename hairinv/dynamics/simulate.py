@@ -515,7 +515,11 @@ class Simulation:
             if redo.any():
                 moves = np.zeros(S)
                 _strand_moves(h.root, h.frame0, h.offsets, self._q_detected, self.q, h.length, moves)
-                redo &= moves >= reach
+                if self.contact_settings.hair_hair:
+                    # a pair of strands: the whole groom is detected again, or not at all
+                    redo[:] = moves.max() >= reach
+                else:
+                    redo &= moves >= reach  # either bound will do, strand by strand
             if not redo.any():
                 self._stale = np.ones(self._last_found.n_contacts, dtype=np.bool_)
                 self._redetected = 0
