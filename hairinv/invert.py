@@ -33,7 +33,8 @@ from .contacts import Contacts
 from .errors import InputError, RunError
 from .fit import Helices
 from .rod.statics import gravity_forces, gravity_hessian
-from .solver.gauss_seidel import CONVERGED, SolverResult, solve_cone_qp, split_strands
+from .solver.blocks import _group_newton, strand_blocks
+from .solver.gauss_seidel import CONVERGED, SolverResult, diagonal_blocks, solve_cone_qp, split_strands
 from .solver.rows import ContactRows, contact_rows
 
 __all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness", "generalized_gravity",
@@ -342,6 +343,33 @@ class InvertReport:
         return lines
 
 
+#: Newton iterations of a strand's contacts solved together (:func:`_strands_at_once`)
+STRAND_NEWTON_ITERS = 50
+
+
+def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray, contacts: Contacts,
+                     target: float) -> np.ndarray:
+    """Body contacts only: the strands do not interact, so each strand's contacts are solved together,
+    by nonsmooth Newton on their dense block of ``W`` (:mod:`hairinv.solver.blocks`) to the natural-map
+    residual ``target`` (N). The forces are the Gauss-Seidel's warm start, which then has little or
+    nothing left to do: 300 settled strands (target zero, tolerance 1e-4) need 5 sweeps instead of
+    1,420 (0.02 s instead of 0.63 s), and at 1e-6 converge in 1,530 where 2,000 sweeps stopped at 8e-5;
+    a few strands (2 to 19 of the 300) have blocks too ill-conditioned for the Newton steps."""
+    n = contacts.n_contacts
+    scaled = ContactRows(rows.ptr, rows.cols, rows.vals * np.sqrt(d[rows.cols])[:, None], rows.n_dofs)
+    gammas = np.full(n, float(gamma))
+    members, group_ptr, block_ptr, blocks = strand_blocks(scaled, gammas, contacts.strand)
+    Wd = np.empty((n, 3, 3))
+    diagonal_blocks(scaled.ptr, scaled.cols, scaled.vals, np.ones(rows.n_dofs), gammas, Wd)
+    r = np.zeros((n, 3))
+    f = np.zeros(rows.n_dofs)
+    done = np.zeros(len(group_ptr) - 1, dtype=np.bool_)
+    run_chunks(lambda lo, hi: _group_newton(scaled.ptr, scaled.cols, scaled.vals, gammas, b, contacts.mu, members,
+                                            group_ptr, block_ptr, blocks, Wd, r, f, target, STRAND_NEWTON_ITERS,
+                                            False, False, lo, hi, done), len(done), 16)
+    return r
+
+
 def validate_settings(settings: SolverSettings) -> None:
     if settings.target not in TARGETS:
         raise InputError(f"unknown inversion target {settings.target!r}; choose one of {', '.join(TARGETS)}")
@@ -389,8 +417,11 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     b = rows.matvec(g)
     strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
     force_scale = material.linear_density * np.linalg.norm(material.gravity) * float(strand_length.max())
+    r0 = None
+    if contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0):
+        r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
     result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, helices.n_strands,
-                           force_scale, settings.tolerance, settings.max_sweeps, settings.check_every,
+                           force_scale, settings.tolerance, settings.max_sweeps, settings.check_every, r0=r0,
                            progress=progress, s=contacts.s, accelerate=settings.accelerate,
                            part_of=split_strands(helices.root, contacts.strand),
                            max_seconds=settings.max_seconds)

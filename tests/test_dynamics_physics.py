@@ -238,7 +238,7 @@ def test_the_stacked_de_saxce_fb_jacobian_is_its_derivative(mu):
     """The Jacobian the strand's Newton steps use, against central differences of the stacked FB
     function ``phi_i = FB(x_i, u~_i)`` written here from ``fb_function`` (scaled forces
     ``x_i = rho_i r_i``, a different rho per contact, contacts with different mu in one group)."""
-    from hairinv.dynamics.contact import _group_merit
+    from hairinv.solver.blocks import _group_merit
     from hairinv.solver.local import fb_function
 
     rng = np.random.default_rng(3)
@@ -263,7 +263,8 @@ def test_the_stacked_de_saxce_fb_jacobian_is_its_derivative(mu):
         return out
 
     u, phi, G = np.empty(n), np.empty(n), np.empty((n, n))
-    merit, _ = _group_merit(W, n, q, rho, mus, x, u, phi, G, np.empty((3, 3)), np.empty((3, 3)), True)
+    merit, _ = _group_merit(W, n, q, rho, mus, x, u, phi, G, np.empty((3, 3)), np.empty((3, 3)), True,
+                            True, True)
     np.testing.assert_allclose(phi, phi_of(x), rtol=0, atol=1e-12 * np.abs(phi).max())
     assert merit == pytest.approx(0.5 * phi @ phi, rel=1e-12)
     eps = 1e-6
@@ -276,7 +277,8 @@ def test_a_strands_body_contacts_solved_together_meet_the_de_saxce_law(mu):
     """Each strand's body contacts solved at once (Newton on the stacked De Saxce FB function): the
     forces are in the cones, the De Saxce velocities in the dual cones and complementary, checked on
     the dense W; and a strand it does not finish is finished by the rounds that follow."""
-    from hairinv.dynamics.contact import _group_newton, strand_groups
+    from hairinv.dynamics.contact import strand_groups
+    from hairinv.solver.blocks import _group_newton
     from hairinv.solver.gauss_seidel import _accumulate_f
 
     rng = np.random.default_rng(5)
@@ -290,7 +292,7 @@ def test_a_strands_body_contacts_solved_together_meet_the_de_saxce_law(mu):
     f = np.zeros(rows.n_dofs)
     done = np.zeros(len(group_ptr) - 1, np.bool_)
     _group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mus, members, group_ptr, block_ptr, blocks, Wd, r, f,
-                  target, 30, 0, len(group_ptr) - 1, done)
+                  target, 30, True, True, 0, len(group_ptr) - 1, done)
     assert done.all()
     assert _desaxce_violation(rows, gamma, b, mus, r) < 1e-8 * np.abs(b).max()
     assert desaxce_residual(rows, gamma, b, mus, r, Wd) <= target  # the solver's own stop test agrees

@@ -21,7 +21,8 @@ from .._jit import jit
 from .._parallel import run_chunks
 from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult, _accumulate_f, diagonal_blocks,
                                    natural_residuals, solve_cone_qp)
-from ..solver.local import LOCAL_TOL, NUMERICAL_ERROR, _fb_coulomb, _nat, solve_contact
+from ..solver.blocks import _group_newton, strand_blocks
+from ..solver.local import LOCAL_TOL, NUMERICAL_ERROR, solve_contact
 from ..solver.rows import ContactRows
 
 __all__ = ["REACH", "back_substitute", "contact_keys", "contact_velocities", "delassus_blocks", "desaxce_residual",
@@ -216,34 +217,6 @@ def desaxce_residual(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np
 
 
 @jit
-def _group_blocks(ptr, cols, vals, gamma, members, group_ptr, block_ptr, blocks, n_dofs):
-    """Dense ``W_g = Z_g^T Z_g + gamma`` of every group of contacts, row-major at ``blocks[block_ptr[g]:]``."""
-    scratch = np.zeros((n_dofs, 3))
-    for g in range(group_ptr.shape[0] - 1):
-        lo = group_ptr[g]
-        m = group_ptr[g + 1] - lo
-        n = 3 * m
-        base = block_ptr[g]
-        for a in range(m):
-            i = members[lo + a]
-            for t in range(ptr[i], ptr[i + 1]):
-                for row in range(3):
-                    scratch[cols[t], row] = vals[t, row]
-            for c in range(m):
-                j = members[lo + c]
-                for t in range(ptr[j], ptr[j + 1]):
-                    col = cols[t]
-                    for ra in range(3):
-                        for rc in range(3):
-                            blocks[base + (3 * a + ra) * n + 3 * c + rc] += scratch[col, ra] * vals[t, rc]
-            for ra in range(3):
-                blocks[base + (3 * a + ra) * n + 3 * a + ra] += gamma[i]
-            for t in range(ptr[i], ptr[i + 1]):
-                for row in range(3):
-                    scratch[cols[t], row] = 0.0
-
-
-@jit
 def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, r, f, inner_max, g_lo, g_hi,
                  errors):
     """A sweep over the groups ``g_lo:g_hi``: each group's contacts solved together (Gauss-Seidel on
@@ -311,244 +284,12 @@ def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, b
     errors[g_lo] += numerical
 
 
-@jit
-def _solve_dense(A, rhs, out, n):
-    """Gaussian elimination with partial pivoting on the leading ``n x n`` system; False if (nearly)
-    singular. ``A`` and ``rhs`` are overwritten."""
-    scale = 0.0
-    for i in range(n):
-        for j in range(n):
-            scale = max(scale, abs(A[i, j]))
-    if not (scale > 0.0) or scale == np.inf:
-        return False
-    for k in range(n):
-        p = k
-        for i in range(k + 1, n):
-            if abs(A[i, k]) > abs(A[p, k]):
-                p = i
-        if not (abs(A[p, k]) > 1e-14 * scale):
-            return False
-        if p != k:
-            for j in range(n):
-                A[k, j], A[p, j] = A[p, j], A[k, j]
-            rhs[k], rhs[p] = rhs[p], rhs[k]
-        for i in range(k + 1, n):
-            f = A[i, k] / A[k, k]
-            if f != 0.0:
-                for j in range(k, n):
-                    A[i, j] -= f * A[k, j]
-                rhs[i] -= f * rhs[k]
-    for k in range(n - 1, -1, -1):
-        s = rhs[k]
-        for j in range(k + 1, n):
-            s -= A[k, j] * out[j]
-        out[k] = s / A[k, k]
-    return True
-
-
-@jit
-def _group_merit(W, n, q, rho, mu, x, u, phi, G, Jr, Ju, jac):
-    """The stacked De Saxce FB function of one group at scaled forces ``x_i = rho_i r_i``:
-    ``phi_i = FB(x_i, u_i + mu_i |u_T,i| e_N)`` with ``u = W r + q``; with ``jac`` also
-    ``G = d phi / d x``. Returns ``|phi|^2 / 2`` and the largest natural-map residual
-    ``|x_i - P_K(x_i - u~_i)|`` (velocity units)."""
-    m = n // 3
-    for a in range(n):
-        acc = q[a]
-        for c in range(n):
-            acc += W[a, c] * x[c] / rho[c // 3]
-        u[a] = acc
-    merit = 0.0
-    worst = 0.0
-    for a in range(m):
-        k = 3 * a
-        mk = mu[a]
-        u0, u1, u2 = u[k], u[k + 1], u[k + 2]
-        ds = mk > 0.0 and mk < np.inf
-        nt = np.sqrt(u1 * u1 + u2 * u2)
-        v0 = u0 + mk * nt if ds else u0
-        e = _nat(x[k], x[k + 1], x[k + 2], u0, u1, u2, mk, True)
-        if not (e <= worst):
-            worst = e
-        _fb_coulomb(x[k], x[k + 1], x[k + 2], v0, u1, u2, mk, phi[k:k + 3], Jr, Ju, jac)
-        merit += 0.5 * (phi[k] ** 2 + phi[k + 1] ** 2 + phi[k + 2] ** 2)
-        if jac:
-            # d u~_a / d x_c = T_a W_ac / rho_c, T_a = I + e_N (mu u_T / |u_T|)' (0 at u_T = 0)
-            t1 = mk * u1 / nt if ds and nt > 0.0 else 0.0
-            t2 = mk * u2 / nt if ds and nt > 0.0 else 0.0
-            for c in range(n):
-                s = 1.0 / rho[c // 3]
-                d0 = (W[k, c] + t1 * W[k + 1, c] + t2 * W[k + 2, c]) * s
-                d1 = W[k + 1, c] * s
-                d2 = W[k + 2, c] * s
-                for i in range(3):
-                    G[k + i, c] = Ju[i, 0] * d0 + Ju[i, 1] * d1 + Ju[i, 2] * d2
-            for i in range(3):
-                for j in range(3):
-                    G[k + i, k + j] += Jr[i, j]
-    return merit, worst
-
-
-@jit
-def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, Wd, r, f, target,
-                  max_iter, g_lo, g_hi, done):
-    """Each group's De Saxce problem ``K ∋ r_g ⟂ u~_g`` solved at once, the other groups frozen: nonsmooth
-    Newton on the stacked FB function of the scaled forces ``x_i = rho_i r_i`` (``rho_i = trace W_ii / 3``,
-    so that ``x`` and ``u`` share velocity units), with Armijo steps on ``|phi|^2 / 2`` and steepest
-    descent where the Newton direction does not descend. A group keeps the iterate whose largest
-    natural-map residual is smallest (the start included); ``done[g]``: whether it meets ``target``."""
-    big = 0
-    for g in range(g_lo, g_hi):
-        big = max(big, group_ptr[g + 1] - group_ptr[g])
-    nb = 3 * big
-    W = np.empty((nb, nb))
-    G = np.empty((nb, nb))
-    Gt = np.empty((nb, nb))
-    A = np.empty((nb, nb))
-    Jr = np.empty((3, 3))
-    Ju = np.empty((3, 3))
-    q = np.empty(nb)
-    x = np.empty(nb)
-    xt = np.empty(nb)
-    xbest = np.empty(nb)
-    u = np.empty(nb)
-    phi = np.empty(nb)
-    phit = np.empty(nb)
-    rhs = np.empty(nb)
-    d = np.empty(nb)
-    grad = np.empty(nb)
-    rho = np.empty(big)
-    mug = np.empty(big)
-    Wk = np.empty((3, 3))
-    bl = np.empty(3)
-    rk = np.empty(3)
-    for g in range(g_lo, g_hi):
-        lo = group_ptr[g]
-        m = group_ptr[g + 1] - lo
-        n = 3 * m
-        base = block_ptr[g]
-        for a in range(n):
-            for c in range(n):
-                W[a, c] = blocks[base + a * n + c]
-        for a in range(m):
-            i = members[lo + a]
-            rho[a] = (Wd[i, 0, 0] + Wd[i, 1, 1] + Wd[i, 2, 2]) / 3.0
-            mug[a] = mu[i]
-            for row in range(3):
-                acc = b[i, row] + gamma[i] * r[i, row]
-                for t in range(ptr[i], ptr[i + 1]):
-                    acc += vals[t, row] * f[cols[t]]
-                q[3 * a + row] = acc
-                x[3 * a + row] = rho[a] * r[i, row]
-        # q = u - W_g r_g: what the group sees of b and of the other groups
-        for a in range(n):
-            acc = 0.0
-            for c in range(n):
-                acc += W[a, c] * x[c] / rho[c // 3]
-            q[a] -= acc
-        merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True)
-        best = worst
-        improved = False
-        for a in range(n):
-            xbest[a] = x[a]
-        for _ in range(max_iter):
-            if best <= target or not np.isfinite(merit):
-                break
-            for a in range(n):
-                acc = 0.0
-                for c in range(n):
-                    acc += G[c, a] * phi[c]
-                grad[a] = acc
-                rhs[a] = -phi[a]
-                for c in range(n):
-                    A[a, c] = G[a, c]
-            ok = _solve_dense(A, rhs, d, n)
-            slope = 0.0
-            if ok:
-                for a in range(n):
-                    slope += grad[a] * d[a]
-            if not ok or not (slope < 0.0):
-                slope = 0.0
-                for a in range(n):
-                    d[a] = -grad[a]
-                    slope -= grad[a] * grad[a]
-            t = 1.0
-            accepted = False
-            mt = merit
-            wt = worst
-            if slope < 0.0:
-                for _h in range(30):
-                    for a in range(n):
-                        xt[a] = x[a] + t * d[a]
-                    mt, wt = _group_merit(W, n, q, rho, mug, xt, u, phit, Gt, Jr, Ju, True)
-                    if mt <= merit + 1e-4 * t * slope:
-                        accepted = True
-                        break
-                    t *= 0.5
-            if accepted:
-                merit = mt
-                worst = wt
-                for a in range(n):
-                    x[a] = xt[a]
-                    phi[a] = phit[a]
-                    for c in range(n):
-                        G[a, c] = Gt[a, c]
-            else:
-                # a kink of the FB function or of |u_T| stops the descent: one Gauss-Seidel pass of exact
-                # local solves moves off it
-                for a in range(m):
-                    k = 3 * a
-                    for ra in range(3):
-                        acc = q[k + ra]
-                        for c in range(n):
-                            if c // 3 != a:
-                                acc += W[k + ra, c] * x[c] / rho[c // 3]
-                        bl[ra] = acc
-                        rk[ra] = x[k + ra] / rho[a]
-                        for rc in range(3):
-                            Wk[ra, rc] = W[k + ra, k + rc]
-                    status, _ = solve_contact(Wk, bl, mug[a], rk, LOCAL_TOL, 50, True)
-                    if status != NUMERICAL_ERROR:
-                        for ra in range(3):
-                            x[k + ra] = rho[a] * rk[ra]
-                merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True)
-            if worst < best:
-                best = worst
-                improved = True
-                for a in range(n):
-                    xbest[a] = x[a]
-        done[g] = best <= target
-        if not improved:
-            continue  # r untouched, bit for bit
-        for a in range(m):
-            i = members[lo + a]
-            d0 = xbest[3 * a] / rho[a] - r[i, 0]
-            d1 = xbest[3 * a + 1] / rho[a] - r[i, 1]
-            d2 = xbest[3 * a + 2] / rho[a] - r[i, 2]
-            r[i, 0] += d0
-            r[i, 1] += d1
-            r[i, 2] += d2
-            for t in range(ptr[i], ptr[i + 1]):
-                f[cols[t]] += vals[t, 0] * d0 + vals[t, 1] * d1 + vals[t, 2] * d2
-
-
 def strand_groups(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray, Wd: np.ndarray | None = None) -> tuple:
     """The groups of :func:`solve_strand_blocks` and their dense blocks (for several solves on the same rows).
 
     ``Wd``: the blocks ``W_ii`` (:func:`delassus_blocks`), if already at hand.
     """
-    n = rows.n_contacts
-    body = strand[:, 1] < 0
-    key = np.where(body, strand[:, 0], len(strand) + np.arange(n)) if n else np.zeros(0, np.int64)
-    members = np.argsort(key, kind="stable").astype(np.int64)
-    sorted_key = key[members]
-    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]]) if n else np.zeros(0, np.int64)
-    group_ptr = np.r_[starts, n].astype(np.int64)
-    sizes = (3 * np.diff(group_ptr)) ** 2
-    block_ptr = np.r_[0, np.cumsum(sizes)].astype(np.int64)
-    blocks = np.zeros(int(block_ptr[-1]))
-    _group_blocks(rows.ptr, rows.cols, rows.vals, gamma, members, group_ptr, block_ptr, blocks, rows.n_dofs)
-    return members, group_ptr, block_ptr, blocks, delassus_blocks(rows, gamma) if Wd is None else Wd
+    return (*strand_blocks(rows, gamma, strand), delassus_blocks(rows, gamma) if Wd is None else Wd)
 
 
 def _subset_groups(groups: tuple, keep: np.ndarray) -> tuple:
@@ -675,8 +416,8 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         n_groups = len(group_ptr) - 1
         done = np.zeros(n_groups, dtype=np.bool_)
         run_chunks(lambda lo, hi: _group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members, group_ptr,
-                                                block_ptr, blocks_g, Wd, r, f, target, GROUP_NEWTON_ITERS, lo, hi,
-                                                done), n_groups, max(16, -(-n_groups // 8)))
+                                                block_ptr, blocks_g, Wd, r, f, target, GROUP_NEWTON_ITERS, True, True,
+                                                lo, hi, done), n_groups, max(16, -(-n_groups // 8)))
         sweeps += 1
         residual = desaxce_residual(rows, gamma, b, mu, r, Wd)
         history.append((sweeps, residual))
