@@ -450,6 +450,9 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         time.perf_counter() - started,
     )
     report.unstable_held = unstable_held
+    if r0 is not None:
+        report.notes.append("no contact couples two strands: each strand's contacts were first solved together "
+                            "(Newton on their block), and the sweeps started from those forces")
     if result.status != CONVERGED:
         report.notes.append(
             f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "

@@ -255,6 +255,7 @@ def test_body_contacts_only_are_solved_strand_by_strand_at_once(mu, monkeypatch)
     mat = material()
     _, loose = solve(helices, contacts, mat, tolerance=1e-6)
     assert loose.result.status == "CONVERGED" and loose.result.sweeps == 0
+    assert any("each strand's contacts were first solved together" in line for line in loose.lines())
     model, report = solve(helices, contacts, mat)
     assert report.result.status == "CONVERGED" and report.carrying > 0
     W, b, _, _ = dense_problem(helices, contacts, mat, model)
