@@ -67,7 +67,7 @@ def strand_blocks(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray) -> t
     return members, group_ptr, block_ptr, blocks
 
 
-@jit
+@jit(error_model="numpy")
 def _solve_dense(A, rhs, out, n):
     """Gaussian elimination with partial pivoting on the leading ``n x n`` system; False if (nearly)
     singular. ``A`` and ``rhs`` are overwritten."""
@@ -102,7 +102,7 @@ def _solve_dense(A, rhs, out, n):
     return True
 
 
-@jit
+@jit(error_model="numpy")
 def _group_merit(W, n, q, rho, mu, x, u, phi, G, Jr, Ju, jac, desaxce, velocity):
     """The stacked FB function of one group at scaled forces ``x_i = rho_i r_i``:
     ``phi_i = FB(x_i, u_i)`` with ``u = W r + q`` (with ``desaxce``, the De Saxce velocity
@@ -148,7 +148,7 @@ def _group_merit(W, n, q, rho, mu, x, u, phi, G, Jr, Ju, jac, desaxce, velocity)
     return merit, worst
 
 
-@jit
+@jit(error_model="numpy")
 def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, Wd, r, f, target,
                   max_iter, desaxce, velocity, g_lo, g_hi, done):
     """Each group's cone problem ``K ∋ r_g ⟂ u_g`` (with ``desaxce`` the De Saxce one, ``u~_g``) solved
@@ -191,9 +191,17 @@ def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, 
         for a in range(n):
             for c in range(n):
                 W[a, c] = blocks[base + a * n + c]
+        degenerate = False
         for a in range(m):
             i = members[lo + a]
             rho[a] = (Wd[i, 0, 0] + Wd[i, 1, 1] + Wd[i, 2, 2]) / 3.0
+            if not (rho[a] > 0.0 and rho[a] < np.inf):
+                degenerate = True
+        if degenerate:
+            done[g] = False
+            continue  # a contact no coordinate moves (or a non-finite W): left to the local solves' checks
+        for a in range(m):
+            i = members[lo + a]
             mug[a] = mu[i]
             for row in range(3):
                 acc = b[i, row] + gamma[i] * r[i, row]
