@@ -255,9 +255,9 @@ def test_strand_blocks_solve_the_cone_problem_like_an_interior_point():
 @pytest.mark.parametrize("size", [1e-6, 1e-3, 0.1])
 def test_the_detection_bounds_hold_at_every_point(rng, size):
     """Both re-detection bounds hold for every centerline point (sampled densely here): the cheap
-    one (each element's turn swings its whole strand) and ``_largest_move``, which for small
+    one (each element's turn swings its whole strand) and ``_strand_moves``, which for small
     changes is within a few times the true largest displacement."""
-    from hairinv.dynamics.simulate import _largest_move
+    from hairinv.dynamics.simulate import _strand_moves
     from hairinv.rod.helix import points_at
 
     helices, _ = two_strand_scene()
@@ -270,7 +270,9 @@ def test_the_detection_bounds_hold_at_every_point(rng, size):
         points_at(helices.root[k], helices.frame0[k], helices.omega[a:z], helices.length[a:z], s, x0)
         points_at(helices.root[k], helices.frame0[k], q_to[a:z], helices.length[a:z], s, x1)
         true = max(true, np.linalg.norm(x1 - x0, axis=1).max())
-    bound = _largest_move(helices.root, helices.frame0, helices.offsets, helices.omega, q_to, helices.length)
+    moves = np.zeros(helices.n_strands)
+    _strand_moves(helices.root, helices.frame0, helices.offsets, helices.omega, q_to, helices.length, moves)
+    bound = moves.max()
     assert true <= bound
     assert bound <= 4.0 * true
     turn = np.linalg.norm(q_to - helices.omega, axis=1) * helices.length

@@ -21,8 +21,7 @@ from .._jit import jit
 from .._parallel import run_chunks
 from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult, _accumulate_f, diagonal_blocks,
                                    natural_residuals, solve_cone_qp)
-from ..solver.blocks import _group_newton, strand_blocks
-from ..solver.local import LOCAL_TOL, NUMERICAL_ERROR, solve_contact
+from ..solver.blocks import _block_sweep, _group_newton, strand_blocks
 from ..solver.rows import ContactRows
 
 __all__ = ["REACH", "back_substitute", "contact_keys", "contact_velocities", "delassus_blocks", "desaxce_residual",
@@ -216,74 +215,6 @@ def desaxce_residual(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np
     return float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, True, True, per))
 
 
-@jit
-def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, r, f, inner_max, g_lo, g_hi,
-                 errors):
-    """A sweep over the groups ``g_lo:g_hi``: each group's contacts solved together (Gauss-Seidel on
-    its dense block until the forces stop changing, at most ``inner_max`` times) with the other groups
-    frozen. Counts numerical errors in ``errors[g_lo]``."""
-    numerical = 0
-    Wk = np.empty((3, 3))
-    bl = np.empty(3)
-    rk = np.empty(3)
-    for g in range(g_lo, g_hi):
-        lo = group_ptr[g]
-        m = group_ptr[g + 1] - lo
-        n = 3 * m
-        base = block_ptr[g]
-        # q = u - W_g r_g: what the group sees of b and of the other groups
-        q = np.empty(n)
-        old = np.empty(n)
-        for a in range(m):
-            i = members[lo + a]
-            for row in range(3):
-                acc = b[i, row] + gamma[i] * r[i, row]
-                for t in range(ptr[i], ptr[i + 1]):
-                    acc += vals[t, row] * f[cols[t]]
-                q[3 * a + row] = acc
-                old[3 * a + row] = r[i, row]
-        for a in range(n):
-            acc = 0.0
-            for c in range(n):
-                acc += blocks[base + a * n + c] * old[c]
-            q[a] -= acc
-        x = old.copy()
-        for sweep in range(inner_max):
-            change = 0.0
-            size = 0.0
-            for a in range(m):
-                for ra in range(3):
-                    acc = q[3 * a + ra]
-                    for c in range(n):
-                        if c // 3 != a:
-                            acc += blocks[base + (3 * a + ra) * n + c] * x[c]
-                    bl[ra] = acc
-                    for rc in range(3):
-                        Wk[ra, rc] = blocks[base + (3 * a + ra) * n + 3 * a + rc]
-                    rk[ra] = x[3 * a + ra]
-                status, _ = solve_contact(Wk, bl, mu[members[lo + a]], rk, LOCAL_TOL, 50, False)
-                if status == NUMERICAL_ERROR:
-                    numerical += 1
-                    continue
-                for ra in range(3):
-                    change = max(change, abs(rk[ra] - x[3 * a + ra]))
-                    size = max(size, abs(rk[ra]))
-                    x[3 * a + ra] = rk[ra]
-            if m == 1 or change <= 1e-9 * size:
-                break
-        for a in range(m):
-            i = members[lo + a]
-            d0 = x[3 * a] - r[i, 0]
-            d1 = x[3 * a + 1] - r[i, 1]
-            d2 = x[3 * a + 2] - r[i, 2]
-            r[i, 0] = x[3 * a]
-            r[i, 1] = x[3 * a + 1]
-            r[i, 2] = x[3 * a + 2]
-            for t in range(ptr[i], ptr[i + 1]):
-                f[cols[t]] += vals[t, 0] * d0 + vals[t, 1] * d1 + vals[t, 2] * d2
-    errors[g_lo] += numerical
-
-
 def strand_groups(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray, Wd: np.ndarray | None = None) -> tuple:
     """The groups of :func:`solve_strand_blocks` and their dense blocks (for several solves on the same rows).
 
@@ -406,6 +337,18 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     sweeps = 0
     status = CONVERGED if best <= target else MAX_ITERS
     rounds = 0
+
+    def record(point: np.ndarray) -> float:
+        """The De Saxce residual of ``point`` after ``sweeps``, kept if it is the best so far."""
+        nonlocal best, best_r, status
+        residual = desaxce_residual(rows, gamma, b, mu, point, Wd)
+        history.append((sweeps, residual))
+        if residual < best:
+            best, best_r = residual, point.copy()
+        if residual <= target:
+            status = CONVERGED
+        return residual
+
     if blocks and status == MAX_ITERS and max_sweeps > 0:
         # first each strand's contacts at once by Newton on the De Saxce problem itself (the strands do
         # not interact): it nearly always meets the tolerance, and the rounds below start from it
@@ -419,16 +362,11 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
                                                 block_ptr, blocks_g, Wd, r, f, target, GROUP_NEWTON_ITERS, True, True,
                                                 lo, hi, done), n_groups, max(16, -(-n_groups // 8)))
         sweeps += 1
-        residual = desaxce_residual(rows, gamma, b, mu, r, Wd)
-        history.append((sweeps, residual))
-        if residual < best:
-            best, best_r = residual, r.copy()
-        if residual <= target:
-            status = CONVERGED
-        elif (~done).any():
-            groups = _subset_groups(groups, ~done)  # the rounds need not touch the strands Newton solved
-        else:
-            rounds = max_rounds  # each strand met the tolerance by its own count: the fail-safe's sweeps polish
+        if record(r) > target:
+            if (~done).any():
+                groups = _subset_groups(groups, ~done)  # the rounds need not touch the strands Newton solved
+            else:
+                rounds = max_rounds  # each strand met the tolerance by its own count: the fail-safe polishes
     while status == MAX_ITERS and sweeps < max_sweeps and rounds < max_rounds:
         u = contact_velocities(rows, gamma, b, r)
         shifted = b.copy()
@@ -452,13 +390,9 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         sweeps += inner.sweeps
         rounds += 1
         r = inner.r
-        residual = desaxce_residual(rows, gamma, b, mu, r, Wd)
-        history.append((sweeps, residual))
-        if residual < best:
-            best, best_r = residual, r.copy()
-        if residual <= target:
-            status = CONVERGED
-        elif inner.sweeps == 0:
+        if record(r) <= target:
+            break  # (converged)
+        if inner.sweeps == 0:
             break  # the shift no longer changes the convex solution: the rounds have stalled
         elif stall_rounds and rounds > stall_rounds and \
                 min(h for _, h in history[-stall_rounds:]) > 0.5 * min(h for _, h in history[:-stall_rounds]):
@@ -472,11 +406,6 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         sweeps += direct.sweeps
         failsafe = direct.local_failures
         if direct.status != NUMERICAL:
-            residual = desaxce_residual(rows, gamma, b, mu, direct.r, Wd)
-            history.append((sweeps, residual))
-            if residual < best:
-                best, best_r = residual, direct.r
-            if residual <= target:
-                status = CONVERGED
+            record(direct.r)
     return SolverResult(best_r, status, sweeps, best, best / velocity_scale, history,
                         time.perf_counter() - started, 0, failsafe, rounds)

@@ -338,15 +338,6 @@ def points_on(helices: Helices, omega: np.ndarray, strand: np.ndarray, s: np.nda
 
 
 @jit
-def _largest_move(root, frame0, offsets, q_from, q_to, length):
-    """A bound on how far any centerline point has moved from ``q_from`` to ``q_to``, m
-    (the largest of :func:`_strand_moves`)."""
-    out = np.zeros(offsets.shape[0] - 1)
-    _strand_moves(root, frame0, offsets, q_from, q_to, length, out)
-    return out.max() if out.shape[0] else 0.0
-
-
-@jit
 def _strand_moves(root, frame0, offsets, q_from, q_to, length, out):
     """Per strand, a bound on how far any of its centerline points has moved from ``q_from`` to ``q_to``, m.
 

@@ -49,6 +49,81 @@ def _group_blocks(ptr, cols, vals, gamma, members, group_ptr, block_ptr, blocks,
                     scratch[cols[t], row] = 0.0
 
 
+@jit
+def _group_load(ptr, cols, vals, gamma, b, r, f, members, lo, m, q, rg):
+    """The ``m`` contacts of a group (``members[lo:lo + m]``): ``q = b + gamma r + Z f`` (their velocity
+    ``u``, the group's own forces included) and ``rg`` their forces, both flat (3m,)."""
+    for a in range(m):
+        i = members[lo + a]
+        for row in range(3):
+            acc = b[i, row] + gamma[i] * r[i, row]
+            for t in range(ptr[i], ptr[i + 1]):
+                acc += vals[t, row] * f[cols[t]]
+            q[3 * a + row] = acc
+            rg[3 * a + row] = r[i, row]
+
+
+@jit
+def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, r, f, inner_max, g_lo, g_hi,
+                 errors):
+    """A sweep over the groups ``g_lo:g_hi``: each group's contacts solved together (Gauss-Seidel on
+    its dense block until the forces stop changing, at most ``inner_max`` times) with the other groups
+    frozen. Counts numerical errors in ``errors[g_lo]``."""
+    numerical = 0
+    Wk = np.empty((3, 3))
+    bl = np.empty(3)
+    rk = np.empty(3)
+    for g in range(g_lo, g_hi):
+        lo = group_ptr[g]
+        m = group_ptr[g + 1] - lo
+        n = 3 * m
+        base = block_ptr[g]
+        # q = u - W_g r_g: what the group sees of b and of the other groups
+        q = np.empty(n)
+        old = np.empty(n)
+        _group_load(ptr, cols, vals, gamma, b, r, f, members, lo, m, q, old)
+        for a in range(n):
+            acc = 0.0
+            for c in range(n):
+                acc += blocks[base + a * n + c] * old[c]
+            q[a] -= acc
+        x = old.copy()
+        for sweep in range(inner_max):
+            change = 0.0
+            size = 0.0
+            for a in range(m):
+                for ra in range(3):
+                    acc = q[3 * a + ra]
+                    for c in range(n):
+                        if c // 3 != a:
+                            acc += blocks[base + (3 * a + ra) * n + c] * x[c]
+                    bl[ra] = acc
+                    for rc in range(3):
+                        Wk[ra, rc] = blocks[base + (3 * a + ra) * n + 3 * a + rc]
+                    rk[ra] = x[3 * a + ra]
+                status, _ = solve_contact(Wk, bl, mu[members[lo + a]], rk, LOCAL_TOL, 50, False)
+                if status == NUMERICAL_ERROR:
+                    numerical += 1
+                    continue
+                for ra in range(3):
+                    change = max(change, abs(rk[ra] - x[3 * a + ra]))
+                    size = max(size, abs(rk[ra]))
+                    x[3 * a + ra] = rk[ra]
+            if m == 1 or change <= 1e-9 * size:
+                break
+        for a in range(m):
+            i = members[lo + a]
+            d0 = x[3 * a] - r[i, 0]
+            d1 = x[3 * a + 1] - r[i, 1]
+            d2 = x[3 * a + 2] - r[i, 2]
+            r[i, 0] = x[3 * a]
+            r[i, 1] = x[3 * a + 1]
+            r[i, 2] = x[3 * a + 2]
+            for t in range(ptr[i], ptr[i + 1]):
+                f[cols[t]] += vals[t, 0] * d0 + vals[t, 1] * d1 + vals[t, 2] * d2
+    errors[g_lo] += numerical
+
+
 def strand_blocks(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray) -> tuple:
     """Groups of contacts and their dense blocks: a strand's body contacts together, each hair-hair
     contact alone. Returns ``(members, group_ptr, block_ptr, blocks)``: group ``g`` is
@@ -200,15 +275,11 @@ def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, 
         if degenerate:
             done[g] = False
             continue  # a contact no coordinate moves (or a non-finite W): left to the local solves' checks
+        _group_load(ptr, cols, vals, gamma, b, r, f, members, lo, m, q, x)
         for a in range(m):
-            i = members[lo + a]
-            mug[a] = mu[i]
+            mug[a] = mu[members[lo + a]]
             for row in range(3):
-                acc = b[i, row] + gamma[i] * r[i, row]
-                for t in range(ptr[i], ptr[i + 1]):
-                    acc += vals[t, row] * f[cols[t]]
-                q[3 * a + row] = acc
-                x[3 * a + row] = rho[a] * r[i, row]
+                x[3 * a + row] *= rho[a]
         # q = u - W_g r_g: what the group sees of b and of the other groups
         for a in range(n):
             acc = 0.0
