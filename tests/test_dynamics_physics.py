@@ -484,12 +484,61 @@ def test_a_failed_contact_solve_halves_the_step_and_stops_the_run_only_at_the_la
 
     calls.clear()
     sim.settings = dataclasses.replace(sim.settings, max_substeps=2)
+    sim.start_depth = 0  # as a fresh simulation: the next step starts whole
     q = sim.q.copy()
     monkeypatch.setattr(simulate, "solve_coulomb", failing(10**9))
     with pytest.raises(FloatingPointError, match="contact solve failed"):
         sim.step(Motion.still(mat.gravity))
     assert len(calls) == 3  # the step, its first half, that half's first half
     assert np.array_equal(sim.q, q)  # nothing of a failed step is kept
+
+
+def test_a_step_starts_as_halved_as_the_last_one_needed_and_probes_one_fewer_later(monkeypatch):
+    """An attempt that is thrown away costs a whole step: after a step that needed a halving, the
+    next steps start halved (no attempt thrown away); after ``PROBE_AFTER`` such steps that needed
+    no more, a step tries the whole length again. The halved steps cover the whole time step."""
+    import hairinv.dynamics.simulate as simulate
+
+    helices, _, mat, sim = _inverted_on_a_floor()
+    real = simulate.solve_coulomb
+    calls = []
+    fail = [1]
+
+    def solve(*args, **kwargs):
+        calls.append(1)
+        result = real(*args, **kwargs)
+        if fail[0] > 0:
+            fail[0] -= 1
+            return dataclasses.replace(result, status="NUMERICAL_ERROR")
+        return result
+
+    monkeypatch.setattr(simulate, "solve_coulomb", solve)
+    lengths = []
+    real_step = sim._step
+    monkeypatch.setattr(sim, "_step", lambda motion, h, depth: lengths.append(h) or real_step(motion, h, depth))
+    h = sim.settings.time_step
+    report = sim.step(Motion.still(mat.gravity))
+    assert (len(calls), report.substeps, report.rejected, report.depth) == (3, 2, 1, 1)
+    assert sim.start_depth == 1
+    for k in range(simulate.PROBE_AFTER):
+        calls.clear()
+        lengths.clear()
+        report = sim.step(Motion.still(mat.gravity))
+        # two half steps straight away: nothing thrown away
+        assert (len(calls), report.substeps, report.rejected) == (2, 2, 0)
+        assert lengths == [0.5 * h, 0.5 * h]
+    assert sim.start_depth == 0
+    calls.clear()
+    report = sim.step(Motion.still(mat.gravity))
+    assert (len(calls), report.substeps, report.rejected) == (1, 1, 0)
+
+    # a step that needs more halvings than it started with raises the start depth to those
+    sim.start_depth = 1
+    fail[0] = 1
+    calls.clear()
+    report = sim.step(Motion.still(mat.gravity))
+    assert (len(calls), report.substeps, report.rejected, report.depth) == (4, 3, 1, 2)
+    assert sim.start_depth == 2
 
 
 def test_hair_that_falls_into_the_body_within_one_step_is_pushed_back_out():

@@ -78,6 +78,24 @@ class StepReport:
     local_failures: int
     seconds: float
     substeps: int = 1
+    rejected: int = 0
+    """attempts thrown away because they turned an element too far (or their contact solve failed)"""
+    depth: int = 0
+    """the most halvings of the step any kept substep had"""
+
+
+#: steps taken at ``Simulation.start_depth`` halvings, with none more needed, before a step tries one fewer
+PROBE_AFTER = 2
+
+
+def _joined(first: StepReport, second: StepReport) -> StepReport:
+    """Two consecutive substeps as one report: the second's contacts, the worse of their solves."""
+    second.sweeps = max(first.sweeps, second.sweeps)
+    second.relative_residual = max(first.relative_residual, second.relative_residual)
+    second.substeps = first.substeps + second.substeps
+    second.rejected = first.rejected + second.rejected
+    second.depth = max(first.depth, second.depth)
+    return second
 
 
 @dataclass
@@ -477,6 +495,9 @@ class Simulation:
         self._strand_length = (np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements
                                else np.zeros(helices.n_strands))
         self.last = None
+        # halvings a step starts with: those the last steps needed (see step)
+        self.start_depth = 0
+        self._clean_steps = 0
 
     # ------------------------------------------------------------------ geometry
     def current(self) -> Helices:
@@ -744,11 +765,24 @@ class Simulation:
 
         The step is linearised at its start, so it is split in halves (up to
         ``dynamics.max_substeps`` times) while any element would turn by more
-        than ``dynamics.max_turn`` within it.
+        than ``dynamics.max_turn`` within it. An attempt that turns too far is
+        thrown away, so a step starts already halved as often as the last
+        step needed (``start_depth``), and tries one halving fewer after
+        ``PROBE_AFTER`` steps that needed no more: in a fast motion the steps
+        then seldom take an attempt only to throw it away.
         """
         started = time.perf_counter()
         h = float(self.settings.time_step if h is None else h)
-        report = self._step(motion, h, 0)
+        start = min(self.start_depth, self.settings.max_substeps)
+        report = self._step(motion, h / 2 ** start, start)
+        for _ in range(2 ** start - 1):
+            report = _joined(report, self._step(motion, h / 2 ** start, start))
+        if report.depth > start:
+            self.start_depth, self._clean_steps = report.depth, 0
+        elif start > 0:
+            self._clean_steps += 1
+            if self._clean_steps >= PROBE_AFTER:
+                self.start_depth, self._clean_steps = start - 1, 0
         report.seconds = time.perf_counter() - started
         self.last = report
         return report
@@ -772,7 +806,7 @@ class Simulation:
         found = self._detect()
         found, anchors = self._persist(found, h)
         keys, thickness, impulse = self._remember(found, h)
-        report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0)
+        report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0, depth=depth)
         v_new = v_free
         if found.n_contacts:
             rows = contact_rows(self.current(), found, run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
@@ -800,7 +834,7 @@ class Simulation:
                 v_new = v_free + correction.reshape(-1, 3)
                 impulse = result.r
                 report = StepReport(found.n_contacts, found.n_body, result.sweeps, result.relative_residual,
-                                    result.status, result.local_failures, 0.0)
+                                    result.status, result.local_failures, 0.0, depth=depth)
         else:
             failed = False
         turn = h * float(np.max(np.linalg.norm(v_new, axis=1) * helices.length)) if helices.n_elements else 0.0
@@ -811,11 +845,9 @@ class Simulation:
         if (failed or turn > self.settings.max_turn) and depth < self.settings.max_substeps:
             # nothing is kept of this attempt: two half steps instead
             first = self._step(motion, 0.5 * h, depth + 1)
-            second = self._step(motion, 0.5 * h, depth + 1)
-            second.sweeps = max(first.sweeps, second.sweeps)
-            second.relative_residual = max(first.relative_residual, second.relative_residual)
-            second.substeps = first.substeps + second.substeps
-            return second
+            joined = _joined(first, self._step(motion, 0.5 * h, depth + 1))
+            joined.rejected += 1
+            return joined
         self._first = False
         order = np.argsort(keys, kind="stable")
         world = np.einsum("cji,cj->ci", found.frame, impulse)
