@@ -32,6 +32,7 @@ def test_still_scene_keeps_the_inverted_groom_still(model):
     result = hairinv(model, "simulate", "model.h5", "--seconds", "0.2", "--fps", "25", "-o", "still.h5")
     assert result.returncode == 0, result.stderr
     assert "frame    5" in result.stdout and "wrote" in result.stdout
+    assert "halved   0" in result.stdout  # a still groom needs no halved step
     stage = stages.read_stage(model / "still.h5")
     assert list(stage.groups) == ["curves", "helices", "contacts", "model", "frames"]
     with h5py.File(model / "still.h5", "r") as fh:

@@ -48,10 +48,13 @@ class FrameLog:
     displacement: float
     """m, the largest distance of a strand point from where it started, in the body frame."""
     seconds: float
+    halved: int = 0
+    """substeps beyond one per step: how often the frame's steps were halved"""
 
     def line(self) -> str:
         return (f"frame {self.index:4d}  t {self.time:6.3f} s  contacts {self.contacts:6d} (body {self.n_body:5d})  "
-                f"sweeps {self.sweeps:4d}  residual {self.relative_residual:8.2e}  kinetic {self.kinetic:9.3e} J  "
+                f"sweeps {self.sweeps:4d}  residual {self.relative_residual:8.2e}  halved {self.halved:3d}  "
+                f"kinetic {self.kinetic:9.3e} J  "
                 f"elastic {self.elastic:9.3e} J  moved {1e3 * self.displacement:8.3f} mm  {self.seconds:6.2f} s")
 
 
@@ -197,7 +200,8 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
                        max((r.sweeps for r in reports), default=0),
                        max((r.relative_residual for r in reports), default=0.0),
                        sum(r.status != "CONVERGED" for r in reports),
-                       sim.kinetic_energy(), sim.elastic_energy(), moved, seconds_used)
+                       sim.kinetic_energy(), sim.elastic_energy(), moved, seconds_used,
+                       sum(r.substeps - 1 for r in reports))
         out.log.append(log)
         if on_frame is not None:
             on_frame(log)
