@@ -493,22 +493,21 @@ def test_a_failed_contact_solve_halves_the_step_and_stops_the_run_only_at_the_la
     assert np.array_equal(sim.q, q)  # nothing of a failed step is kept
 
 
-def test_a_step_starts_as_halved_as_the_last_one_needed_and_probes_one_fewer_later(monkeypatch):
+def test_a_step_starts_as_halved_as_the_last_one_needed_and_tries_one_fewer_after(monkeypatch):
     """An attempt that is thrown away costs a whole step: after a step that needed a halving, the
-    next steps start halved (no attempt thrown away); after ``PROBE_AFTER`` such steps that needed
-    no more, a step tries the whole length again. The halved steps cover the whole time step."""
+    next step starts as halved as that step's last substep was (no attempt thrown away); after a
+    step that needed no more, the next one tries one halving fewer. The substeps cover the step."""
     import hairinv.dynamics.simulate as simulate
 
     helices, _, mat, sim = _inverted_on_a_floor()
     real = simulate.solve_coulomb
     calls = []
-    fail = [1]
+    failing = {1}  # which calls of the current step fail (1: its first)
 
     def solve(*args, **kwargs):
         calls.append(1)
         result = real(*args, **kwargs)
-        if fail[0] > 0:
-            fail[0] -= 1
+        if len(calls) in failing:
             return dataclasses.replace(result, status="NUMERICAL_ERROR")
         return result
 
@@ -517,28 +516,41 @@ def test_a_step_starts_as_halved_as_the_last_one_needed_and_probes_one_fewer_lat
     real_step = sim._step
     monkeypatch.setattr(sim, "_step", lambda motion, h, depth: lengths.append(h) or real_step(motion, h, depth))
     h = sim.settings.time_step
-    report = sim.step(Motion.still(mat.gravity))
-    assert (len(calls), report.substeps, report.rejected, report.depth) == (3, 2, 1, 1)
+    still = Motion.still(mat.gravity)
+    report = sim.step(still)
+    assert (len(calls), report.substeps, report.rejected, report.depth, report.last_depth) == (3, 2, 1, 1, 1)
     assert sim.start_depth == 1
-    for k in range(simulate.PROBE_AFTER):
-        calls.clear()
-        lengths.clear()
-        report = sim.step(Motion.still(mat.gravity))
-        # two half steps straight away: nothing thrown away
-        assert (len(calls), report.substeps, report.rejected) == (2, 2, 0)
-        assert lengths == [0.5 * h, 0.5 * h]
+    calls.clear()
+    lengths.clear()
+    failing.clear()
+    report = sim.step(still)
+    # two half steps straight away: nothing thrown away
+    assert (len(calls), report.substeps, report.rejected) == (2, 2, 0)
+    assert lengths == [0.5 * h, 0.5 * h]
     assert sim.start_depth == 0
     calls.clear()
-    report = sim.step(Motion.still(mat.gravity))
+    report = sim.step(still)
     assert (len(calls), report.substeps, report.rejected) == (1, 1, 0)
 
-    # a step that needs more halvings than it started with raises the start depth to those
+    # the first half needs quarters, the second does not: the next step starts at the last substep's depth
     sim.start_depth = 1
-    fail[0] = 1
+    failing.add(1)
     calls.clear()
-    report = sim.step(Motion.still(mat.gravity))
-    assert (len(calls), report.substeps, report.rejected, report.depth) == (4, 3, 1, 2)
-    assert sim.start_depth == 2
+    lengths.clear()
+    report = sim.step(still)
+    assert (len(calls), report.substeps, report.rejected, report.depth, report.last_depth) == (4, 3, 1, 2, 1)
+    assert lengths == [0.5 * h, 0.25 * h, 0.25 * h, 0.5 * h]
+    assert sim.start_depth == 1
+    # and the other way round: only the last quarter needs eighths, so the next step starts with eighths
+    sim.start_depth = 2
+    failing.clear()
+    failing.add(4)
+    calls.clear()
+    lengths.clear()
+    report = sim.step(still)
+    assert lengths == [0.25 * h] * 4 + [0.125 * h] * 2
+    assert (report.substeps, report.rejected, report.depth, report.last_depth) == (5, 1, 3, 3)
+    assert sim.start_depth == 3
 
 
 def test_hair_that_falls_into_the_body_within_one_step_is_pushed_back_out():

@@ -82,10 +82,8 @@ class StepReport:
     """attempts thrown away because they turned an element too far (or their contact solve failed)"""
     depth: int = 0
     """the most halvings of the step any kept substep had"""
-
-
-#: steps taken at ``Simulation.start_depth`` halvings, with none more needed, before a step tries one fewer
-PROBE_AFTER = 2
+    last_depth: int = 0
+    """the halvings of the step's last substep"""
 
 
 def _joined(first: StepReport, second: StepReport) -> StepReport:
@@ -95,7 +93,7 @@ def _joined(first: StepReport, second: StepReport) -> StepReport:
     second.substeps = first.substeps + second.substeps
     second.rejected = first.rejected + second.rejected
     second.depth = max(first.depth, second.depth)
-    return second
+    return second  # its last_depth is the step's
 
 
 @dataclass
@@ -495,9 +493,8 @@ class Simulation:
         self._strand_length = (np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements
                                else np.zeros(helices.n_strands))
         self.last = None
-        # halvings a step starts with: those the last steps needed (see step)
+        # halvings a step starts with (see step)
         self.start_depth = 0
-        self._clean_steps = 0
 
     # ------------------------------------------------------------------ geometry
     def current(self) -> Helices:
@@ -766,10 +763,12 @@ class Simulation:
         The step is linearised at its start, so it is split in halves (up to
         ``dynamics.max_substeps`` times) while any element would turn by more
         than ``dynamics.max_turn`` within it. An attempt that turns too far is
-        thrown away, so a step starts already halved as often as the last
-        step needed (``start_depth``), and tries one halving fewer after
-        ``PROBE_AFTER`` steps that needed no more: in a fast motion the steps
-        then seldom take an attempt only to throw it away.
+        thrown away, and costs as much as a kept one, so a step that needed more
+        halvings than it started with makes the next one start with as many
+        as its own last substep needed (``start_depth``); a step that needed no
+        more makes the next one try one halving fewer. Halvings are needed
+        over stretches of time, so this throws fewer attempts away, and it
+        does not keep halving a whole step for what only part of one needed.
         """
         started = time.perf_counter()
         h = float(self.settings.time_step if h is None else h)
@@ -778,11 +777,9 @@ class Simulation:
         for _ in range(2 ** start - 1):
             report = _joined(report, self._step(motion, h / 2 ** start, start))
         if report.depth > start:
-            self.start_depth, self._clean_steps = report.depth, 0
+            self.start_depth = report.last_depth
         elif start > 0:
-            self._clean_steps += 1
-            if self._clean_steps >= PROBE_AFTER:
-                self.start_depth, self._clean_steps = start - 1, 0
+            self.start_depth = start - 1
         report.seconds = time.perf_counter() - started
         self.last = report
         return report
@@ -806,7 +803,7 @@ class Simulation:
         found = self._detect()
         found, anchors = self._persist(found, h)
         keys, thickness, impulse = self._remember(found, h)
-        report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0, depth=depth)
+        report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0, depth=depth, last_depth=depth)
         v_new = v_free
         if found.n_contacts:
             rows = contact_rows(self.current(), found, run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
@@ -834,7 +831,7 @@ class Simulation:
                 v_new = v_free + correction.reshape(-1, 3)
                 impulse = result.r
                 report = StepReport(found.n_contacts, found.n_body, result.sweeps, result.relative_residual,
-                                    result.status, result.local_failures, 0.0, depth=depth)
+                                    result.status, result.local_failures, 0.0, depth=depth, last_depth=depth)
         else:
             failed = False
         turn = h * float(np.max(np.linalg.norm(v_new, axis=1) * helices.length)) if helices.n_elements else 0.0
