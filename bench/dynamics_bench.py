@@ -448,7 +448,7 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               + (f"the deepest body contact {_mm(-m['deepest'])} mm inside the surface" if m['deepest'] < 0 else
                  "no body contact inside the surface")
               + f" (the contact radius is {_mm(v['settings'].contacts.body_distance)} mm); {m['substeps']} extra "
-              f"half steps; wall time "
+              f"substeps (from halved steps); wall time "
               f"{m['seconds']:.1f} s.", "",
               f"Trim: {mt['cut_strands']} strands of the curly sample with their drawn shape as the rest shape "
               f"(the reference) were settled on the bust for {SETTLE_SECONDS:g} s and inverted with target "
@@ -487,7 +487,7 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
              " / ".join(_mm(x) for x in np.percentile(p["deviation"], [50, 90, 100])) if "deviation" in p else "")
             for p in points]
     lines += [table(["groom", "strands", "elements", "hair-hair", "contacts", "simulated (s)", "moved (mm)",
-                     "sweeps per step", "halved steps", "s per simulated s", "s per 1/25 s frame",
+                     "sweeps per step", "extra substeps", "s per simulated s", "s per 1/25 s frame",
                      "from the reference (mm): median / 90% / largest"], rows), "",
               "The last column: for each strand, the largest distance between a point at the end of the run and "
               "the same point at the end of the reference run (the last row), then the median, 90th percentile "

@@ -552,6 +552,26 @@ def test_a_step_starts_as_halved_as_the_last_one_needed_and_tries_one_fewer_afte
     assert (report.substeps, report.rejected, report.depth, report.last_depth) == (5, 1, 3, 3)
     assert sim.start_depth == 3
 
+    # a substep's unconverged solve is the step's, whichever substep it was, and local failures add up
+    def unconverged_first(*args, **kwargs):
+        calls.append(1)
+        result = real(*args, **kwargs)
+        return dataclasses.replace(result, status="MAX_ITERS", local_failures=2) if len(calls) == 1 else \
+            dataclasses.replace(result, local_failures=1)
+
+    monkeypatch.setattr(simulate, "solve_coulomb", unconverged_first)
+    sim.start_depth = 1
+    calls.clear()
+    report = sim.step(still)
+    assert (report.substeps, report.status, report.local_failures) == (2, "MAX_ITERS", 3)
+
+    # the start depth never exceeds the halvings allowed, even when these are lowered between steps
+    monkeypatch.setattr(simulate, "solve_coulomb", real)
+    sim.start_depth = 3
+    sim.settings = dataclasses.replace(sim.settings, max_substeps=0)
+    report = sim.step(still)
+    assert report.substeps == 1 and sim.start_depth == 0
+
 
 def test_hair_that_falls_into_the_body_within_one_step_is_pushed_back_out():
     """A strand falling fast onto a floor in full steps (no halving): it crosses the whole detection

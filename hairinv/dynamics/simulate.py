@@ -90,6 +90,9 @@ def _joined(first: StepReport, second: StepReport) -> StepReport:
     """Two consecutive substeps as one report: the second's contacts, the worse of their solves."""
     second.sweeps = max(first.sweeps, second.sweeps)
     second.relative_residual = max(first.relative_residual, second.relative_residual)
+    if second.status == "CONVERGED":
+        second.status = first.status
+    second.local_failures = first.local_failures + second.local_failures
     second.substeps = first.substeps + second.substeps
     second.rejected = first.rejected + second.rejected
     second.depth = max(first.depth, second.depth)
@@ -768,7 +771,8 @@ class Simulation:
         as its own last substep needed (``start_depth``); a step that needed no
         more makes the next one try one halving fewer. Halvings are needed
         over stretches of time, so this throws fewer attempts away, and it
-        does not keep halving a whole step for what only part of one needed.
+        halves fewer whole steps than starting from the step's deepest
+        substep would.
         """
         started = time.perf_counter()
         h = float(self.settings.time_step if h is None else h)
@@ -780,6 +784,7 @@ class Simulation:
             self.start_depth = report.last_depth
         elif start > 0:
             self.start_depth = start - 1
+        self.start_depth = min(self.start_depth, self.settings.max_substeps)
         report.seconds = time.perf_counter() - started
         self.last = report
         return report
