@@ -64,6 +64,22 @@ def _group_load(ptr, cols, vals, gamma, b, r, f, members, lo, m, q, rg):
 
 
 @jit
+def _group_store(ptr, cols, vals, members, lo, m, x, scale, r, f):
+    """The group's new forces ``x[3a:3a + 3] / scale[a]`` (flat, as :func:`_group_load` gives them)
+    written into ``r``, and ``f = Z^T r`` moved by the change."""
+    for a in range(m):
+        i = members[lo + a]
+        d0 = x[3 * a] / scale[a] - r[i, 0]
+        d1 = x[3 * a + 1] / scale[a] - r[i, 1]
+        d2 = x[3 * a + 2] / scale[a] - r[i, 2]
+        r[i, 0] += d0
+        r[i, 1] += d1
+        r[i, 2] += d2
+        for t in range(ptr[i], ptr[i + 1]):
+            f[cols[t]] += vals[t, 0] * d0 + vals[t, 1] * d1 + vals[t, 2] * d2
+
+
+@jit
 def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, r, f, inner_max, g_lo, g_hi,
                  errors):
     """A sweep over the groups ``g_lo:g_hi``: each group's contacts solved together (Gauss-Seidel on
@@ -73,6 +89,10 @@ def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, b
     Wk = np.empty((3, 3))
     bl = np.empty(3)
     rk = np.empty(3)
+    widest = 0
+    for g in range(g_lo, g_hi):
+        widest = max(widest, group_ptr[g + 1] - group_ptr[g])
+    ones = np.ones(widest)
     for g in range(g_lo, g_hi):
         lo = group_ptr[g]
         m = group_ptr[g + 1] - lo
@@ -111,16 +131,7 @@ def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, b
                     x[3 * a + ra] = rk[ra]
             if m == 1 or change <= 1e-9 * size:
                 break
-        for a in range(m):
-            i = members[lo + a]
-            d0 = x[3 * a] - r[i, 0]
-            d1 = x[3 * a + 1] - r[i, 1]
-            d2 = x[3 * a + 2] - r[i, 2]
-            r[i, 0] = x[3 * a]
-            r[i, 1] = x[3 * a + 1]
-            r[i, 2] = x[3 * a + 2]
-            for t in range(ptr[i], ptr[i + 1]):
-                f[cols[t]] += vals[t, 0] * d0 + vals[t, 1] * d1 + vals[t, 2] * d2
+        _group_store(ptr, cols, vals, members, lo, m, x, ones, r, f)
     errors[g_lo] += numerical
 
 
@@ -360,13 +371,4 @@ def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, 
         done[g] = best <= target
         if not improved:
             continue  # r untouched, bit for bit
-        for a in range(m):
-            i = members[lo + a]
-            d0 = xbest[3 * a] / rho[a] - r[i, 0]
-            d1 = xbest[3 * a + 1] / rho[a] - r[i, 1]
-            d2 = xbest[3 * a + 2] / rho[a] - r[i, 2]
-            r[i, 0] += d0
-            r[i, 1] += d1
-            r[i, 2] += d2
-            for t in range(ptr[i], ptr[i + 1]):
-                f[cols[t]] += vals[t, 0] * d0 + vals[t, 1] * d1 + vals[t, 2] * d2
+        _group_store(ptr, cols, vals, members, lo, m, xbest, rho, r, f)
