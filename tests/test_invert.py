@@ -425,3 +425,28 @@ def test_samples_end_to_end(name):
     drift_gravity = np.sum((baseline.omega_rest - scene.helices.omega) ** 2)
     assert drift <= drift_gravity
     assert report.carrying > 0
+
+
+def test_natural_residual_of_a_contact_with_zero_delassus_block_is_nan_not_an_exception():
+    """A contact whose rows are zero (nothing moves it) with no regularisation has ``W_ii = 0``: its
+    residual divides by zero. The kernel must report that as NaN (the solvers then stop with
+    NUMERICAL_ERROR), never raise from inside a kernel."""
+    from hairinv.solver.gauss_seidel import natural_residuals
+
+    ptr = np.array([0, 1, 2], dtype=np.int64)
+    cols = np.array([0, 1], dtype=np.int64)
+    vals = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    f = np.array([0.0, -2.0])
+    gamma = np.zeros(2)
+    Wd = np.zeros((2, 3, 3))
+    Wd[1] = np.diag([1.0, 0.0, 0.0])
+    b = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    mu = np.array([0.5, 0.5])
+    r = np.zeros((2, 3))
+    out = np.empty(2)
+    worst = natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, False, False, out)
+    assert np.isnan(worst)
+    assert not np.isfinite(out[0])
+    # the well-posed contact's own residual is still right: u = -2 pushes in, so r_N should be
+    # 2 / rho = 6 (rho = trace / 3 = 1/3), and r = 0 is off by exactly that
+    assert out[1] == pytest.approx(6.0)

@@ -182,7 +182,7 @@ def _extrapolate(x, x_prev, beta, mu, out):
             out[i, a] = p[a]
 
 
-@jit
+@jit(error_model="numpy")
 def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, desaxce, velocity, out):
     """Per-contact natural-map residual ``|r_i - P_K(r_i - u_i / rho_i)|`` in force units.
 
@@ -191,12 +191,14 @@ def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, desaxce, velocity
     ``velocity``, the residual is ``rho_i`` times the above, in velocity units
     (dynamics: a contact whose ``W_ii`` is large turns a small impulse error into
     a large velocity one).
-    Returns the largest value (NaN if any is not finite).
+    Returns the largest value (NaN if any is not finite, as for a contact whose ``W_ii`` is zero:
+    the division yields inf or NaN instead of raising inside the kernel).
     """
     u = np.empty(3)
     x = np.empty(3)
     p = np.empty(3)
     worst = 0.0
+    finite = True
     for i in range(ptr.shape[0] - 1):
         _contact_u(i, ptr, cols, vals, f, gamma, b, r, u)
         if desaxce and mu[i] < np.inf:  # (mu = inf: the dual cone is the ray u_T = 0, no De Saxce term)
@@ -209,9 +211,11 @@ def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, desaxce, velocity
         if velocity:
             e *= rho
         out[i] = e
-        if not (e <= worst):  # also catches NaN
+        if not np.isfinite(e):
+            finite = False
+        elif e > worst:
             worst = e
-    return worst
+    return worst if finite else np.nan
 
 
 @jit

@@ -642,7 +642,7 @@ def _slide_newton(W, b, bnorm, mu, desaxce, c, s, out):
     caller keeps it if it meets the tolerance, which makes it the solution (convex: the only one).
 
     The direction is turned by each step as a rotation, with the Taylor series of cos and sin once
-    the step is small (exact to round-off below 1e-2 rad), and the iteration ends once a step is
+    the step is small (to 1.4e-15 below 1e-2 rad; the last step, under 1e-8 rad, to round-off), and the iteration ends once a step is
     below 1e-8 rad: convergence is quadratic, so the angle is then exact to about 1e-16. Without
     the trigonometric calls and the final confirming step, one pass of local solves over ruby short's
     moving contacts (24,511, 56 % sliding) takes 7.9 ms instead of 9.3 ms, with the same residuals."""
