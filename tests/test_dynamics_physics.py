@@ -719,3 +719,25 @@ def test_first_order_body_gaps_are_exact_on_a_flat_floor(monkeypatch):
     on_body = c.strand[:, 1] < 0
     exact = body.closest(points_on(helices, shifted, c.strand[on_body, 0], c.s[on_body, 0]))[0]
     assert np.abs(c.gap[on_body] - exact).max() < 1e-3 * normal_motion
+
+
+def test_a_halved_step_names_the_strand_that_turned_too_far():
+    """Two strands without contact, one at rest and one released far from its rest shape: the
+    springing one turns an element past ``max_turn`` in a full step, so the step is halved and the
+    report (and the frame log) names it; with room enough, nothing is halved and no strand named."""
+    from hairinv.dynamics.run import FrameLog
+
+    helices = strands([horizontal_strand(n=4, total=0.08), horizontal_strand(n=4, total=0.08)])
+    rest = helices.omega.copy()
+    rest[helices.offsets[1]:helices.offsets[2], 0] += 80.0  # 1/m: strand 1 springs into a curl
+    still = Motion.still(np.zeros(3))  # no gravity: strand 0 stays at rest
+    sim = _sim(helices, rest, 0.01, max_turn=0.05)
+    report = sim.step(still)
+    assert report.rejected > 0 and report.turned == 1
+    assert np.allclose(sim.q[:helices.offsets[1]], helices.omega[:helices.offsets[1]])
+    calm = _sim(helices, rest, 0.01, max_turn=10.0)
+    report = calm.step(still)
+    assert report.rejected == 0 and report.turned == -1
+    log = FrameLog(1, 0.04, 0, 0, 0, 0.0, 0, 0.0, 0.0, 0.0, 0.1, halved=3, halved_by=777)
+    assert "halved   3 by   777" in log.line()
+    assert "halved   0 by     -" in dataclasses.replace(log, halved=0, halved_by=-1).line()

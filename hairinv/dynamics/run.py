@@ -50,10 +50,13 @@ class FrameLog:
     seconds: float
     halved: int = 0
     """substeps beyond one per step: how often the frame's steps were halved"""
+    halved_by: int = -1
+    """the strand that last made a step of the frame halve by turning an element too far (-1: none)"""
 
     def line(self) -> str:
+        by = str(self.halved_by) if self.halved_by >= 0 else "-"
         return (f"frame {self.index:4d}  t {self.time:6.3f} s  contacts {self.contacts:6d} (body {self.n_body:5d})  "
-                f"sweeps {self.sweeps:4d}  residual {self.relative_residual:8.2e}  halved {self.halved:3d}  "
+                f"sweeps {self.sweeps:4d}  residual {self.relative_residual:8.2e}  halved {self.halved:3d} by {by:>5}  "
                 f"kinetic {self.kinetic:9.3e} J  "
                 f"elastic {self.elastic:9.3e} J  moved {1e3 * self.displacement:8.3f} mm  {self.seconds:6.2f} s")
 
@@ -201,7 +204,8 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
                        max((r.relative_residual for r in reports), default=0.0),
                        sum(r.status != "CONVERGED" for r in reports),
                        sim.kinetic_energy(), sim.elastic_energy(), moved, seconds_used,
-                       sum(r.substeps - 1 for r in reports))
+                       sum(r.substeps - 1 for r in reports),
+                       next((r.turned for r in reversed(reports) if r.turned >= 0), -1))
         out.log.append(log)
         if on_frame is not None:
             on_frame(log)

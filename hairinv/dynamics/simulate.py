@@ -84,6 +84,9 @@ class StepReport:
     """the most halvings of the step any kept substep had"""
     last_depth: int = 0
     """the halvings of the step's last substep"""
+    turned: int = -1
+    """the strand whose element turned furthest in the last attempt thrown away for turning too far
+    (-1: none was): the strand that halves the steps"""
 
 
 def _joined(first: StepReport, second: StepReport) -> StepReport:
@@ -96,6 +99,8 @@ def _joined(first: StepReport, second: StepReport) -> StepReport:
     second.substeps = first.substeps + second.substeps
     second.rejected = first.rejected + second.rejected
     second.depth = max(first.depth, second.depth)
+    if second.turned < 0:
+        second.turned = first.turned
     return second  # its last_depth is the step's
 
 
@@ -839,7 +844,8 @@ class Simulation:
                                     result.status, result.local_failures, 0.0, depth=depth, last_depth=depth)
         else:
             failed = False
-        turn = h * float(np.max(np.linalg.norm(v_new, axis=1) * helices.length)) if helices.n_elements else 0.0
+        turns = h * np.linalg.norm(v_new, axis=1) * helices.length
+        turn = float(np.max(turns)) if helices.n_elements else 0.0
         if not np.isfinite(turn):
             failed = True
         if failed and depth >= self.settings.max_substeps:
@@ -849,6 +855,8 @@ class Simulation:
             first = self._step(motion, 0.5 * h, depth + 1)
             joined = _joined(first, self._step(motion, 0.5 * h, depth + 1))
             joined.rejected += 1
+            if joined.turned < 0 and not failed:
+                joined.turned = int(np.searchsorted(offsets, int(np.argmax(turns)), side="right") - 1)
             return joined
         self._first = False
         order = np.argsort(keys, kind="stable")
