@@ -735,9 +735,24 @@ def test_a_halved_step_names_the_strand_that_turned_too_far():
     report = sim.step(still)
     assert report.rejected > 0 and report.turned == 1
     assert np.allclose(sim.q[:helices.offsets[1]], helices.omega[:helices.offsets[1]])
+    # the next step starts halved for strand 1's sake: it names strand 1 even if it throws nothing away
+    assert sim.start_depth > 0
+    report = sim.step(still)
+    assert report.turned == 1
     calm = _sim(helices, rest, 0.01, max_turn=10.0)
     report = calm.step(still)
     assert report.rejected == 0 and report.turned == -1
     log = FrameLog(1, 0.04, 0, 0, 0, 0.0, 0, 0.0, 0.0, 0.0, 0.1, halved=3, halved_by=777)
     assert "halved   3 by   777" in log.line()
     assert "halved   0 by     -" in dataclasses.replace(log, halved=0, halved_by=-1).line()
+
+
+def test_a_contact_problem_with_non_finite_data_is_a_numerical_error_at_once():
+    """A NaN in the contact data (here one contact's free velocity) is reported as NUMERICAL_ERROR
+    before any sweep, with the warm start returned untouched, never as a converged answer."""
+    result, _ = _solve([1.0, 2.0], [[-1.0, 0.0, 0.0], [np.nan, 0.0, 0.0]], [0.5, 0.5])
+    assert result.status == "NUMERICAL_ERROR" and result.sweeps == 0
+    assert np.array_equal(result.r, np.zeros((2, 3)))
+    # the same problem without the NaN is solved: the first contact sticks with r_N = 1 / w
+    fine, _ = _solve([1.0, 2.0], [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]], [0.5, 0.5])
+    assert fine.status == "CONVERGED" and fine.r[0, 0] == pytest.approx(1.0) and np.all(fine.r[1] == 0.0)

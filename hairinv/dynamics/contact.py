@@ -334,6 +334,8 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         Wd = delassus_blocks(rows, gamma)
     best_r, best = r.copy(), desaxce_residual(rows, gamma, b, mu, r, Wd)
     history = [(0, best)]
+    if not np.isfinite(best):  # non-finite data (b, W or the warm start): nothing to solve
+        return SolverResult(r, NUMERICAL, 0, best, best / velocity_scale, history, time.perf_counter() - started)
     sweeps = 0
     status = CONVERGED if best <= target else MAX_ITERS
     rounds = 0

@@ -86,7 +86,8 @@ class StepReport:
     """the halvings of the step's last substep"""
     turned: int = -1
     """the strand whose element turned furthest in the last attempt thrown away for turning too far
-    (-1: none was): the strand that halves the steps"""
+    (-1: none was); a step that starts halved (``Simulation.start_depth``) without throwing an attempt
+    away names the strand that last did. Halvings for a failed contact solve name no strand."""
 
 
 def _joined(first: StepReport, second: StepReport) -> StepReport:
@@ -501,8 +502,9 @@ class Simulation:
         self._strand_length = (np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements
                                else np.zeros(helices.n_strands))
         self.last = None
-        # halvings a step starts with (see step)
+        # halvings a step starts with (see step), and the strand that last made a step halve
         self.start_depth = 0
+        self._halved_by = -1
 
     # ------------------------------------------------------------------ geometry
     def current(self) -> Helices:
@@ -785,6 +787,10 @@ class Simulation:
         report = self._step(motion, h / 2 ** start, start)
         for _ in range(2 ** start - 1):
             report = _joined(report, self._step(motion, h / 2 ** start, start))
+        if report.turned >= 0:
+            self._halved_by = report.turned
+        elif start > 0:
+            report.turned = self._halved_by  # halved from the start for what an earlier step's strand needed
         if report.depth > start:
             self.start_depth = report.last_depth
         elif start > 0:
