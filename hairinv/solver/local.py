@@ -641,10 +641,11 @@ def _slide_newton(W, b, bnorm, mu, desaxce, c, s, out):
     ``out``; returns its relative residual (inf if the root gives none). Only a candidate: the
     caller keeps it if it meets the tolerance, which makes it the solution (convex: the only one).
 
-    The direction is turned by each step as a rotation, with the Taylor series of cos and sin once
-    the step is small (to 1.4e-15 below 1e-2 rad; the last step, under 1e-8 rad, to round-off), and the iteration ends once a step is
-    below 1e-8 rad: convergence is quadratic, so the angle is then exact to about 1e-16. Without
-    the trigonometric calls and the final confirming step, one pass of local solves over ruby short's
+    Each step turns the direction by a rotation, its cos and sin from their Taylor series once the
+    step is under 1e-2 rad (to 1.4e-15; to round-off under 1e-8 rad). The iteration ends after a step
+    under 1e-8 rad: convergence is quadratic, so the angle is then exact to about 1e-16 (near a
+    double root it is not, and the caller's residual check sends it to the FB Newton). Without the
+    trigonometric calls and the final confirming step, one pass of local solves over ruby short's
     moving contacts (24,511, 56 % sliding) takes 7.9 ms instead of 9.3 ms, with the same residuals."""
     t = _slide_setup(W, b, mu, desaxce)
     A0, A1, B1, A2, B2 = t[0], t[1], t[2], t[3], t[4]
@@ -856,13 +857,14 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
     # first the slip angle of that start, refined on the sliding equation: from a warm start a few
     # scalar Newton steps, where the FB Newton takes 4-5 steps of 3x3 Jordan algebra
     res = np.inf
+    # its slip direction, or against b_T if it has none
     slip = np.hypot(rh[1], rh[2])
-    if slip > 0.0 or np.hypot(bh[1], bh[2]) > 0.0:
-        if slip > 0.0:
-            res = _slide_newton(Wh, bh, bnorm, mu, desaxce, rh[1] / slip, rh[2] / slip, best)
-        else:
-            bt_h = np.hypot(bh[1], bh[2])
-            res = _slide_newton(Wh, bh, bnorm, mu, desaxce, -bh[1] / bt_h, -bh[2] / bt_h, best)
+    if slip > 0.0:
+        d1, d2, dn = rh[1], rh[2], slip
+    else:
+        d1, d2, dn = -bh[1], -bh[2], np.hypot(bh[1], bh[2])
+    if dn > 0.0:
+        res = _slide_newton(Wh, bh, bnorm, mu, desaxce, d1 / dn, d2 / dn, best)
     if not (res <= tol):
         res = _newton(Wh, bh, bnorm, mu, desaxce, rh, tol, max_iter, best, M, V)
     if not (res <= tol):
