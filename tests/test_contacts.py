@@ -23,7 +23,7 @@ from hairinv.fit import Helices, fit_groom
 from hairinv.groom import load_body, load_groom
 from hairinv.rod.helix import frames_at, points_at
 
-# Refined contact positions: golden-section / Gauss-Newton on float64 geometry of size ~0.1 m;
+# Refined contact positions: Brent's method / Gauss-Newton on float64 geometry of size ~0.1 m;
 # the arc length at a quadratic minimum is resolved to about sqrt(eps) of the distance scale.
 POSITION = 1e-7
 # Distances and normals of exact geometry (planes, box faces, straight lines): round-off.
@@ -188,6 +188,29 @@ def test_strand_half_inside_a_sphere_is_counted_and_pushed_outwards():
     pushed = contacts.point + depth[:, None] * contacts.frame[:, 0]
     np.testing.assert_allclose(np.linalg.norm(pushed, axis=1), radius, rtol=2e-3)
     assert_frames(contacts)
+
+
+@pytest.mark.parametrize("offset", [0.0, 0.07, 0.102, 0.1035])
+def test_long_strands_far_from_the_body_find_exactly_the_elements_the_samples_say(offset):
+    """Strands of 50 elements passing a sphere of 10 cm at ``offset`` from its centre, from 40 cm away
+    (detection skips samples it can prove are far, by the distance of earlier ones): the elements declared,
+    and the samples counted inside, are those trimesh's own signed distances of the samples give."""
+    radius = 0.1
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=radius)
+    elements, n = 50, SETTINGS.samples_per_element
+    direction = np.array([1.0, 0.3, -0.2]) / np.linalg.norm([1.0, 0.3, -0.2])
+    side = np.cross(direction, [0.0, 0.0, 1.0])
+    side /= np.linalg.norm(side)
+    h = helices([straight(offset * side - 0.45 * direction, direction, 1.0, elements)])
+    contacts, report = detect_contacts(h, sphere, BODY_ONLY)
+    s = np.linspace(0.0, 1.0, elements * (n - 1) + 1)
+    sd = -trimesh.proximity.signed_distance(sphere, points_on(h, 0, s))  # trimesh: positive inside
+    per_element = np.stack([sd[e * (n - 1):e * (n - 1) + n] for e in range(elements)])
+    least = per_element.argmin(axis=1)
+    expected = (per_element.min(axis=1) < SETTINGS.body_distance) & ((least < n - 1) | (np.arange(elements) == elements - 1))
+    assert expected.any()
+    np.testing.assert_array_equal(np.sort(contacts.element[:, 0]), np.flatnonzero(expected))
+    assert report.points_inside_body == np.count_nonzero(sd < 0.0)
 
 
 def test_past_an_open_boundary_nothing_is_inside():
