@@ -45,7 +45,8 @@ Two evaluations of the same sums:
   :func:`node_forces_to_generalized`): the definitions, O(N^2 m) storage
   and O(N^3 m) work for ``M``;
 - as a composite rigid body (:func:`strand_mass`, :func:`strand_node_loads`,
-  :func:`strand_bias_forces`): an upstream element ``a`` moves every later
+  :func:`strand_bias_forces`, :func:`strand_velocity_forces`, which adds a
+  moving frame's forces): an upstream element ``a`` moves every later
   node by the rigid twist ``x_dot = E_a + Th_a x`` (``Th_a = dth_end``,
   ``E_a = dx_end - Th_a x x_{a+1}``, positions relative to the root), so
   the nodes after element ``b`` act through their spatial inertia
@@ -575,6 +576,17 @@ def node_bias_accelerations(root, frame0, omega, length, velocity, gx, a_out, al
     a_out : (N m, 3) float64, out, m/s^2
     alpha_out : (N m, 3) float64, out, rad/s^2
     """
+    nodes = omega.shape[0] * gx.shape[0]
+    x0 = np.empty((nodes, 3))
+    F0 = np.empty((nodes, 3, 3))
+    _node_poses(frame0, omega, length, gx, np.empty((omega.shape[0] + 1, 3)), np.empty((omega.shape[0] + 1, 3, 3)),
+                x0, F0)
+    _bias_accelerations(frame0, omega, length, velocity, gx, x0, F0, a_out, alpha_out)
+
+
+@jit
+def _bias_accelerations(frame0, omega, length, velocity, gx, x0, F0, a_out, alpha_out):
+    """:func:`node_bias_accelerations` given the node poses ``x0``, ``F0`` at ``omega`` (root at the origin)."""
     n = omega.shape[0]
     nodes = n * gx.shape[0]
     big = 0.0
@@ -589,15 +601,12 @@ def node_bias_accelerations(root, frame0, omega, length, velocity, gx, a_out, al
     h = _BIAS_ANGLE / big
     xs = np.empty((n + 1, 3))
     Fs = np.empty((n + 1, 3, 3))
-    x0 = np.empty((nodes, 3))
-    F0 = np.empty((nodes, 3, 3))
     xp = np.empty((nodes, 3))
     Fp = np.empty((nodes, 3, 3))
     xm = np.empty((nodes, 3))
     Fm = np.empty((nodes, 3, 3))
     a_half = np.empty((nodes, 3))
     alpha_half = np.empty((nodes, 3))
-    _node_poses(frame0, omega, length, gx, xs, Fs, x0, F0)
     _node_poses(frame0, omega + h * velocity, length, gx, xs, Fs, xp, Fp)
     _node_poses(frame0, omega - h * velocity, length, gx, xs, Fs, xm, Fm)
     _second_difference(xp, Fp, xm, Fm, x0, F0, h, a_out, alpha_out)
@@ -626,42 +635,101 @@ def strand_bias_forces(root, frame0, omega, length, velocity, gx, gw, lam, rot, 
     rot : float64, kg m
     out : (3N,) float64, out
     """
+    strand_velocity_forces(root, frame0, omega, length, velocity, gx, gw, lam, rot, True, _NO_FRAME, 0.0, out)
+
+
+_NO_FRAME = np.zeros((5, 3))
+
+
+@jit
+def strand_velocity_forces(root, frame0, omega, length, velocity, gx, gw, lam, rot, bias, motion, air, out):
+    """Generalized force of one strand's motion: the velocity products and a moving frame's, J m.
+
+    With ``bias``, the velocity-product force of :func:`strand_bias_forces`. With ``motion`` (the
+    (5, 3) array of ``Motion.packed``: gravity, unused here, then the frame's acceleration ``a0``,
+    velocity ``u``, spin ``W`` and spin rate ``A``) not all zero, the forces of the moving frame on
+    the centerline, ``-lam w (a0 + A x p + W x (W x p) + 2 W x p_dot + air (u + W x p))`` at each
+    node ``p`` (the frame's own velocity dragged by the air, at ``air`` 1/s). The node velocities
+    ``p_dot`` accumulate the upstream elements' rigid twists, O(N m), like the loads' projection:
+    one evaluation of the strand's kinematics serves both forces.
+    """
     n = omega.shape[0]
     m = gx.shape[0]
     nodes = n * m
+    out[:] = 0.0
+    acc = motion[1]
+    vel = motion[2]
+    W = motion[3]
+    A = motion[4]
+    framed = False
+    for i in range(3):
+        if acc[i] != 0.0 or vel[i] != 0.0 or W[i] != 0.0 or A[i] != 0.0:
+            framed = True
+    if not (bias or framed):
+        return
     xs, Fs, Th, E, x, F, dX, dTh = _strand_kinematics(frame0, omega, length, gx)
-    a = np.empty((nodes, 3))
-    alpha = np.empty((nodes, 3))
-    node_bias_accelerations(root, frame0, omega, length, velocity, gx, a, alpha)
-    f = np.empty((nodes, 3))
+    f = np.zeros((nodes, 3))
     torque = np.zeros((nodes, 3))
-    Wup = np.zeros(3)  # angular velocity of the frames after the elements so far
-    for e in range(n):
-        for j in range(m):
-            node = e * m + j
-            wn = gw[j] * length[e]
-            for i in range(3):
-                f[node, i] = -wn * lam * a[node, i]
-            if rot != 0.0:
-                W0 = Wup[0]
-                W1 = Wup[1]
-                W2 = Wup[2]
-                for k in range(3):
-                    W0 += dTh[node, k, 0] * velocity[e, k]
-                    W1 += dTh[node, k, 1] * velocity[e, k]
-                    W2 += dTh[node, k, 2] * velocity[e, k]
-                t0 = F[node, 0, 0]
-                t1 = F[node, 0, 1]
-                t2 = F[node, 0, 2]
-                ta = t0 * alpha[node, 0] + t1 * alpha[node, 1] + t2 * alpha[node, 2]
-                tW = t0 * W0 + t1 * W1 + t2 * W2
-                # I_w al + W x I_w W, with I_w W = rot (W + t (t.W)): W x I_w W = rot (t.W) W x t
-                torque[node, 0] = -wn * rot * (alpha[node, 0] + t0 * ta + tW * (W1 * t2 - W2 * t1))
-                torque[node, 1] = -wn * rot * (alpha[node, 1] + t1 * ta + tW * (W2 * t0 - W0 * t2))
-                torque[node, 2] = -wn * rot * (alpha[node, 2] + t2 * ta + tW * (W0 * t1 - W1 * t0))
-        for k in range(3):
-            for i in range(3):
-                Wup[i] += Th[e, k, i] * velocity[e, k]
+    if bias:
+        a = np.empty((nodes, 3))
+        alpha = np.empty((nodes, 3))
+        _bias_accelerations(frame0, omega, length, velocity, gx, x, F, a, alpha)
+        Wup = np.zeros(3)  # angular velocity of the frames after the elements so far
+        for e in range(n):
+            for j in range(m):
+                node = e * m + j
+                wn = gw[j] * length[e]
+                for i in range(3):
+                    f[node, i] = -wn * lam * a[node, i]
+                if rot != 0.0:
+                    W0 = Wup[0]
+                    W1 = Wup[1]
+                    W2 = Wup[2]
+                    for k in range(3):
+                        W0 += dTh[node, k, 0] * velocity[e, k]
+                        W1 += dTh[node, k, 1] * velocity[e, k]
+                        W2 += dTh[node, k, 2] * velocity[e, k]
+                    t0 = F[node, 0, 0]
+                    t1 = F[node, 0, 1]
+                    t2 = F[node, 0, 2]
+                    ta = t0 * alpha[node, 0] + t1 * alpha[node, 1] + t2 * alpha[node, 2]
+                    tW = t0 * W0 + t1 * W1 + t2 * W2
+                    # I_w al + W x I_w W, with I_w W = rot (W + t (t.W)): W x I_w W = rot (t.W) W x t
+                    torque[node, 0] = -wn * rot * (alpha[node, 0] + t0 * ta + tW * (W1 * t2 - W2 * t1))
+                    torque[node, 1] = -wn * rot * (alpha[node, 1] + t1 * ta + tW * (W2 * t0 - W0 * t2))
+                    torque[node, 2] = -wn * rot * (alpha[node, 2] + t2 * ta + tW * (W0 * t1 - W1 * t0))
+            for k in range(3):
+                for i in range(3):
+                    Wup[i] += Th[e, k, i] * velocity[e, k]
+    if framed:
+        Eup = np.zeros(3)  # the upstream elements' twists times their rates: p_dot = Eup + Wup x p + own
+        Wup = np.zeros(3)
+        p = np.empty(3)
+        pd = np.empty(3)
+        for e in range(n):
+            for j in range(m):
+                node = e * m + j
+                for i in range(3):
+                    pd[i] = Eup[i] + dX[node, 0, i] * velocity[e, 0] + dX[node, 1, i] * velocity[e, 1] \
+                        + dX[node, 2, i] * velocity[e, 2]
+                    p[i] = x[node, i] + root[i]
+                pd[0] += Wup[1] * x[node, 2] - Wup[2] * x[node, 1]
+                pd[1] += Wup[2] * x[node, 0] - Wup[0] * x[node, 2]
+                pd[2] += Wup[0] * x[node, 1] - Wup[1] * x[node, 0]
+                Wx0 = W[1] * p[2] - W[2] * p[1]
+                Wx1 = W[2] * p[0] - W[0] * p[2]
+                Wx2 = W[0] * p[1] - W[1] * p[0]
+                scale = -lam * gw[j] * length[e]
+                f[node, 0] += scale * (acc[0] + A[1] * p[2] - A[2] * p[1] + W[1] * Wx2 - W[2] * Wx1
+                                       + 2.0 * (W[1] * pd[2] - W[2] * pd[1]) + air * (vel[0] + Wx0))
+                f[node, 1] += scale * (acc[1] + A[2] * p[0] - A[0] * p[2] + W[2] * Wx0 - W[0] * Wx2
+                                       + 2.0 * (W[2] * pd[0] - W[0] * pd[2]) + air * (vel[1] + Wx1))
+                f[node, 2] += scale * (acc[2] + A[0] * p[1] - A[1] * p[0] + W[0] * Wx1 - W[1] * Wx0
+                                       + 2.0 * (W[0] * pd[1] - W[1] * pd[0]) + air * (vel[2] + Wx2))
+            for k in range(3):
+                for i in range(3):
+                    Eup[i] += E[e, k, i] * velocity[e, k]
+                    Wup[i] += Th[e, k, i] * velocity[e, k]
     _project_loads(Th, E, x, dX, dTh, m, f, torque, out)
 
 

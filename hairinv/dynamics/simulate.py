@@ -41,7 +41,7 @@ from ..rod.statics import gravity_forces, gravity_hessian
 from ..solver.gauss_seidel import NUMERICAL, split_strands
 from ..solver.rows import contact_rows
 from .contact import back_substitute, contact_keys, delassus_blocks, factored_rows, reachable, solve_coulomb
-from .inertia import node_forces_to_generalized, strand_bias_forces, strand_mass, strand_nodes
+from .inertia import strand_mass, strand_velocity_forces
 
 __all__ = ["Motion", "Simulation", "StepReport", "strand_dynamics", "validate_settings"]
 
@@ -171,8 +171,6 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
     own rotational inertia, ~1e-9 of it for hair, is not driven by the frame).
     """
     n = q.shape[0]
-    m = gx.shape[0]
-    nodes = n * m
     nd = 3 * n
     refactor = fresh or factored_h != h
     M = np.empty((nd, nd))
@@ -200,45 +198,12 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
     gravity_forces(root, frame0, q, length, lam, motion[0], g)
     for c in range(nd):
         force[c] = g[c // 3, c % 3] - stiff[c] * (q[c // 3, c % 3] - q0[c // 3, c % 3])
-    extra = np.zeros(nd)
-    if moving:
-        strand_bias_forces(root, frame0, q, length, v, gx, gw, lam, rot, extra)
-        for c in range(nd):
-            force[c] += extra[c]
-    # the moving frame: -lam (a0 + A x x + W x (W x x) + 2 W x xdot) and the drag of its own velocity
-    acc = motion[1]
-    vel = motion[2]
-    W = motion[3]
-    A = motion[4]
-    framed = False
-    for i in range(3):
-        if acc[i] != 0.0 or vel[i] != 0.0 or W[i] != 0.0 or A[i] != 0.0:
-            framed = True
-    if framed:
-        x = np.empty((nodes, 3))
-        F = np.empty((nodes, 3, 3))
-        w = np.empty(nodes)
-        J = np.empty((nodes, 3, nd))
-        T = np.empty((nodes, 3, nd))
-        strand_nodes(root, frame0, q, length, gx, gw, x, F, w, J, T)
-        f = np.empty((nodes, 3))
-        xd = np.zeros(3)
-        for node in range(nodes):
-            end = 3 * (node // m + 1)
-            xd[:] = 0.0
-            for c in range(end):
-                for i in range(3):
-                    xd[i] += J[node, i, c] * vf[c]
-            p = x[node]
-            Wx = np.array([W[1] * p[2] - W[2] * p[1], W[2] * p[0] - W[0] * p[2], W[0] * p[1] - W[1] * p[0]])
-            WWx = np.array([W[1] * Wx[2] - W[2] * Wx[1], W[2] * Wx[0] - W[0] * Wx[2], W[0] * Wx[1] - W[1] * Wx[0]])
-            Ax = np.array([A[1] * p[2] - A[2] * p[1], A[2] * p[0] - A[0] * p[2], A[0] * p[1] - A[1] * p[0]])
-            Wxd = np.array([W[1] * xd[2] - W[2] * xd[1], W[2] * xd[0] - W[0] * xd[2], W[0] * xd[1] - W[1] * xd[0]])
-            for i in range(3):
-                f[node, i] = -lam * w[node] * (acc[i] + Ax[i] + WWx[i] + 2.0 * Wxd[i] + air * (vel[i] + Wx[i]))
-        node_forces_to_generalized(J, f, extra)
-        for c in range(nd):
-            force[c] += extra[c]
+    # the velocity products and the moving frame's forces: -lam (a0 + A x x + W x (W x x) + 2 W x xdot)
+    # and the drag of its own velocity
+    extra = np.empty(nd)
+    strand_velocity_forces(root, frame0, q, length, v, gx, gw, lam, rot, moving, motion, air, extra)
+    for c in range(nd):
+        force[c] += extra[c]
     # Mt = M (1 + h air) + h damping K + h^2 S and the right-hand side h F - (h D + h^2 S) v, with
     # S = K + G the stiffness of elasticity and gravity (G the Hessian of the gravity potential): gravity
     # enters implicitly, as twist, resisted by a nearly massless cross-section, cannot follow an explicit
