@@ -116,8 +116,8 @@ def test_moving_frame_forces_are_those_of_the_dense_node_jacobians():
         J, T = np.empty((n * m, 3, 3 * n)), np.empty((n * m, 3, 3 * n))
         strand_nodes(helices.root[k], helices.frame0[k], helices.omega[a:z], helices.length[a:z], gx, gw, x, F, w, J, T)
         xdot = J @ v[a:z].ravel()
-        f = -mat.linear_density * w[:, None] * (a0 + np.cross(A, x) + np.cross(W, np.cross(W, x)) + 2 * np.cross(W, xdot)
-                                                + settings.air_damping * (u + np.cross(W, x)))
+        frame = a0 + np.cross(A, x) + np.cross(W, np.cross(W, x)) + 2 * np.cross(W, xdot)
+        f = -mat.linear_density * w[:, None] * (frame + settings.air_damping * (u + np.cross(W, x)))
         expected = H * np.linalg.solve(Mt, np.einsum("nic,ni->c", J, f))
         np.testing.assert_allclose((moving - still)[a:z].ravel(), expected, rtol=0, atol=1e-9 * np.abs(expected).max())
 

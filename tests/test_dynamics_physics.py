@@ -514,7 +514,8 @@ def test_a_step_starts_as_halved_as_the_last_one_needed_and_tries_one_fewer_afte
     monkeypatch.setattr(simulate, "solve_coulomb", solve)
     lengths = []
     real_step = sim._step
-    monkeypatch.setattr(sim, "_step", lambda motion, h, depth: lengths.append(h) or real_step(motion, h, depth))
+    monkeypatch.setattr(sim, "_step",
+                        lambda motion, h, depth, *rest: lengths.append(h) or real_step(motion, h, depth, *rest))
     h = sim.settings.time_step
     still = Motion.still(mat.gravity)
     report = sim.step(still)
@@ -607,6 +608,43 @@ def test_hair_that_falls_into_the_body_within_one_step_is_pushed_back_out():
     # that is one of them: 1.22 push_speed here), but an unbounded push (room / h) would lift it at
     # 14 times push_speed
     assert np.diff(gaps[deepest:out]).max() <= 1.5 * push * h
+
+
+def test_a_push_that_halving_does_not_shrink_is_kept_after_one_halving(monkeypatch):
+    """A strand found inside a floor is pushed out by its depth within the step, whatever its length:
+    half the step turns the strand as far as the whole one, so halving does not help. The halved
+    attempt is kept (and counted); without that rule the step is halved to ``max_substeps``."""
+    import copy
+
+    from hairinv.dynamics import simulate
+
+    helices = _strand(n=6, total=0.12)
+    settings = Settings()
+    dynamics = dataclasses.replace(settings.dynamics, max_substeps=0, push_speed=10.0)
+    sim = Simulation(helices, helices.omega.copy(), material(), _floor(4.5e-3, x=0.56), settings.contacts, dynamics)
+    for _ in range(40):  # fall in full steps until contacts are found inside the floor
+        sim.step(Motion.still(5.0 * sim.material.gravity))
+        if sim.contacts.n_contacts and sim.contacts.gap.min() < -1e-3:
+            break
+    assert sim.contacts.n_contacts and sim.contacts.gap.min() < -1e-3, "the hair never went in"
+    sim.v[:] = 0.0  # from rest, without gravity: only the push turns the strand
+    still = Motion.still(np.zeros(3))
+    full = copy.deepcopy(sim).step(still)
+    assert full.depth == 0 and full.turn > 0.05
+    deep = dataclasses.replace(dynamics, max_substeps=6, max_turn=0.6 * full.turn)
+    kept = copy.deepcopy(sim)
+    kept.settings = deep
+    report = kept.step(still)
+    # the first half turned further than the whole step (0.23 rad against 0.15): kept; the second half
+    # had less left to push and took its halving
+    assert report.kept_turning >= 1 and report.turn > full.turn
+    assert report.depth <= 2 and report.rejected <= 2
+    monkeypatch.setattr(simulate, "_HALVING_GAIN", np.inf)  # halve whenever an element turns too far
+    halving = copy.deepcopy(sim)
+    halving.settings = deep
+    old = halving.step(still)
+    # halving made the push's turns larger (0.23, 0.31, 0.40 rad ...), down to the last halving
+    assert old.depth == 6 and old.kept_turning == 0 and old.rejected > 10 * report.rejected
 
 
 def test_contact_gaps_are_this_shapes_even_when_the_last_detection_is_reused():

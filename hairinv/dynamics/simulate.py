@@ -84,6 +84,11 @@ class StepReport:
     """the most halvings of the step any kept substep had"""
     last_depth: int = 0
     """the halvings of the step's last substep"""
+    turn: float = 0.0
+    """rad, the furthest any element turned in a kept substep"""
+    kept_turning: int = 0
+    """substeps kept although an element turned further than ``max_turn``: halving had not made the
+    turn smaller (it turned more than ``_HALVING_GAIN`` times as far as the attempt it replaced)"""
     turned: int = -1
     """the strand whose element turned furthest in the last attempt thrown away for turning too far
     (-1: none was); a step that starts halved (``Simulation.start_depth``) without throwing an attempt
@@ -100,6 +105,8 @@ def _joined(first: StepReport, second: StepReport) -> StepReport:
     second.substeps = first.substeps + second.substeps
     second.rejected = first.rejected + second.rejected
     second.depth = max(first.depth, second.depth)
+    second.kept_turning = first.kept_turning + second.kept_turning
+    second.turn = max(first.turn, second.turn)
     if second.turned < 0:
         second.turned = first.turned
     return second  # its last_depth is the step's
@@ -131,6 +138,13 @@ class Motion:
     def packed(self) -> np.ndarray:
         """(5, 3): gravity, accel, velocity, spin, spin_rate, for the kernels."""
         return np.ascontiguousarray(np.stack([self.gravity, self.accel, self.velocity, self.spin, self.spin_rate]))
+
+
+# A halved attempt is kept, although an element turns further than max_turn, when it turns more than
+# _HALVING_GAIN times as far as the attempt it replaces (a smooth motion turns half as far in half the
+# time) and no further than _FUTILE_CAP times max_turn
+_HALVING_GAIN = 0.75
+_FUTILE_CAP = 4.0
 
 
 @jit
@@ -745,6 +759,14 @@ class Simulation:
         over stretches of time, so this throws fewer attempts away, and it
         halves fewer whole steps than starting from the step's deepest
         substep would.
+
+        Halving helps only a motion that turns less in less time. A push
+        asked within the step (a contact found inside the body is moved out
+        by its depth over the step, whatever its length) turns as far in
+        half the time, or further, and so can a contact solve that ends
+        poorly. A halved attempt that turns more than ``_HALVING_GAIN`` times
+        as far as the attempt it replaces (and at most ``_FUTILE_CAP`` times
+        ``max_turn``) is therefore kept, and counted in ``kept_turning``.
         """
         started = time.perf_counter()
         h = float(self.settings.time_step if h is None else h)
@@ -765,7 +787,7 @@ class Simulation:
         self.last = report
         return report
 
-    def _step(self, motion: Motion, h: float, depth: int) -> StepReport:
+    def _step(self, motion: Motion, h: float, depth: int, parent_turn: float = np.inf) -> StepReport:
         helices = self.helices
         offsets = helices.offsets
         v_free = np.zeros_like(self.q)
@@ -821,14 +843,22 @@ class Simulation:
             failed = True
         if failed and depth >= self.settings.max_substeps:
             raise FloatingPointError("the contact solve failed" if found.n_contacts else "the velocity is not finite")
-        if (failed or turn > self.settings.max_turn) and depth < self.settings.max_substeps:
+        # a halved attempt that turns nearly as far as the attempt it replaces shows that halving does
+        # not slow the motion down (a push asked within the step, whatever its length): it is kept
+        futile = not failed and turn <= _FUTILE_CAP * self.settings.max_turn and turn > _HALVING_GAIN * parent_turn
+        if (failed or turn > self.settings.max_turn) and not futile and depth < self.settings.max_substeps:
             # nothing is kept of this attempt: two half steps instead
-            first = self._step(motion, 0.5 * h, depth + 1)
-            joined = _joined(first, self._step(motion, 0.5 * h, depth + 1))
+            replaced = np.inf if failed else turn
+            first = self._step(motion, 0.5 * h, depth + 1, replaced)
+            joined = _joined(first, self._step(motion, 0.5 * h, depth + 1, replaced))
             joined.rejected += 1
             if joined.turned < 0 and not failed:
                 joined.turned = int(np.searchsorted(offsets, int(np.argmax(turns)), side="right") - 1)
             return joined
+        report.turn = turn
+        if futile and turn > self.settings.max_turn:
+            report.kept_turning = 1
+            report.last_depth = depth - 1  # the attempt it replaced would have done as well
         self._first = False
         order = np.argsort(keys, kind="stable")
         world = np.einsum("cji,cj->ci", found.frame, impulse)
