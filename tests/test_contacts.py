@@ -23,7 +23,7 @@ from hairinv.fit import Helices, fit_groom
 from hairinv.groom import load_body, load_groom
 from hairinv.rod.helix import frames_at, points_at
 
-# Refined contact positions: Brent's method / Gauss-Newton on float64 geometry of size ~0.1 m;
+# Refined contact positions: golden-section / Gauss-Newton on float64 geometry of size ~0.1 m;
 # the arc length at a quadratic minimum is resolved to about sqrt(eps) of the distance scale.
 POSITION = 1e-7
 # Distances and normals of exact geometry (planes, box faces, straight lines): round-off.

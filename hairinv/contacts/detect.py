@@ -29,7 +29,7 @@ from ..config import ContactSettings
 from ..errors import InputError
 from ..fit import Helices
 from ._curve import element_starts, sample_elements
-from .body import REFINE_TOLERANCE, BodyMesh, element_body_contacts
+from .body import REFINE_ITERATIONS, BodyMesh, element_body_contacts
 from .hair import hair_pairs, refine_pairs
 
 __all__ = ["Contacts", "DetectReport", "detect_contacts", "validate_settings", "contact_frames"]
@@ -316,7 +316,7 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         if mesh is not None:
             element_body_contacts(e0, e1, samples, xs, Fs, omega, length, s0, is_last, *mesh.tree,
                                   float(settings.body_distance), float(settings.root_clearance),
-                                  COINCIDENT * float(settings.body_distance), REFINE_TOLERANCE, inside, deepest,
+                                  COINCIDENT * float(settings.body_distance), REFINE_ITERATIONS, inside, deepest,
                                   has, sigma, b_point, b_normal, b_sd)
 
     run_chunks(strands_chunk, count, CHUNK, progress)
