@@ -172,7 +172,7 @@ class DynamicsSettings:
     density). A 50 um hair's own makes twist nearly massless (around 3e4 rad/s), which the step cannot
     follow: strands released from contact then gain energy and blow up. 5 mm, the size of the wisp a guide
     strand stands for, brings it near 200 rad/s; bending and swinging are unchanged (docs/dynamics.md)."""
-    max_turn: float = 0.1
+    max_turn: float = 0.05
     """rad. A step is split in halves while any element would turn by more than this within it: the step
     is linearised at its start, and a strand springing towards a distant rest shape is far from linear."""
     max_substeps: int = 6
