@@ -488,7 +488,7 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               "has strands that no rest shape holds, see below; over longer runs ruby's set off and slow "
               f"the steps down), and in the `motion` scene over {RUBY_MOTION_SECONDS / 0.04:.0f} frames from "
               f"{RUBY_MOTION_START:g} s, where the head turns fastest (the simulation starts there from the "
-              "inverted model at rest on the body, so the hair is jerked into the turn). Each run starts after one "
+              "inverted model at rest on the body, so the hair is jerked into the turn; run on past 0.25 s, it goes into a cascade of halved steps at 1-3 minutes each, docs/dynamics.md). Each run starts after one "
               "warm-up step; `moved` is the largest displacement of any strand point at the end. A drawn "
               "groom is not used for the small case: many of its strands rest in an unstable equilibrium "
               "whatever their rest shape (docs/dynamics.md), and once round-off has grown, after about "
