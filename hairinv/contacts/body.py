@@ -472,6 +472,14 @@ def _sd_at(e, sigma, xs, Fs, omega, triangles, feature_normal, feature_open, nod
 
 
 @jit
+def _lower(s, value, best_s, best):
+    """``(s, value)`` if ``value`` is below ``best``, else ``(best_s, best)``: the first least seen wins."""
+    if value < best:
+        return s, value
+    return best_s, best
+
+
+@jit
 def _refine(e, a, b, best_s, best, iterations, xs, Fs, omega, triangles, feature_normal, feature_open, node_lo,
             node_hi, node_left, node_start, node_count, stack, x, t, c, nf, tmp, R, P, Q):
     """Least signed distance along element ``e`` within ``[a, b]`` by ``iterations`` golden-section
@@ -479,38 +487,26 @@ def _refine(e, a, b, best_s, best, iterations, xs, Fs, omega, triangles, feature
     (Brent's method, tried, needed 35 % fewer queries but moved some contacts by round-off-sized amounts,
     which was enough to make a drawn groom's inverted start no longer exactly at rest; see docs/contacts.md.)"""
     x1 = b - _GOLDEN * (b - a)
-    x2 = a + _GOLDEN * (b - a)
     f1, _ = _sd_at(e, x1, xs, Fs, omega, triangles, feature_normal, feature_open, node_lo, node_hi, node_left,
                    node_start, node_count, stack, x, t, c, nf, tmp, R, P, Q)
+    best_s, best = _lower(x1, f1, best_s, best)
+    x2 = a + _GOLDEN * (b - a)
     f2, _ = _sd_at(e, x2, xs, Fs, omega, triangles, feature_normal, feature_open, node_lo, node_hi, node_left,
                    node_start, node_count, stack, x, t, c, nf, tmp, R, P, Q)
+    best_s, best = _lower(x2, f2, best_s, best)
     for _ in range(iterations):
-        if f1 < best:
-            best = f1
-            best_s = x1
-        if f2 < best:
-            best = f2
-            best_s = x2
-        if f1 <= f2:
-            b = x2
-            x2 = x1
-            f2 = f1
+        if f1 <= f2:  # the least lies in [a, x2]: x1 becomes its upper golden point
+            b, x2, f2 = x2, x1, f1
             x1 = b - _GOLDEN * (b - a)
             f1, _ = _sd_at(e, x1, xs, Fs, omega, triangles, feature_normal, feature_open, node_lo, node_hi,
                            node_left, node_start, node_count, stack, x, t, c, nf, tmp, R, P, Q)
-        else:
-            a = x1
-            x1 = x2
-            f1 = f2
+            best_s, best = _lower(x1, f1, best_s, best)
+        else:  # in [x1, b]: x2 becomes its lower golden point
+            a, x1, f1 = x1, x2, f2
             x2 = a + _GOLDEN * (b - a)
             f2, _ = _sd_at(e, x2, xs, Fs, omega, triangles, feature_normal, feature_open, node_lo, node_hi,
                            node_left, node_start, node_count, stack, x, t, c, nf, tmp, R, P, Q)
-    if f1 < best:
-        best = f1
-        best_s = x1
-    if f2 < best:
-        best = f2
-        best_s = x2
+            best_s, best = _lower(x2, f2, best_s, best)
     return best_s, best
 
 
