@@ -2,7 +2,7 @@
 
 Run alone with ``python bench/solver_study_bench.py`` (prints the markdown
 section), or ``python bench/run.py solver_study`` to write it into
-``docs/benchmarks.md``. It takes about three minutes.
+``docs/benchmarks.md``. It takes about two minutes.
 
 On guide subsets of ruby short (the SOCQP built exactly as ``invert`` builds
 it, ``invert_bench.Problem``) it measures:
