@@ -334,9 +334,18 @@ def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guid
     for line in scene.lines:
         _say(obj, line)
     material = Material.from_settings(settings.material, scene.up)
+    start, prior = None, 0
+    if scene.model is not None and settings.solver.warm_start and not gravity_only:
+        a = scene.model.attrs
+        start = scene.model["force"]
+        prior = int(a.get("prior_sweeps", 0)) + int(a.get("iterations", 0))
+        _say(obj, f"starting from the forces of the model in {Path(style).name} ({prior} sweeps, "
+                  f"{a.get('status', 'status unknown')}, relative residual {float(a.get('relative_residual', float('nan'))):.2g}"
+                  "); --set solver.warm_start=false starts afresh")
     bar = SolverProgress(settings.solver.max_sweeps, obj["progress"])
     try:
-        model, report = run_invert(scene.helices, scene.contacts, material, settings.solver, progress=bar)
+        model, report = run_invert(scene.helices, scene.contacts, material, settings.solver, progress=bar,
+                                   start=start, prior_sweeps=prior)
     finally:
         bar.close()
     for line in report.lines():

@@ -133,6 +133,9 @@ class SolverSettings:
     accelerate: bool = True
     """Nesterov momentum over the sweeps, dropped whenever a sweep would raise the objective.
     On the wavy sample it reaches in 200 sweeps the objective plain sweeps reach in 1,600."""
+    warm_start: bool = True
+    """Start from the forces of the input file's /model when it has one for the same contacts (a model
+    written by an earlier invert), so that inverting a model again continues where that run stopped."""
 
 
 @dataclass(frozen=True)

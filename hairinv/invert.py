@@ -34,7 +34,8 @@ from .errors import InputError, RunError
 from .fit import Helices
 from .rod.statics import gravity_forces, gravity_hessian
 from .solver.blocks import _group_newton, strand_blocks
-from .solver.gauss_seidel import CONVERGED, SolverResult, diagonal_blocks, solve_cone_qp, split_strands
+from .solver.gauss_seidel import (CONVERGED, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
+                                  split_strands)
 from .solver.rows import ContactRows, contact_rows
 
 __all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness", "generalized_gravity",
@@ -272,12 +273,15 @@ class Model:
     gamma: float
     target: str
     result: SolverResult
+    prior_sweeps: int = 0
+    """sweeps of the earlier runs whose forces this one started from (0: it started afresh)"""
 
     def group(self, settings: dict, inputs: list[dict]) -> stages.Group:
         attrs = dict(self.material.attrs())
         attrs.update(gamma=self.gamma, target=self.target, iterations=self.result.sweeps,
                      residual=self.result.residual, seconds=self.result.seconds,
-                     status=self.result.status, relative_residual=self.result.relative_residual)
+                     status=self.result.status, relative_residual=self.result.relative_residual,
+                     prior_sweeps=int(self.prior_sweeps))
         return stages.Group(
             stages.MODEL,
             {"omega_rest": self.omega_rest, "omega_target": self.omega_target,
@@ -384,7 +388,8 @@ def validate_settings(settings: SolverSettings) -> None:
 
 
 def invert(helices: Helices, contacts: Contacts | None, material: Material, settings: SolverSettings,
-           progress=None, check_stability: bool = True) -> tuple[Model, InvertReport]:
+           progress=None, check_stability: bool = True, start: np.ndarray | None = None,
+           prior_sweeps: int = 0) -> tuple[Model, InvertReport]:
     """Solve the inverse problem for ``helices`` resting on ``contacts``.
 
     Parameters
@@ -394,6 +399,10 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     material : Material
     settings : SolverSettings
     progress : callable(sweeps, relative residual), optional
+    start : (C, 3) float64, optional, forces to start the solver from (an earlier model's, one per
+        contact), projected onto the cones first; the problem is convex, so the answer is the same
+        optimum to the tolerance, reached sooner from a good start
+    prior_sweeps : int, the sweeps that produced ``start``, recorded in the model
 
     Raises
     ------
@@ -418,8 +427,16 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
     force_scale = material.linear_density * np.linalg.norm(material.gravity) * float(strand_length.max())
     r0 = None
-    if contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0):
+    if start is not None and contacts.n_contacts:
+        start = np.asarray(start, dtype=np.float64)
+        if start.shape != (contacts.n_contacts, 3) or not np.all(np.isfinite(start)):
+            raise InputError(f"the starting forces must be finite, one row of 3 per contact "
+                             f"({contacts.n_contacts}), got shape {start.shape}")
+        r0 = project_forces(start, contacts.mu)
+    elif contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0):
         r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
+    else:
+        start = None
     result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, helices.n_strands,
                            force_scale, settings.tolerance, settings.max_sweeps, settings.check_every, r0=r0,
                            progress=progress, s=contacts.s, accelerate=settings.accelerate,
@@ -442,7 +459,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     curvature = np.hypot(omega_rest[:, 0], omega_rest[:, 1])
     if declared != contacts.n_contacts:  # gravity-only: every declared contact carries no force
         r = np.zeros((declared, 3))
-    model = Model(omega_rest, target, weight, r, material, float(settings.gamma), settings.target, result)
+    prior = int(prior_sweeps) if start is not None else 0
+    model = Model(omega_rest, target, weight, r, material, float(settings.gamma), settings.target, result, prior)
     report = InvertReport(
         settings.target, contacts.n_contacts, contacts.n_body, int(carrying.sum()), result, force_scale,
         float(np.sqrt(np.mean(np.sum(drift ** 2, axis=1)))) if len(drift) else 0.0,
@@ -450,14 +468,18 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         time.perf_counter() - started,
     )
     report.unstable_held = unstable_held
-    if r0 is not None:
+    if start is not None:
+        report.notes.append(f"the solver started from the given forces (after {prior} earlier sweeps), at relative "
+                            f"residual {result.history[0][1] / force_scale:.2g}")
+    elif r0 is not None:
         report.notes.append("no contact couples two strands: each strand's contacts were first solved together "
                             "(Newton on their block), and the sweeps started from those forces")
     if result.status != CONVERGED:
         report.notes.append(
             f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "
             f"(tolerance {settings.tolerance:g}); the model is an exact equilibrium, but its forces are not yet the "
-            "best ones: raise solver.max_sweeps (or solver.max_seconds) or the tolerance")
+            "best ones: invert this model again to continue from its forces, or raise solver.max_sweeps "
+            "(or solver.max_seconds) or the tolerance")
     return model, report
 
 

@@ -47,6 +47,8 @@ class Scene:
     body: object = None
     inputs: list = field(default_factory=list)
     lines: list = field(default_factory=list)
+    model: object = None
+    """the style file's /model group, kept only when its contacts are the ones used (its forces match them)"""
 
 
 def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Scene:
@@ -93,6 +95,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         else:
             helices = None
         stored_contacts = stage[stages.CONTACTS] if stages.CONTACTS in stage else None
+        stored_model = stage[stages.MODEL] if stages.MODEL in stage and helices is not None else None
         groom = None
         if helices is None:
             groom, report = load_groom(style, settings.import_)
@@ -104,7 +107,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         groups[stages.CURVES] = groom.curves_group(settings.import_, inputs[:1])
         up, scale, flip = groom.up, groom.scale_to_m, settings.import_.flip
         helices = None
-        stored_contacts = None
+        stored_contacts = stored_model = None
     if helices is None:
         bar = progress("fit", groom.n_strands) if progress else None
         try:
@@ -123,6 +126,8 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         scene.contacts = Contacts.from_group(stored_contacts)
         groups[stages.CONTACTS] = stored_contacts
         lines.append(f"using the {scene.contacts.n_contacts} contacts in {style.name}")
+        if stored_model is not None and np.shape(stored_model["force"]) == (scene.contacts.n_contacts, 3):
+            scene.model = stored_model
         return scene
     if stored_contacts is not None:
         lines.append(f"the contacts in {style.name} were detected with other settings; detecting them again")

@@ -75,6 +75,7 @@ def summarise(stage: stages.StageFile) -> dict:
             "target": g.attrs.get("target", ""),
             "status": g.attrs.get("status", ""),
             "sweeps": int(g.attrs.get("iterations", 0)),
+            "prior_sweeps": int(g.attrs.get("prior_sweeps", 0)),
             "residual_N": float(g.attrs.get("residual", 0.0)),
             "relative_residual": float(g.attrs.get("relative_residual", 0.0)),
             "solve_seconds": round(float(g.attrs.get("seconds", 0.0)), 3),

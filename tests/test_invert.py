@@ -24,6 +24,7 @@ import pytest
 from conftest import FINITE_DIFFERENCE
 from hairinv.config import MaterialSettings, SolverSettings
 from hairinv.contacts import Contacts
+from hairinv.errors import InputError
 from hairinv.fit import Helices
 from hairinv.invert import Material, generalized_gravity, invert, stiffness, target_shape
 from hairinv.rod.helix import points_at
@@ -450,3 +451,24 @@ def test_natural_residual_of_a_contact_with_zero_delassus_block_is_nan_not_an_ex
     # the well-posed contact's own residual is still right: u = -2 pushes in, so r_N should be
     # 2 / rho = 6 (rho = trace / 3 = 1/3), and r = 0 is off by exactly that
     assert out[1] == pytest.approx(6.0)
+
+
+def test_a_start_far_from_the_optimum_reaches_the_same_optimum():
+    """The problem is convex: a warm start (forces out of the cones, ten times too large) converges to the
+    optimum a cold start finds, and the optimum itself, given as the start, is accepted without a sweep."""
+    helices, contacts = two_strand_scene(mu=0.3)
+    mat = material()
+    settings = SolverSettings(tolerance=TIGHT, max_sweeps=20000)
+    cold, _ = invert(helices, contacts, mat, settings)
+    wild = np.random.default_rng(0).normal(size=(contacts.n_contacts, 3)) * 10 * np.abs(cold.force).max()
+    warm, report = invert(helices, contacts, mat, settings, start=wild, prior_sweeps=7)
+    assert report.result.status == "CONVERGED" and warm.prior_sweeps == 7
+    assert any("started from the given forces" in line for line in report.lines())
+    W, b, _, _ = dense_problem(helices, contacts, mat, warm)
+    check_optimality(W, b, warm.force, contacts.mu, rtol=1e-7)
+    # W is positive definite (gamma > 0), so the optimum is unique
+    assert np.allclose(warm.force, cold.force, rtol=0, atol=1e-6 * np.abs(cold.force).max())
+    again, report = invert(helices, contacts, mat, settings, start=cold.force)
+    assert report.result.sweeps == 0 and np.array_equal(again.force, cold.force)
+    with pytest.raises(InputError, match="one row of 3 per contact"):
+        invert(helices, contacts, mat, settings, start=np.zeros((contacts.n_contacts + 1, 3)))

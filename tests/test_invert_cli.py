@@ -183,3 +183,42 @@ def test_output_piped_into_a_closed_reader_still_writes_the_file(inverted):
     _, err = proc.communicate(timeout=600)
     assert proc.returncode == 0, err
     assert stages.read_stage(folder / "piped.h5").last_stage == "contacts"
+
+
+def _objective(path) -> float:
+    """``1/2 sum_e w_e |q0_e - t_e|^2 + gamma/2 |r|^2``, the inversion's objective, from the file alone."""
+    with h5py.File(path, "r") as fh:
+        m = fh["model"]
+        dq = m["omega_rest"][()] - m["omega_target"][()]
+        r = m["force"][()]
+        return float(0.5 * np.sum(m["target_weight"][()] * np.sum(dq ** 2, axis=1))
+                     + 0.5 * float(m.attrs["gamma"]) * np.sum(r ** 2))
+
+
+def test_inverting_a_model_again_starts_from_its_forces(inverted):
+    """A run stopped at the sweep cap, inverted again, continues from its forces instead of from zero."""
+    folder, _ = inverted
+    cap = ("--set", "solver.max_sweeps=20")
+    first = hairinv(folder, "invert", "model.h5", "body.obj", "-o", "short.h5", "--set", "solver.warm_start=false",
+                    *cap)
+    assert first.returncode == 0, first.stderr
+    assert "starting from the forces" not in first.stdout
+    again = hairinv(folder, "invert", "short.h5", "body.obj", "-o", "longer.h5", *cap)
+    assert again.returncode == 0, again.stderr
+    assert "starting from the forces of the model in short.h5 (20 sweeps, MAX_ITERS" in again.stdout
+    with h5py.File(folder / "short.h5", "r") as a, h5py.File(folder / "longer.h5", "r") as b:
+        assert a["model"].attrs["status"] == "MAX_ITERS"
+        assert b["model"].attrs["prior_sweeps"] == 20 and a["model"].attrs["prior_sweeps"] == 0
+        # the second run's first residual is the first run's last: it started from exactly those forces
+        assert b["model"]["residual_history"][0, 1] == pytest.approx(float(a["model"].attrs["residual"]), rel=1e-9)
+        assert b["model"]["residual_history"][0, 1] < a["model"]["residual_history"][0, 1]
+    # the sweeps never raise the objective, so the continued run's is lower still
+    assert _objective(folder / "longer.h5") < _objective(folder / "short.h5")
+    residual, cone = equilibrium_residual(folder / "longer.h5")
+    assert residual < EQUILIBRIUM and cone < CONE
+    fresh = hairinv(folder, "invert", "short.h5", "body.obj", "-o", "fresh.h5", "--set", "solver.warm_start=false",
+                    *cap)
+    assert fresh.returncode == 0, fresh.stderr
+    with h5py.File(folder / "short.h5", "r") as a, h5py.File(folder / "fresh.h5", "r") as c:
+        assert np.array_equal(c["model"]["force"][()], a["model"]["force"][()])  # the same 20 sweeps from zero
+        assert c["model"].attrs["prior_sweeps"] == 0

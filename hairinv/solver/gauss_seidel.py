@@ -36,8 +36,8 @@ from .._parallel import blas_pinned, executor, in_worker, worker_count
 from .local import NUMERICAL_ERROR, project_cone, solve_contact
 from .rows import ContactRows
 
-__all__ = ["CONVERGED", "MAX_ITERS", "NUMERICAL", "SolverResult", "colour_contacts", "solve_cone_qp",
-           "split_strands", "sweep_plan"]
+__all__ = ["CONVERGED", "MAX_ITERS", "NUMERICAL", "SolverResult", "colour_contacts", "project_forces",
+           "solve_cone_qp", "split_strands", "sweep_plan"]
 
 CONVERGED = "CONVERGED"
 MAX_ITERS = "MAX_ITERS"
@@ -180,6 +180,15 @@ def _extrapolate(x, x_prev, beta, mu, out):
         project_cone(y, mu[i], p)
         for a in range(3):
             out[i, a] = p[a]
+
+
+def project_forces(r: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """Each contact's force of ``r`` (C, 3) projected onto its Coulomb cone (a new array)."""
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    out = np.empty_like(r)
+    if len(r):
+        _extrapolate(r, r, 0.0, np.ascontiguousarray(mu, dtype=np.float64), out)
+    return out
 
 
 @jit(error_model="numpy")
