@@ -312,7 +312,7 @@ def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guid
     """
     from hairinv import config, stages
     from hairinv.errors import RunError
-    from hairinv.invert import Material, invert as run_invert, settings_dict, validate_settings
+    from hairinv.invert import Material, invert as run_invert, settings_dict, validate_settings, warm_start
     from hairinv.pipeline import prepare
 
     settings = config.resolve(quality, config_file, sets)
@@ -335,13 +335,10 @@ def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guid
         _say(obj, line)
     material = Material.from_settings(settings.material, scene.up)
     start, prior = None, 0
-    if scene.model is not None and settings.solver.warm_start and not gravity_only:
-        a = scene.model.attrs
-        start = scene.model["force"]
-        prior = int(a.get("prior_sweeps", 0)) + int(a.get("iterations", 0))
-        _say(obj, f"starting from the forces of the model in {Path(style).name} ({prior} sweeps, "
-                  f"{a.get('status', 'status unknown')}, relative residual {float(a.get('relative_residual', float('nan'))):.2g}"
-                  "); --set solver.warm_start=false starts afresh")
+    if scene.model is not None:
+        start, prior, line = warm_start(scene.model, material, settings.solver)
+        if line:
+            _say(obj, line.replace("in the input", f"in {Path(style).name}"))
     bar = SolverProgress(settings.solver.max_sweeps, obj["progress"])
     try:
         model, report = run_invert(scene.helices, scene.contacts, material, settings.solver, progress=bar,

@@ -483,6 +483,32 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     return model, report
 
 
+def warm_start(group: stages.Group, material: Material, settings: SolverSettings) -> tuple[np.ndarray | None, int, str]:
+    """The forces of an earlier model (``group``, for the same contacts) to start the solver from.
+
+    Returns (forces or None, the sweeps that produced them, a line for the user). The
+    forces are used only if the model solved the same problem: the same target, gamma and
+    material (its forces are then a point near this problem's optimum; those of another
+    problem may be a worse start than zero).
+    """
+    if not settings.warm_start or settings.target == "gravity-only":
+        return None, 0, ""
+    a = group.attrs
+    differ = [] if a.get("target") == settings.target else ["target"]
+    if not np.isclose(float(a.get("gamma", np.nan)), settings.gamma, rtol=1e-12, atol=0.0):
+        differ.append("gamma")
+    for key, value in material.attrs().items():
+        if not np.allclose(np.asarray(a.get(key, np.nan), dtype=np.float64), value, rtol=1e-12, atol=0.0):
+            differ.append(f"material ({key})")
+    if differ:
+        return None, 0, f"the model in the input was inverted with another {', '.join(differ)}: starting afresh"
+    prior = int(a.get("prior_sweeps", 0)) + int(a.get("iterations", 0))
+    line = (f"starting from the forces of the model in the input ({prior} sweeps, {a.get('status', 'status unknown')}, "
+            f"relative residual {float(a.get('relative_residual', np.nan)):.2g}); --set solver.warm_start=false "
+            "starts afresh")
+    return np.asarray(group["force"], dtype=np.float64), prior, line
+
+
 def material_from_group(group: stages.Group) -> Material:
     """The material of a ``/model`` group."""
     a = group.attrs

@@ -3,8 +3,10 @@
 ``hairinv invert style.h5 body.obj`` accepts raw curves in any readable
 format or a stage file at any stage: a stage already in the file is used as
 it is (and said so); a missing one is computed with the current settings.
-Contacts stored with other contact settings than the current ones are
-detected again (detection is cheap and its settings are easy to change).
+Contacts stored with other contact settings than the current ones, against
+another body, for helices fitted again, or by a gravity-only inversion (which
+declares none) are detected again (detection is cheap and its settings are
+easy to change).
 """
 
 from __future__ import annotations
@@ -49,6 +51,24 @@ class Scene:
     lines: list = field(default_factory=list)
     model: object = None
     """the style file's /model group, kept only when its contacts are the ones used (its forces match them)"""
+
+
+def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refitted: bool) -> str | None:
+    """Why the stored ``/contacts`` group cannot be used as it is (None: it can)."""
+    if stored is None:
+        return None
+    if refitted:  # contacts name strands and arc lengths of the stored helices
+        return "belong to helices that are not in the file"
+    if model is not None and model.attrs.get("target") == "gravity-only":
+        return "belong to a gravity-only model, which declares none"
+    if stored.config != wanted:
+        return "were detected with other settings"
+    stored_body = stored.inputs[1].get("sha256") if len(stored.inputs) > 1 else None
+    if stored_body != (body_record or {}).get("sha256"):
+        if stored_body is None:
+            return "were detected without a body"
+        return "were detected against another body" if body_record is not None else "were detected against a body"
+    return None
 
 
 def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Scene:
@@ -108,6 +128,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         up, scale, flip = groom.up, groom.scale_to_m, settings.import_.flip
         helices = None
         stored_contacts = stored_model = None
+    refitted = helices is None
     if helices is None:
         bar = progress("fit", groom.n_strands) if progress else None
         try:
@@ -122,15 +143,18 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
     if not contacts:
         return scene
     wanted = {"contacts": dataclasses.asdict(settings.contacts)}
-    if stored_contacts is not None and stored_contacts.config == wanted:
+    stale = _stale_contacts(stored_contacts, stored_model, wanted, inputs[1] if body is not None else None,
+                            refitted=refitted)
+    if stored_contacts is not None and stale is None:
         scene.contacts = Contacts.from_group(stored_contacts)
         groups[stages.CONTACTS] = stored_contacts
         lines.append(f"using the {scene.contacts.n_contacts} contacts in {style.name}")
-        if stored_model is not None and np.shape(stored_model["force"]) == (scene.contacts.n_contacts, 3):
+        if (stored_model is not None and scene.contacts.n_contacts
+                and np.shape(stored_model["force"]) == (scene.contacts.n_contacts, 3)):
             scene.model = stored_model
         return scene
     if stored_contacts is not None:
-        lines.append(f"the contacts in {style.name} were detected with other settings; detecting them again")
+        lines.append(f"the contacts in {style.name} {stale}; detecting them again")
     if mesh is None and settings.contacts.body:
         lines.append("no body given: only hair-hair contacts are declared")
     found, detect_report = detect_contacts(helices, mesh, settings.contacts)

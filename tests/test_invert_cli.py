@@ -222,3 +222,40 @@ def test_inverting_a_model_again_starts_from_its_forces(inverted):
     with h5py.File(folder / "short.h5", "r") as a, h5py.File(folder / "fresh.h5", "r") as c:
         assert np.array_equal(c["model"]["force"][()], a["model"]["force"][()])  # the same 20 sweeps from zero
         assert c["model"].attrs["prior_sweeps"] == 0
+    # another problem (here another target): its forces are no start for this one
+    other = hairinv(folder, "invert", "short.h5", "body.obj", "-o", "zero.h5", "--target", "zero", *cap)
+    assert other.returncode == 0, other.stderr
+    assert "inverted with another target: starting afresh" in other.stdout
+    with h5py.File(folder / "zero.h5", "r") as z:
+        assert z["model"].attrs["prior_sweeps"] == 0
+
+
+def test_stored_contacts_that_do_not_fit_the_run_are_detected_again(inverted):
+    """Contacts are reused only for the body they were detected against, and never from a gravity-only model."""
+    folder, _ = inverted
+    with h5py.File(folder / "model.h5", "r") as fh:
+        declared = len(fh["contacts"]["mu"])
+    result = hairinv(folder, "invert", "model.h5", "body.obj", "-o", "gravity.h5", "--target", "gravity-only")
+    assert result.returncode == 0, result.stderr
+    result = hairinv(folder, "invert", "gravity.h5", "body.obj", "-o", "from_gravity.h5",
+                     "--set", "solver.max_sweeps=20")
+    assert result.returncode == 0, result.stderr
+    assert "belong to a gravity-only model, which declares none; detecting them again" in result.stdout
+    assert "starting from the forces" not in result.stdout
+    with h5py.File(folder / "from_gravity.h5", "r") as fh:
+        assert len(fh["contacts"]["mu"]) == declared > 0
+    moved = (folder / "body.obj").read_text() + "# the same mesh, another file\n"
+    (folder / "body2.obj").write_text(moved)
+    result = hairinv(folder, "invert", "model.h5", "body2.obj", "-o", "body2.h5", "--set", "solver.max_sweeps=20")
+    assert result.returncode == 0, result.stderr
+    assert "were detected against another body; detecting them again" in result.stdout
+    assert "starting from the forces" not in result.stdout
+    # a file with contacts but no helices: the helices are fitted again, and the contacts with them
+    stage = stages.read_stage(folder / "model.h5")
+    stages.write_stage(folder / "no_helices.h5", [stage["curves"], stage["contacts"]], "test")
+    result = hairinv(folder, "invert", "no_helices.h5", "body.obj", "-o", "refitted.h5", "--guides", "20",
+                     "--set", "solver.max_sweeps=20")
+    assert result.returncode == 0, result.stderr
+    assert "belong to helices that are not in the file; detecting them again" in result.stdout
+    residual, cone = equilibrium_residual(folder / "refitted.h5")
+    assert residual < EQUILIBRIUM and cone < CONE
