@@ -4,9 +4,9 @@
 format or a stage file at any stage: a stage already in the file is used as
 it is (and said so); a missing one is computed with the current settings.
 Contacts stored with other contact settings than the current ones, against
-another body, for helices fitted again, or by a gravity-only inversion (which
-declares none) are detected again (detection is cheap and its settings are
-easy to change).
+another body file than the one given (or without one), for helices fitted
+again, or by a gravity-only inversion (which declares none) are detected
+again (detection is cheap and its settings are easy to change).
 """
 
 from __future__ import annotations
@@ -63,11 +63,13 @@ def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refit
         return "belong to a gravity-only model, which declares none"
     if stored.config != wanted:
         return "were detected with other settings"
+    if body_record is None:  # no body given: the contacts stand for the body they were detected against
+        return None
     stored_body = stored.inputs[1].get("sha256") if len(stored.inputs) > 1 else None
-    if stored_body != (body_record or {}).get("sha256"):
-        if stored_body is None:
-            return "were detected without a body"
-        return "were detected against another body" if body_record is not None else "were detected against a body"
+    if stored_body is None:
+        return "were detected without a body"
+    if stored_body != body_record.get("sha256"):
+        return "were detected against another body"
     return None
 
 

@@ -250,6 +250,11 @@ def test_stored_contacts_that_do_not_fit_the_run_are_detected_again(inverted):
     assert result.returncode == 0, result.stderr
     assert "were detected against another body; detecting them again" in result.stdout
     assert "starting from the forces" not in result.stdout
+    # without a body argument, the stored contacts (and the model's forces) are used as they are
+    result = hairinv(folder, "invert", "model.h5", "-o", "no_body.h5", "--set", "solver.max_sweeps=20")
+    assert result.returncode == 0, result.stderr
+    assert f"using the {declared} contacts in model.h5" in result.stdout
+    assert "starting from the forces of the model in model.h5" in result.stdout
     # a file with contacts but no helices: the helices are fitted again, and the contacts with them
     stage = stages.read_stage(folder / "model.h5")
     stages.write_stage(folder / "no_helices.h5", [stage["curves"], stage["contacts"]], "test")
