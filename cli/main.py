@@ -456,9 +456,10 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
         _say(obj, f"body: {body}")
     elif scene.body != "removed":
         _say(obj, "no body: only hair-hair contacts")
-    _say(obj, f"scene {scene.name}: {scene.description}" if scene.description else f"scene {scene.name}")
     run_seconds = scene.seconds if seconds is None else seconds
     run_fps = scene.fps if fps is None else fps
+    _say(obj, f"scene {scene.name}, {run_seconds:g} s at {run_fps:g} frames per second"
+         + (f": {scene.description}" if scene.description else ""))
     steps = max(1, round(1.0 / (run_fps * settings.dynamics.time_step))) * max(0, round(run_seconds * run_fps))
     bar = Progress(steps, "simulate", obj["progress"], unit="step")
     try:

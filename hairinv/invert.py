@@ -332,7 +332,7 @@ class InvertReport:
         if self.unstable:
             lines.append(f"warning: {self.unstable} of {self.strands} strands rest in an unstable equilibrium "
                          f"(a simulation may let them fall away from the input shape)")
-            if self.unstable_held:
+            if self.unstable_held and self.contacts:  # without contacts the count is the one above
                 lines.append(f"{self.unstable_held} of them stay unstable even with every declared contact held "
                              "in place: their input shape cannot be a stable rest on this rod model, whatever the "
                              "rest shape (docs/dynamics.md, Stability)")

@@ -147,7 +147,8 @@ class DetectReport:
         ]
         if self.points_inside_body:
             lines.append(
-                f"warning: {self.points_inside_body} sample points on {self.strands_inside_body} strands lie inside "
+                f"warning: {self.points_inside_body} sample points on {self.strands_inside_body} "
+                f"strand{'s' if self.strands_inside_body != 1 else ''} lie inside "
                 f"the body (deepest {1e3 * self.deepest_inside:.2f} mm); they stay body contacts (at most one per "
                 "element, at its deepest point), with normals pushing the hair out"
             )
