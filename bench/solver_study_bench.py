@@ -225,8 +225,8 @@ def study(case: Case, opt: dict) -> dict:
     out["worst"] = [{"kind": side[i], "s": float(c.s[i, 0]), "rho": float(p.rho[i]), "e": float(e[i]),
                      "rN": float(r_cold[i, 0] / case.force_scale),
                      "rN_opt": float(opt["r"][i, 0] / case.force_scale)} for i in worst]
-    out["clarabel_relres"] = float(case.residuals(opt["clarabel"]).max())
     ce = case.residuals(opt["clarabel"])
+    out["clarabel_relres"] = float(ce.max())
     out["clarabel_worst"] = [{"kind": side[i], "s": float(c.s[i, 0]), "rho": float(p.rho[i])}
                              for i in np.argsort(ce)[::-1][:5]]
     out["max_force_opt"] = float(opt["r"][:, 0].max() / case.force_scale)

@@ -336,9 +336,9 @@ def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guid
     material = Material.from_settings(settings.material, scene.up)
     start, prior = None, 0
     if scene.model is not None:
-        start, prior, line = warm_start(scene.model, material, settings.solver)
+        start, prior, line = warm_start(scene.model, material, settings.solver, Path(style).name)
         if line:
-            _say(obj, line.replace("in the input", f"in {Path(style).name}"))
+            _say(obj, line)
     bar = SolverProgress(settings.solver.max_sweeps, obj["progress"])
     try:
         model, report = run_invert(scene.helices, scene.contacts, material, settings.solver, progress=bar,

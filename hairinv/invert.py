@@ -427,7 +427,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
     force_scale = material.linear_density * np.linalg.norm(material.gravity) * float(strand_length.max())
     r0 = None
-    if start is not None and contacts.n_contacts:
+    warm = start is not None and contacts.n_contacts > 0  # a start for no contacts has nothing to start
+    if warm:
         start = np.asarray(start, dtype=np.float64)
         if start.shape != (contacts.n_contacts, 3) or not np.all(np.isfinite(start)):
             raise InputError(f"the starting forces must be finite, one row of 3 per contact "
@@ -435,8 +436,6 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         r0 = project_forces(start, contacts.mu)
     elif contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0):
         r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
-    else:
-        start = None
     result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, helices.n_strands,
                            force_scale, settings.tolerance, settings.max_sweeps, settings.check_every, r0=r0,
                            progress=progress, s=contacts.s, accelerate=settings.accelerate,
@@ -459,7 +458,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     curvature = np.hypot(omega_rest[:, 0], omega_rest[:, 1])
     if declared != contacts.n_contacts:  # gravity-only: every declared contact carries no force
         r = np.zeros((declared, 3))
-    prior = int(prior_sweeps) if start is not None else 0
+    prior = int(prior_sweeps) if warm else 0
     model = Model(omega_rest, target, weight, r, material, float(settings.gamma), settings.target, result, prior)
     report = InvertReport(
         settings.target, contacts.n_contacts, contacts.n_body, int(carrying.sum()), result, force_scale,
@@ -468,7 +467,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         time.perf_counter() - started,
     )
     report.unstable_held = unstable_held
-    if start is not None:
+    if warm:
         report.notes.append(f"the solver started from the given forces (after {prior} earlier sweeps), at relative "
                             f"residual {result.history[0][1] / force_scale:.2g}")
     elif r0 is not None:
@@ -483,8 +482,9 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     return model, report
 
 
-def warm_start(group: stages.Group, material: Material, settings: SolverSettings) -> tuple[np.ndarray | None, int, str]:
-    """The forces of an earlier model (``group``, for the same contacts) to start the solver from.
+def warm_start(group: stages.Group, material: Material, settings: SolverSettings,
+               source: str) -> tuple[np.ndarray | None, int, str]:
+    """The forces of an earlier model (``group``, for the same contacts, read from ``source``) to start from.
 
     Returns (forces or None, the sweeps that produced them, a line for the user). The
     forces are used only if the model solved the same problem: the same target, gamma and
@@ -495,15 +495,15 @@ def warm_start(group: stages.Group, material: Material, settings: SolverSettings
         return None, 0, ""
     a = group.attrs
     differ = [] if a.get("target") == settings.target else ["target"]
-    if not np.isclose(float(a.get("gamma", np.nan)), settings.gamma, rtol=1e-12, atol=0.0):
+    if not np.isclose(float(a["gamma"]), settings.gamma, rtol=1e-12, atol=0.0):
         differ.append("gamma")
-    for key, value in material.attrs().items():
-        if not np.allclose(np.asarray(a.get(key, np.nan), dtype=np.float64), value, rtol=1e-12, atol=0.0):
-            differ.append(f"material ({key})")
+    stored = material_from_group(group).attrs()
+    differ += [f"material ({key})" for key, value in material.attrs().items()
+               if not np.allclose(stored[key], value, rtol=1e-12, atol=0.0)]
     if differ:
-        return None, 0, f"the model in the input was inverted with another {', '.join(differ)}: starting afresh"
+        return None, 0, f"the model in {source} was inverted with another {', '.join(differ)}: starting afresh"
     prior = int(a.get("prior_sweeps", 0)) + int(a.get("iterations", 0))
-    line = (f"starting from the forces of the model in the input ({prior} sweeps, {a.get('status', 'status unknown')}, "
+    line = (f"starting from the forces of the model in {source} ({prior} sweeps, {a.get('status', 'status unknown')}, "
             f"relative residual {float(a.get('relative_residual', np.nan)):.2g}); --set solver.warm_start=false "
             "starts afresh")
     return np.asarray(group["force"], dtype=np.float64), prior, line
