@@ -295,12 +295,15 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
 @click.option("--target", type=click.Choice(["actual", "zero", "uniform", "tip", "gravity-only"]), default=None,
               help="Rest shape the inversion draws towards [solver.target, default actual: the input shape].")
 @click.option("--gamma", type=float, default=None, help="Weight of the contact forces, N^-2 m^-2 [solver.gamma].")
+@click.option("--stabilize", type=click.Choice(["stiffen", "off"]), default=None,
+              help="Strands whose equilibrium is unstable: stiffen each just enough to hold (the default), or off: "
+                   "keep the material and only report them [solver.stabilize].")
 @import_options
 @contact_options
 @settings_options
 @click.pass_obj
 @handle_errors
-def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guides, seed, body_distance,
+def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up, flip, guides, seed, body_distance,
            hair_distance, mu, no_hair_hair, quality, config_file, sets):
     """Invert STYLE resting on BODY: find the rest shape and contact forces
     that make the input shape a static equilibrium.
@@ -321,6 +324,8 @@ def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guid
         solver_extra["target"] = target
     if gamma is not None:
         solver_extra["gamma"] = gamma
+    if stabilize is not None:
+        solver_extra["stabilize"] = stabilize
     settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed),
                                        "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair),
                                        "solver": solver_extra}, "command line")
@@ -334,15 +339,16 @@ def invert(obj, style, body, output, target, gamma, units, scale, up, flip, guid
     for line in scene.lines:
         _say(obj, line)
     material = Material.from_settings(settings.material, scene.up)
-    start, prior = None, 0
+    start, prior, factor = None, 0, None
     if scene.model is not None:
-        start, prior, line = warm_start(scene.model, material, settings.solver, Path(style).name)
+        start, prior, line, factor = warm_start(scene.model, material, settings.solver, Path(style).name,
+                                                scene.helices.n_strands)
         if line:
             _say(obj, line)
     bar = SolverProgress(settings.solver.max_sweeps, obj["progress"])
     try:
         model, report = run_invert(scene.helices, scene.contacts, material, settings.solver, progress=bar,
-                                   start=start, prior_sweeps=prior)
+                                   start=start, prior_sweeps=prior, stiffening=factor)
     finally:
         bar.close()
     for line in report.lines():

@@ -136,6 +136,15 @@ class SolverSettings:
     warm_start: bool = True
     """Start from the forces of the input file's /model when it has one for the same contacts (a model
     written by an earlier invert), so that inverting a model again continues where that run stopped."""
+    stabilize: str = "stiffen"
+    """What to do with a strand whose inverted equilibrium is unstable even on its supports: stiffen
+    (multiply its bending and twist stiffness by the smallest factor that makes it stable, times
+    stiffen_margin, and invert it with that stiffness) or off (keep the material and only report it).
+    A strand the contacts cannot hold would otherwise fall away as soon as a simulation starts."""
+    stiffen_margin: float = 1.2
+    """The stiffening factor is this times the critical one (at which the strand's equilibrium is
+    neutral): the smallest eigenvalue of the scaled Hessian is then 1 - 1/margin = 0.17 of the
+    material's own, so round-off and the simulation's finite steps do not tip it over."""
 
 
 @dataclass(frozen=True)

@@ -7,73 +7,22 @@ builds the ``/helices`` stage group.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import stages
 from .config import FitSettings
 from .errors import InputError
 from ._parallel import run_chunks
 from .groom import Groom, strand_lengths
+from .model import Helices
 from .rod.fitting import FIT_TOLERANCE_NOT_MET, closest_distances, fit_batch
 
 __all__ = ["Helices", "FitReport", "fit_groom"]
 
 # A fitted strand longer than this times its polyline winds between vertices.
 OVERLONG = 1.05
-
-
-@dataclass
-class Helices:
-    """Fitted super-helices of a groom (the ``/helices`` group).
-
-    Attributes
-    ----------
-    root : (S, 3) float64, m
-    frame0 : (S, 3, 3) float64, rows (t, n1, n2)
-    offsets : (S + 1,) int64, CSR offsets into the element arrays
-    length : (E,) float64, m
-    omega : (E, 3) float64, (kappa1, kappa2, tau), 1/m
-    fit_error : (S, 2) float64, m, mean and max vertex distance
-    """
-
-    root: np.ndarray
-    frame0: np.ndarray
-    offsets: np.ndarray
-    length: np.ndarray
-    omega: np.ndarray
-    fit_error: np.ndarray
-
-    @property
-    def n_strands(self) -> int:
-        return int(len(self.offsets) - 1)
-
-    @property
-    def n_elements(self) -> int:
-        return int(self.offsets[-1])
-
-    def group(self, settings: FitSettings, inputs: list[dict], extra_attrs: dict | None = None) -> stages.Group:
-        return stages.Group(
-            stages.HELICES,
-            {
-                "root": self.root,
-                "frame0": self.frame0,
-                "offsets": self.offsets,
-                "length": self.length,
-                "omega": self.omega,
-                "fit_error": self.fit_error,
-            },
-            attrs=dict(extra_attrs or {}),
-            config={"fit": dataclasses.asdict(settings)},
-            inputs=inputs,
-        )
-
-    @classmethod
-    def from_group(cls, group: stages.Group) -> "Helices":
-        return cls(*(np.ascontiguousarray(group[k]) for k in ("root", "frame0", "offsets", "length", "omega", "fit_error")))
 
 
 @dataclass

@@ -29,10 +29,9 @@ from . import stages
 from ._jit import jit
 from ._parallel import run_chunks
 from .config import MaterialSettings, SolverSettings
-from .contacts import Contacts
 from .errors import InputError, RunError
-from .fit import Helices
-from .rod.statics import gravity_forces, gravity_hessian
+from .model import Contacts, Helices, Material, Model, material_from_group, stiffening_from_group, stiffness
+from .rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from .solver.blocks import _group_newton, strand_blocks
 from .solver.gauss_seidel import (CONVERGED, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
                                   split_strands)
@@ -42,58 +41,10 @@ __all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness"
            "target_shape", "stability"]
 
 TARGETS = ("actual", "zero", "uniform", "tip", "gravity-only")
-
-
-@dataclass(frozen=True)
-class Material:
-    """Rod constants derived from :class:`MaterialSettings` (SI)."""
-
-    youngs_modulus: float
-    shear_modulus: float
-    density: float
-    radius: float
-    gravity: np.ndarray
-    """(3,) m/s^2, pointing down."""
-
-    @classmethod
-    def from_settings(cls, settings: MaterialSettings, up: np.ndarray) -> "Material":
-        for name in ("youngs_modulus", "density", "radius", "gravity"):
-            if not getattr(settings, name) > 0:
-                raise InputError(f"material.{name} must be > 0, got {getattr(settings, name)}")
-        if settings.shear_modulus < 0 or not -1.0 < settings.poisson_ratio <= 0.5:
-            raise InputError("material.shear_modulus must be >= 0 and material.poisson_ratio in (-1, 0.5]")
-        up = np.asarray(up, dtype=np.float64)
-        return cls(float(settings.youngs_modulus), float(settings.shear), float(settings.density),
-                   float(settings.radius), -settings.gravity * up / np.linalg.norm(up))
-
-    @property
-    def area(self) -> float:
-        return np.pi * self.radius ** 2
-
-    @property
-    def linear_density(self) -> float:
-        """kg/m."""
-        return self.density * self.area
-
-    @property
-    def bending(self) -> float:
-        """EI, N m^2, with I = pi r^4 / 4."""
-        return self.youngs_modulus * np.pi * self.radius ** 4 / 4.0
-
-    @property
-    def twisting(self) -> float:
-        """GJ, N m^2, with J = pi r^4 / 2."""
-        return self.shear_modulus * np.pi * self.radius ** 4 / 2.0
-
-    def attrs(self) -> dict:
-        return {"youngs_modulus": self.youngs_modulus, "shear_modulus": self.shear_modulus,
-                "density": self.density, "radius": self.radius, "gravity": self.gravity}
-
-
-def stiffness(helices: Helices, material: Material) -> np.ndarray:
-    """Diagonal of ``K``, (3E,): ``K_e = length_e diag(EI, EI, GJ)``, N m^3."""
-    per_component = np.array([material.bending, material.bending, material.twisting])
-    return (helices.length[:, None] * per_component[None, :]).ravel()
+STABILIZE = ("stiffen", "off")
+#: inversions with stiffened strands tried before the remaining unstable strands are reported: a
+#: strand's factor makes it stable on the supports it had; the new forces may load other contacts
+STABILIZE_ROUNDS = 4
 
 
 @jit
@@ -141,8 +92,8 @@ def target_shape(helices: Helices, target: str) -> np.ndarray:
 
 
 def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None = None,
-              contacts: Contacts | None = None,
-              carrying: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+              contacts: Contacts | None = None, carrying: np.ndarray | None = None,
+              force: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Which strands sit in an unstable equilibrium: (with their supports, without, held), each (S,) bool.
 
     The Hessian of the total energy at ``q`` is ``K + d^2 V_g / dq^2``
@@ -156,6 +107,28 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
     holds every declared contact point in place, loaded or not: a strand
     unstable even so cannot be made stable by any choice of forces or rest
     shape (its input shape is unstable on this rod model).
+
+    With ``force`` (C, 3) (the contact forces, in their frames), the Hessian
+    also holds the contact forces' own share, ``-sum r_i . d^2 x_i / dq^2``
+    (:func:`hairinv.rod.statics.point_load_hessian`): a held point's reaction does
+    work at second order as the strand turns about it, which is what keeps a
+    strand hanging from, or leaning on, a support upright or taut.
+    """
+    return tuple(lam < _NEGATIVE
+                 for lam in stability_margins(helices, material, stiff, rows, contacts, carrying, force))
+
+
+def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None = None,
+                      contacts: Contacts | None = None, carrying: np.ndarray | None = None,
+                      force: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The smallest eigenvalue ``lambda`` of each strand's scaled Hessian ``I + K^-1/2 V'' K^-1/2`` on
+    the motions :func:`stability` allows (with the supports, without, with every declared contact held),
+    each (S,) float64; ``inf`` where the held points leave no motion. A strand is unstable where
+    ``lambda < 0``.
+
+    Scaling the strand's stiffness by ``a`` scales ``K^-1/2 V'' K^-1/2`` by ``1/a``, so its smallest
+    eigenvalue becomes ``1 - (1 - lambda) / a``: exactly ``a = 1 - lambda`` makes it singular, and any
+    larger factor stable (:func:`critical_stiffening`).
     """
     S = helices.n_strands
     # each strand's contact sides (a hair-hair contact counts on both its strands), strand by strand
@@ -169,18 +142,27 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
         incident_ptr = np.searchsorted(side_strand[order], np.arange(S + 1)).astype(np.int64)
         loaded = np.zeros(rows.n_contacts, bool) if carrying is None else np.asarray(carrying, bool)
         ptr, cols, vals = rows.ptr, rows.cols, rows.vals
+        # the load each side takes: the world force on A at s_A, its opposite on B at s_B
+        side_index = np.flatnonzero(keep)[order]
+        load_s = np.ascontiguousarray(contacts.s.ravel()[side_index])
+        if force is None:
+            load_f = np.zeros((len(side_index), 3))
+        else:
+            world = np.einsum("cji,cj->ci", contacts.frame, np.asarray(force, dtype=np.float64))
+            load_f = np.ascontiguousarray(world[side_index // 2] * np.where(side_index % 2 == 0, 1.0, -1.0)[:, None])
     else:
         incident, incident_ptr = np.zeros(0, np.int64), np.zeros(S + 1, np.int64)
         loaded = np.zeros(0, bool)
         ptr, cols, vals = np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
-    unstable = np.zeros(S, dtype=bool)
-    free = np.zeros(S, dtype=bool)
-    always = np.zeros(S, dtype=bool)
+        load_s, load_f = np.zeros(0), np.zeros((0, 3))
+    unstable = np.zeros(S)
+    free = np.zeros(S)
+    always = np.zeros(S)
 
     def check(lo: int, hi: int) -> None:
         _stability_chunk(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
                          material.linear_density, material.gravity, stiff, incident_ptr, incident, loaded, ptr,
-                         cols, vals, lo, hi, unstable, free, always)
+                         cols, vals, load_s, load_f, force is not None, lo, hi, unstable, free, always)
 
     run_chunks(check, S, 64)
     return unstable, free, always
@@ -192,7 +174,7 @@ _NEGATIVE = -1e-6
 
 @jit
 def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, incident_ptr, incident, loaded,
-                     ptr, cols, vals, lo, hi, unstable, free, always):
+                     ptr, cols, vals, load_s, load_f, with_loads, lo, hi, unstable, free, always):
     """:func:`stability` for strands ``lo`` to ``hi``."""
     for s in range(lo, hi):
         e0 = offsets[s]
@@ -208,7 +190,7 @@ def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, 
             for j in range(m):
                 A[i, j] = 0.5 * (hess[i, j] + hess[j, i]) * scale[i] * scale[j]
             A[i, i] += 1.0
-        free[s] = np.linalg.eigvalsh(A)[0] < _NEGATIVE
+        free[s] = np.linalg.eigvalsh(A)[0]
         n = incident_ptr[s + 1] - incident_ptr[s]
         if n == 0:
             unstable[s] = free[s]
@@ -230,14 +212,29 @@ def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, 
                             C[3 * j + row, c] = vals[t, row] * scale[c]
                 j += 1
                 n_loaded += first
-        unstable[s] = free[s] if n_loaded == 0 else _unstable_held(A, C[:3 * n_loaded])
-        always[s] = _unstable_held(A, C)
+        if with_loads and n_loaded > 0:
+            # the held points' reactions: their share -sum r . d^2 x of the Lagrangian's Hessian
+            ks = np.empty(n_loaded, np.int64)
+            j = 0
+            for k in range(incident_ptr[s], incident_ptr[s + 1]):
+                if loaded[incident[k]]:
+                    ks[j] = k
+                    j += 1
+            ks = ks[np.argsort(load_s[ks])]
+            s_sorted = np.ascontiguousarray(load_s[ks])
+            f_sorted = np.ascontiguousarray(load_f[ks])
+            point_load_hessian(root[s], frame0[s], omega[e0:e1], length[e0:e1], s_sorted, f_sorted, hess)
+            for i in range(m):
+                for j in range(m):
+                    A[i, j] += hess[i, j] * scale[i] * scale[j]
+        unstable[s] = free[s] if n_loaded == 0 else _lowest_held(A, C[:3 * n_loaded])
+        always[s] = _lowest_held(A, C)
 
 
 @jit
-def _unstable_held(A, C):
-    """Whether the scaled Hessian ``A`` has a negative direction among the motions that keep the
-    contact points whose rows of H (on the strand's columns, scaled as ``A``) are ``C`` in place."""
+def _lowest_held(A, C):
+    """The smallest eigenvalue of the scaled Hessian ``A`` on the motions that keep the contact points
+    whose rows of H (on the strand's columns, scaled as ``A``) are ``C`` in place (inf: none is left)."""
     # rows of unit length first: a contact near the root moves little, and its rows would otherwise
     # read as rank-deficient next to a far one's (on samples/settled.h5 that counted 4 stable strands
     # as unstable); what remains below 1e-12 is true dependence (two contacts on one spot, ~1e-17)
@@ -250,45 +247,15 @@ def _unstable_held(A, C):
             U[k] = C[i] / norm
             k += 1
     if k == 0:
-        return np.linalg.eigvalsh(A)[0] < _NEGATIVE
+        return np.linalg.eigvalsh(A)[0]
     _, sv, vt = np.linalg.svd(U[:k])
     rank = 0
     for x in sv:
         rank += x > 1e-12 * sv[0]
     if rank == m:
-        return False
+        return np.inf
     Z = np.ascontiguousarray(vt[rank:].T)
-    return np.linalg.eigvalsh(Z.T @ A @ Z)[0] < _NEGATIVE
-
-
-@dataclass
-class Model:
-    """The inverted model (the ``/model`` group)."""
-
-    omega_rest: np.ndarray
-    omega_target: np.ndarray
-    target_weight: np.ndarray
-    force: np.ndarray
-    material: Material
-    gamma: float
-    target: str
-    result: SolverResult
-    prior_sweeps: int = 0
-    """sweeps of the earlier runs whose forces this one started from (0: it started afresh)"""
-
-    def group(self, settings: dict, inputs: list[dict]) -> stages.Group:
-        attrs = dict(self.material.attrs())
-        attrs.update(gamma=self.gamma, target=self.target, iterations=self.result.sweeps,
-                     residual=self.result.residual, seconds=self.result.seconds,
-                     status=self.result.status, relative_residual=self.result.relative_residual,
-                     prior_sweeps=int(self.prior_sweeps))
-        return stages.Group(
-            stages.MODEL,
-            {"omega_rest": self.omega_rest, "omega_target": self.omega_target,
-             "target_weight": self.target_weight, "force": self.force,
-             "residual_history": np.array(self.result.history, dtype=np.float64).reshape(-1, 2)},
-            attrs=attrs, config=settings, inputs=inputs,
-        )
+    return np.linalg.eigvalsh(Z.T @ A @ Z)[0]
 
 
 @dataclass
@@ -310,6 +277,15 @@ class InvertReport:
     notes: list[str] = field(default_factory=list)
     unstable_held: int = 0
     """Strands unstable even with every declared contact point held: no rest shape can keep them."""
+    stiffening: np.ndarray | None = None
+    """(S,) the per-strand stiffness factors (None: stabilisation off or not checked)."""
+    gravity_only_factor: float = 1.0
+    """The one stiffness factor the gravity-only inversion would need for every strand to be stable."""
+    youngs_modulus: float = 0.0
+    stiffened_rounds: int = 0
+    """inversions solved again with stiffened strands"""
+    total_sweeps: int = 0
+    checked: bool = True
 
     def lines(self) -> list[str]:
         r = self.result
@@ -329,18 +305,33 @@ class InvertReport:
             f"rest shape: rms drift from the target {self.drift_rms:.4g} 1/m, "
             f"largest rest curvature {self.max_rest_curvature:.4g} 1/m",
         ]
+        stiffened = self.stiffening is not None and bool(np.any(self.stiffening > 1.0))
+        if stiffened:
+            a = self.stiffening[self.stiffening > 1.0]
+            lines.append(
+                f"stiffened {len(a)} of {self.strands} strands to make their equilibrium stable (solver.stabilize "
+                f"= stiffen): factor median {np.median(a):.3g}, 90th percentile {np.percentile(a, 90):.3g}, max "
+                f"{a.max():.3g} (E up to {a.max() * self.youngs_modulus / 1e9:.3g} GPa on those strands); solved "
+                f"again {self.stiffened_rounds} time{'s' if self.stiffened_rounds != 1 else ''}, "
+                f"{self.total_sweeps} sweeps in all")
         if self.unstable:
             lines.append(f"warning: {self.unstable} of {self.strands} strands rest in an unstable equilibrium "
                          f"(a simulation may let them fall away from the input shape)")
-            if self.unstable_held and self.contacts:  # without contacts the count is the one above
+            if self.unstable_held and self.contacts and not stiffened:
+                # without contacts the count is the one above
                 lines.append(f"{self.unstable_held} of them stay unstable even with every declared contact held "
                              "in place: their input shape cannot be a stable rest on this rod model, whatever the "
                              "rest shape (docs/dynamics.md, Stability)")
-        else:
+            if self.stiffening is None:
+                lines.append("solver.stabilize = stiffen (the default) stiffens such strands just enough to hold")
+        elif self.checked:
             lines.append("every strand rests in a stable equilibrium")
-        if self.contacts:
+        if self.contacts and self.checked:
             lines.append(f"for comparison, the gravity-only inversion leaves {self.unstable_gravity_only} "
-                         "strands unstable")
+                         "strands unstable" + (
+                             f"; it would need E = {self.gravity_only_factor * self.youngs_modulus / 1e9:.3g} GPa "
+                             f"({self.gravity_only_factor:.3g} times) for the whole groom to be stable"
+                             if self.gravity_only_factor > 1.0 and self.youngs_modulus else ""))
         lines += self.notes
         if r.local_failures:
             lines.append(f"note: {r.local_failures} local contact solves stopped at their best iterate in the last sweep")
@@ -385,12 +376,22 @@ def validate_settings(settings: SolverSettings) -> None:
         raise InputError(f"solver.max_seconds must be >= 0 (0: no limit), got {settings.max_seconds}")
     if settings.max_sweeps < 1 or settings.check_every < 1:
         raise InputError("solver.max_sweeps and solver.check_every must be >= 1")
+    if settings.stabilize not in STABILIZE:
+        raise InputError(f"unknown solver.stabilize {settings.stabilize!r}; choose one of {', '.join(STABILIZE)}")
+    if not (np.isfinite(settings.stiffen_margin) and settings.stiffen_margin > 1.0):
+        raise InputError(f"solver.stiffen_margin must be a finite number > 1, got {settings.stiffen_margin}")
 
 
 def invert(helices: Helices, contacts: Contacts | None, material: Material, settings: SolverSettings,
            progress=None, check_stability: bool = True, start: np.ndarray | None = None,
-           prior_sweeps: int = 0) -> tuple[Model, InvertReport]:
+           prior_sweeps: int = 0, stiffening: np.ndarray | None = None) -> tuple[Model, InvertReport]:
     """Solve the inverse problem for ``helices`` resting on ``contacts``.
+
+    With ``settings.stabilize == "stiffen"`` (and ``check_stability``), a strand whose equilibrium is
+    unstable on its supports gets its stiffness multiplied by ``stiffen_margin`` times the critical
+    factor (:func:`stability_margins`) and the problem is solved again with it, from the last forces,
+    until every strand is stable or ``STABILIZE_ROUNDS`` rounds are done; the factors are the model's
+    ``stiffening``.
 
     Parameters
     ----------
@@ -403,6 +404,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         contact), projected onto the cones first; the problem is convex, so the answer is the same
         optimum to the tolerance, reached sooner from a good start
     prior_sweeps : int, the sweeps that produced ``start``, recorded in the model
+    stiffening : (S,) float64, optional, per-strand stiffness factors to start from (an earlier
+        model's, with ``start``); stabilisation only raises them
 
     Raises
     ------
@@ -414,16 +417,19 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     declared = 0 if contacts is None else contacts.n_contacts
     if settings.target == "gravity-only" or contacts is None:
         contacts = Contacts.empty()
+    # the gravity-only inversion is the baseline of Derouet-Jourdan et al. 2010: the material as it is
+    stabilize = check_stability and settings.stabilize == "stiffen" and settings.target != "gravity-only"
+    S = helices.n_strands
+    factor = None
+    if stabilize:
+        factor = np.ones(S) if stiffening is None else np.asarray(stiffening, dtype=np.float64).copy()
+        if factor.shape != (S,) or not np.all(np.isfinite(factor)) or np.any(factor < 1.0):
+            raise InputError(f"the starting stiffening must hold one finite factor >= 1 per strand ({S})")
     q = helices.omega.ravel()
-    stiff = stiffness(helices, material)
     weight = np.ones(helices.n_elements)
     target = target_shape(helices, settings.target)
     F_g = generalized_gravity(helices, material).ravel()
-    # D = w K^-2; b = H D (F_g - K (q - t))
-    d = np.repeat(weight, 3) / stiff ** 2
-    g = d * (F_g - stiff * (q - target.ravel()))
     rows = contact_rows(helices, contacts, run=lambda work, count: run_chunks(work, count, 2048))
-    b = rows.matvec(g)
     strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
     force_scale = material.linear_density * np.linalg.norm(material.gravity) * float(strand_length.max())
     r0 = None
@@ -434,32 +440,70 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
             raise InputError(f"the starting forces must be finite, one row of 3 per contact "
                              f"({contacts.n_contacts}), got shape {start.shape}")
         r0 = project_forces(start, contacts.mu)
-    elif contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0):
-        r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
-    result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, helices.n_strands,
-                           force_scale, settings.tolerance, settings.max_sweeps, settings.check_every, r0=r0,
-                           progress=progress, s=contacts.s, accelerate=settings.accelerate,
-                           part_of=split_strands(helices.root, contacts.strand),
-                           max_seconds=settings.max_seconds)
-    if result.status not in (CONVERGED,) and not np.all(np.isfinite(result.r)):
-        raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
-                       f"residual {result.residual:.3g} N")
+
+    def solve(stiff: np.ndarray, r0: np.ndarray | None, first: bool):
+        # D = w K^-2; b = H D (F_g - K (q - t))
+        d = np.repeat(weight, 3) / stiff ** 2
+        b = rows.matvec(d * (F_g - stiff * (q - target.ravel())))
+        if first and r0 is None and contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0):
+            r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
+        result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, S,
+                               force_scale, settings.tolerance, settings.max_sweeps, settings.check_every, r0=r0,
+                               progress=progress, s=contacts.s, accelerate=settings.accelerate,
+                               part_of=split_strands(helices.root, contacts.strand),
+                               max_seconds=settings.max_seconds)
+        if result.status not in (CONVERGED,) and not np.all(np.isfinite(result.r)):
+            raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
+                           f"residual {result.residual:.3g} N")
+        carrying = result.r[:, 0] > settings.tolerance * force_scale if len(result.r) else np.zeros(0, bool)
+        return result, carrying, r0
+
+    stiff = stiffness(helices, material, factor)
+    newton_start = r0 is None
+    result, carrying, r0 = solve(stiff, r0, True)
+    first_residual = result.history[0][1] if result.history else np.nan
+    newton_start = newton_start and r0 is not None
+    unstable = unstable_g = unstable_held = 0
+    gravity_only_factor = 1.0
+    stiffened_rounds = 0
+    sweeps = result.sweeps
+    if check_stability:
+        supported, free, always = stability_margins(helices, material, stiff, rows, contacts, carrying, result.r)
+        base = np.ones(S) if factor is None else factor
+        # the gravity-only inversion with the material's own stiffness: stable where base (1 - free) <= 1
+        needed_free = base * np.maximum(1.0 - free, 0.0)
+        unstable_g = int(np.count_nonzero(needed_free > 1.0 - _NEGATIVE)) if factor is not None \
+            else int(np.count_nonzero(free < _NEGATIVE))
+        gravity_only_factor = float(needed_free.max()) if S else 1.0
+        unstable_held = int(np.count_nonzero(always < _NEGATIVE))
+        if stabilize:
+            for _ in range(STABILIZE_ROUNDS):
+                weak = supported < _NEGATIVE
+                if not weak.any():
+                    break
+                factor[weak] *= (1.0 - supported[weak]) * settings.stiffen_margin
+                stiff = stiffness(helices, material, factor)
+                result, carrying, _ = solve(stiff, result.r, False)
+                sweeps += result.sweeps
+                stiffened_rounds += 1
+                supported, _, always = stability_margins(helices, material, stiff, rows, contacts, carrying, result.r)
+        unstable = int(np.count_nonzero(supported < _NEGATIVE))
     r = result.r
-    # q0 = q - K^-1 (F_g + H^T r), eq. (4)
-    omega_rest = (q - (F_g + rows.rmatvec(r)) / stiff).reshape(-1, 3)
+    # q0 = q - K^-1 (F_g + H^T r), eq. (4), with the stiffness the strands were inverted with
+    load = F_g + rows.rmatvec(r)
+    omega_rest = (q - load / stiff).reshape(-1, 3)
     if not np.all(np.isfinite(omega_rest)):
         raise RunError("the inverted rest shape is not finite; check the material settings")
-    carrying = r[:, 0] > settings.tolerance * force_scale if len(r) else np.zeros(0, bool)
-    unstable = unstable_g = unstable_held = 0
-    if check_stability:
-        supported, free, always = stability(helices, material, stiff, rows, contacts, carrying)
-        unstable, unstable_g, unstable_held = int(supported.sum()), int(free.sum()), int(always.sum())
+    # /model/omega_rest keeps its meaning for every reader: the rest shape that holds the input with these
+    # forces at the material's own stiffness; the stiffened model's is stored beside it
+    material_rest = omega_rest if factor is None else (q - load / stiffness(helices, material)).reshape(-1, 3)
     drift = omega_rest - target
     curvature = np.hypot(omega_rest[:, 0], omega_rest[:, 1])
     if declared != contacts.n_contacts:  # gravity-only: every declared contact carries no force
         r = np.zeros((declared, 3))
     prior = int(prior_sweeps) if warm else 0
-    model = Model(omega_rest, target, weight, r, material, float(settings.gamma), settings.target, result, prior)
+    model = Model(material_rest, target, weight, r, material, float(settings.gamma), settings.target, result, prior,
+                  factor, None if factor is None else omega_rest)
     report = InvertReport(
         settings.target, contacts.n_contacts, contacts.n_body, int(carrying.sum()), result, force_scale,
         float(np.sqrt(np.mean(np.sum(drift ** 2, axis=1)))) if len(drift) else 0.0,
@@ -467,10 +511,16 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         time.perf_counter() - started,
     )
     report.unstable_held = unstable_held
+    report.stiffening = factor
+    report.gravity_only_factor = gravity_only_factor
+    report.youngs_modulus = material.youngs_modulus
+    report.stiffened_rounds = stiffened_rounds
+    report.total_sweeps = sweeps
+    report.checked = check_stability
     if warm:
         report.notes.append(f"the solver started from the given forces (after {prior} earlier sweeps), at relative "
-                            f"residual {result.history[0][1] / force_scale:.2g}")
-    elif r0 is not None:
+                            f"residual {first_residual / force_scale:.2g}")
+    elif newton_start:
         report.notes.append("no contact couples two strands: each strand's contacts were first solved together "
                             "(Newton on their block), and the sweeps started from those forces")
     if result.status != CONVERGED:
@@ -483,16 +533,17 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
 
 
 def warm_start(group: stages.Group, material: Material, settings: SolverSettings,
-               source: str) -> tuple[np.ndarray | None, int, str]:
+               source: str, n_strands: int | None = None) -> tuple[np.ndarray | None, int, str, np.ndarray | None]:
     """The forces of an earlier model (``group``, for the same contacts, read from ``source``) to start from.
 
-    Returns (forces or None, the sweeps that produced them, a line for the user). The
-    forces are used only if the model solved the same problem: the same target, gamma and
-    material (its forces are then a point near this problem's optimum; those of another
-    problem may be a worse start than zero).
+    Returns (forces or None, the sweeps that produced them, a line for the user, the model's per-strand
+    stiffening or None). The forces are used only if the model solved the same problem: the same
+    target, gamma and material, and stiffened strands only when stabilisation is on (its forces are
+    then a point near this problem's optimum; those of another problem may be a worse start than zero).
+    With stabilisation on, the model's stiffening factors are the start of this run's.
     """
     if not settings.warm_start or settings.target == "gravity-only":
-        return None, 0, ""
+        return None, 0, "", None
     a = group.attrs
     differ = [] if a.get("target") == settings.target else ["target"]
     if not np.isclose(float(a["gamma"]), settings.gamma, rtol=1e-12, atol=0.0):
@@ -500,20 +551,17 @@ def warm_start(group: stages.Group, material: Material, settings: SolverSettings
     stored = material_from_group(group).attrs()
     differ += [f"material ({key})" for key, value in material.attrs().items()
                if not np.allclose(stored[key], value, rtol=1e-12, atol=0.0)]
+    factor = stiffening_from_group(group, n_strands) if n_strands is not None else None
+    if factor is not None and settings.stabilize != "stiffen" and np.any(factor != 1.0):
+        differ.append("stiffness (its strands were stiffened; solver.stabilize is off)")
     if differ:
-        return None, 0, f"the model in {source} was inverted with another {', '.join(differ)}: starting afresh"
+        return None, 0, f"the model in {source} was inverted with another {', '.join(differ)}: starting afresh", None
     prior = int(a.get("prior_sweeps", 0)) + int(a.get("iterations", 0))
     line = (f"starting from the forces of the model in {source} ({prior} sweeps, {a.get('status', 'status unknown')}, "
             f"relative residual {float(a.get('relative_residual', np.nan)):.2g}); --set solver.warm_start=false "
             "starts afresh")
-    return np.asarray(group["force"], dtype=np.float64), prior, line
-
-
-def material_from_group(group: stages.Group) -> Material:
-    """The material of a ``/model`` group."""
-    a = group.attrs
-    return Material(float(a["youngs_modulus"]), float(a["shear_modulus"]), float(a["density"]),
-                    float(a["radius"]), np.asarray(a["gravity"], dtype=np.float64))
+    return (np.asarray(group["force"], dtype=np.float64), prior, line,
+            factor if settings.stabilize == "stiffen" else None)
 
 
 def settings_dict(material: MaterialSettings, solver: SolverSettings) -> dict:

@@ -86,6 +86,10 @@ def summarise(stage: stages.StageFile) -> dict:
             "youngs_modulus_Pa": float(g.attrs.get("youngs_modulus", 0.0)),
             "radius_m": float(g.attrs.get("radius", 0.0)),
         }
+        if "stiffening" in g.datasets:
+            factor = np.asarray(g["stiffening"])
+            out["groups"]["model"]["strands_stiffened"] = int((factor > 1.0).sum())
+            out["groups"]["model"]["stiffening_factor"] = _stats(factor, digits=3)
     if stages.FRAMES in stage:
         g = stage[stages.FRAMES]
         time = g["time"]

@@ -191,3 +191,40 @@ def test_gravity_hessian_is_minus_the_derivative_of_the_gravity_force(rng, n, sc
     scale_h = np.abs(fd).max()
     np.testing.assert_allclose(H, fd, rtol=0, atol=FINITE_DIFFERENCE * scale_h)
     np.testing.assert_allclose(H, H.T, rtol=0, atol=1e-8 * scale_h)
+
+
+def point_load_potential(root, frame0, omega, length, s, force):
+    """-sum_k f_k . x(s_k), from the centerline points themselves (independent of the Jacobians); the
+    root's constant share is left out, so that second differences do not lose digits to it."""
+    x = np.empty((len(s), 3))
+    points_at(root, frame0, omega, length, np.asarray(s, dtype=np.float64), x)
+    return -float(np.sum(force * (x - root)))
+
+
+@pytest.mark.parametrize("n", [1, 4, 9])
+@pytest.mark.parametrize("scale", [0.0, 8.0, 80.0])
+def test_point_load_hessian_is_the_second_derivative_of_the_load_potential(rng, n, scale):
+    """The contact forces' share of the stability Hessian: second central differences of the
+    potential of dead point loads, evaluated from centerline points only."""
+    from hairinv.rod.statics import point_load_hessian
+
+    root, frame0, omega, length = random_strand(rng, n, scale)
+    total = length.sum()
+    s = np.sort(np.concatenate([rng.uniform(0.0, total, size=4), [0.0, np.cumsum(length)[0], total]]))
+    force = rng.normal(size=(len(s), 3)) * 1e-3
+    out = np.empty((3 * n, 3 * n))
+    point_load_hessian(root, frame0, omega, length, s, force, out)
+    assert np.allclose(out, out.T, rtol=0, atol=1e-14)
+    h = 1e-2  # second differences: truncation O(h^2) stays below round-off / h^2 down to about here
+    fd = np.empty((3 * n, 3 * n))
+    flat = omega.ravel()
+    for i in range(3 * n):
+        for j in range(3 * n):
+            def v(di, dj):
+                w = flat.copy()
+                w[i] += di
+                w[j] += dj
+                return point_load_potential(root, frame0, w.reshape(-1, 3), length, s, force)
+            fd[i, j] = (v(h, h) - v(h, -h) - v(-h, h) + v(-h, -h)) / (4 * h * h)
+    scale_of = np.abs(fd).max() + 1e-12
+    assert np.abs(out - fd).max() <= 1e-5 * scale_of  # the kernel's own differences: ~1e-10 relative

@@ -15,115 +15,28 @@ close. See docs/contacts.md for the rules and the reasons for the defaults.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import stages
 from .._jit import jit
 from .._parallel import run_chunks
 from ..config import ContactSettings
 from ..errors import InputError
-from ..fit import Helices
+from ..model import BODY, Contacts, Helices
 from ._curve import element_starts, sample_elements
 from .body import REFINE_ITERATIONS, BodyMesh, element_body_contacts
 from .hair import hair_pairs, refine_pairs
 
 __all__ = ["Contacts", "DetectReport", "detect_contacts", "validate_settings", "contact_frames"]
 
-BODY = -1
-"""Side B of a body contact."""
 # Below this fraction of the contact distance the two closest points are taken as coincident and the
 # normal comes from the geometry instead (the body's pseudo-normal, or the two hair tangents).
 COINCIDENT = 1e-6
 # Strands per chunk of the body stage: the unit of the progress callback.
 CHUNK = 64
-
-
-@dataclass
-class Contacts:
-    """Declared contacts (the ``/contacts`` group, docs/stage-files.md).
-
-    Attributes
-    ----------
-    strand : (C, 2) int64
-        Strand on side A, strand on side B or -1 for the body. A is the lower index.
-    s : (C, 2) float64, m
-        Arc length of the contact along A and along B (0 for the body), from the root on the fitted helices.
-    point : (C, 3) float64, m
-        Contact point on A's centerline.
-    frame : (C, 3, 3) float64
-        Rows (normal, tangent1, tangent2), right-handed and orthonormal; the
-        normal points from B towards A (from the body surface towards the hair).
-    mu : (C,) float64
-        Coulomb friction coefficient.
-    gap : (C,) float64 or None, m
-        Distance at detection: signed distance from the body surface (negative
-        inside) or between the two centerlines. None for files written before
-        it was stored.
-    element : (C, 2) int64 or None
-        Element (global index) holding each side, -1 for the body; at most one
-        contact per element (body) or element pair (hair-hair), so it names
-        the contact from one detection to the next. Not stored in files.
-    """
-
-    strand: np.ndarray
-    s: np.ndarray
-    point: np.ndarray
-    frame: np.ndarray
-    mu: np.ndarray
-    gap: np.ndarray | None = None
-    element: np.ndarray | None = None
-
-    @property
-    def n_contacts(self) -> int:
-        return int(len(self.mu))
-
-    @property
-    def n_body(self) -> int:
-        return int(np.count_nonzero(self.strand[:, 1] == BODY))
-
-    @property
-    def n_hair(self) -> int:
-        return self.n_contacts - self.n_body
-
-    def group(self, settings: ContactSettings, inputs: list[dict]) -> stages.Group:
-        data = {"strand": self.strand, "s": self.s, "point": self.point, "frame": self.frame, "mu": self.mu}
-        if self.gap is not None:
-            data["gap"] = self.gap
-        return stages.Group(
-            stages.CONTACTS,
-            data,
-            config={"contacts": dataclasses.asdict(settings)},
-            inputs=inputs,
-        )
-
-    @classmethod
-    def from_group(cls, group: stages.Group) -> "Contacts":
-        return cls(
-            np.ascontiguousarray(group["strand"], dtype=np.int64).reshape(-1, 2),
-            np.ascontiguousarray(group["s"], dtype=np.float64).reshape(-1, 2),
-            np.ascontiguousarray(group["point"], dtype=np.float64).reshape(-1, 3),
-            np.ascontiguousarray(group["frame"], dtype=np.float64).reshape(-1, 3, 3),
-            np.ascontiguousarray(group["mu"], dtype=np.float64).reshape(-1),
-            np.ascontiguousarray(group["gap"], dtype=np.float64).reshape(-1) if "gap" in group.datasets else None,
-        )
-
-    @classmethod
-    def empty(cls) -> "Contacts":
-        return cls(np.zeros((0, 2), np.int64), np.zeros((0, 2)), np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros(0),
-                   np.zeros(0), np.zeros((0, 2), np.int64))
-
-    def subset(self, mask) -> "Contacts":
-        """The contacts selected by a boolean mask (C,) or an index array, in that order."""
-        mask = np.asarray(mask)
-        arrays = (self.strand, self.s, self.point, self.frame, self.mu)
-        gap = None if self.gap is None else np.ascontiguousarray(self.gap[mask])
-        element = None if self.element is None else np.ascontiguousarray(self.element[mask])
-        return Contacts(*(np.ascontiguousarray(a[mask]) for a in arrays), gap, element)
 
 
 @dataclass

@@ -19,10 +19,10 @@ import numpy as np
 from .. import stages
 from ..config import Settings
 from ..contacts.body import BodyMesh
-from ..contacts.detect import Contacts
 from ..errors import InputError
-from ..fit import Helices
-from ..invert import Material, generalized_gravity, material_from_group, stiffness
+from ..invert import generalized_gravity
+from ..model import (Contacts, Helices, Material, material_from_group, rest_from_group, stiffening_from_group,
+                     stiffness)
 from ..rod.helix import points_at
 from .scene import Scene, trim_helices
 from .simulate import Motion, Simulation, StepReport
@@ -97,7 +97,7 @@ def initial_rest(init: str, helices: Helices, material: Material, model: stages.
     if init == "inverted":
         if model is None:
             raise InputError("has no /model group: invert it first, or simulate with --init naive")
-        return np.ascontiguousarray(model["omega_rest"], dtype=np.float64)
+        return rest_from_group(model)
     if init == "naive":
         return helices.omega.copy()
     if init == "gravity-only":
@@ -143,6 +143,8 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
     else:
         raise InputError("has no /model group: run `hairinv invert` on it first")
     rest = initial_rest(init, helices, material, model)
+    # the inverted model's strands keep the stiffness they were inverted with (/model/stiffening)
+    factor = stiffening_from_group(model, helices.n_strands) if init == "inverted" else None
     force = np.asarray(model["force"], dtype=np.float64) if (init == "inverted" and model is not None) else None
     trimmed = False
     if scene.trim is not None:
@@ -163,7 +165,7 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
             force = None if force is None else force[keep]
     body = BodyMesh.from_mesh(body_mesh) if (body_mesh is not None and not body_removed) else None
     sim = Simulation(helices, rest, material, body, contact_settings, settings.dynamics,
-                     initial=contacts, initial_force=force)
+                     initial=contacts, initial_force=force, stiffening=factor)
 
     steps_per_frame = max(1, int(round(1.0 / (fps * settings.dynamics.time_step))))
     h = 1.0 / (fps * steps_per_frame)

@@ -50,7 +50,7 @@ import numpy as np
 from .._jit import jit
 from ..config import CONFIG_DIR
 from ..errors import InputError
-from ..fit import Helices
+from ..model import Helices
 
 __all__ = [
     "SCENE_DIR",

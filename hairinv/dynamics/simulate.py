@@ -32,11 +32,10 @@ from .._jit import jit
 from .._parallel import run_chunks
 from ..config import ContactSettings, DynamicsSettings
 from ..contacts.body import BodyMesh
-from ..contacts.detect import COINCIDENT, Contacts, contact_frames, detect_contacts
+from ..contacts.detect import COINCIDENT, contact_frames, detect_contacts
 from ..rod.helix import chain, point_at
 from ..errors import InputError
-from ..fit import Helices
-from ..invert import Material, stiffness
+from ..model import Contacts, Helices, Material, stiffness
 from ..rod.statics import gravity_forces, gravity_hessian
 from ..solver.gauss_seidel import NUMERICAL, split_strands
 from ..solver.rows import contact_rows
@@ -404,11 +403,13 @@ class Simulation:
     settings : DynamicsSettings
     initial : Contacts, optional, the contacts of the starting shape and ``impulse`` their forces times
         the step, as warm start; they are matched to the first step's contacts element by element
+    stiffening : (S,) float64, optional, per-strand factors of the bending and twist stiffness (the
+        inverted model's ``/model/stiffening``); None: the material's own
     """
 
     def __init__(self, helices: Helices, rest: np.ndarray, material: Material, body: BodyMesh | None,
                  contacts: ContactSettings, settings: DynamicsSettings, initial: Contacts | None = None,
-                 initial_force: np.ndarray | None = None):
+                 initial_force: np.ndarray | None = None, stiffening: np.ndarray | None = None):
         validate_settings(settings)
         self.helices = helices
         self.q = np.ascontiguousarray(helices.omega, dtype=np.float64).copy()
@@ -418,7 +419,7 @@ class Simulation:
         self.body = body
         self.contact_settings = contacts
         self.settings = settings
-        self.stiff = stiffness(helices, material)
+        self.stiff = stiffness(helices, material, stiffening)
         self.lam = material.linear_density
         # the cross-sections' rotational inertia, rot = lam r^2 / 4 with r the inertia radius (>= the hair's own)
         self.rot = self.lam * max(settings.inertia_radius, material.radius) ** 2 / 4.0

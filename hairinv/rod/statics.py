@@ -21,7 +21,7 @@ import numpy as np
 from .._jit import jit
 from .helix import _advance, chain, element_derivatives, element_step
 
-__all__ = ["gravity_forces", "gravity_hessian", "gravity_potential", "point_jacobian"]
+__all__ = ["gravity_forces", "gravity_hessian", "gravity_potential", "point_jacobian", "point_load_hessian"]
 
 _H = 1e-30  # complex-step size: the derivative is exact for any tiny step
 
@@ -303,3 +303,85 @@ def chained_point_jacobian(xs, Fs, omega, length, dX, dTh, done, s, out):
         for i in range(3):
             out[e_s, k, i] = dx[k, i]
     return e_s
+
+
+@jit
+def _point_load_forces(root, frame0, omega, length, s, force, xs, Fs, dX, dTh, J, out):
+    """The generalized force of dead point loads, ``sum_k J_k^T f_k``, (3N,), into ``out``;
+    ``s`` sorted ascending (the loads share the element derivatives upstream of them)."""
+    n = omega.shape[0]
+    chain(root, frame0, omega, length, xs, Fs)
+    out[:] = 0.0
+    done = 0
+    for k in range(s.shape[0]):
+        e_s = chained_point_jacobian(xs, Fs, omega, length, dX, dTh, done, s[k], J)
+        done = max(done, e_s)
+        for e in range(min(e_s + 1, n)):
+            for c in range(3):
+                out[3 * e + c] += J[e, c, 0] * force[k, 0] + J[e, c, 1] * force[k, 1] + J[e, c, 2] * force[k, 2]
+
+
+@jit
+def point_load_hessian(root, frame0, omega, length, s, force, out):
+    """Hessian of the potential of dead point loads, ``-sum_k f_k . x(s_k)``, w.r.t. omega, (3N, 3N).
+
+    A contact force held fixed in the world while its material point moves does
+    work at second order, ``-f . d^2 x``: this is the contact forces' share of the
+    Hessian of the Lagrangian whose restriction to the motions that keep the
+    contact points in place decides the stability of a supported equilibrium
+    (the gravity share is :func:`gravity_hessian`). Central differences of the
+    generalized force ``sum_k J_k^T f_k`` (:func:`point_jacobian`), step
+    ``1e-5 (1 / L + |omega[e, k]|)`` as in :func:`gravity_hessian`, then
+    symmetrised; a coordinate moves only the loads at or after its element.
+
+    Parameters
+    ----------
+    root, frame0, omega, length : one strand, as :func:`gravity_potential`
+    s : (K,) float64, arc lengths of the loads, m, sorted ascending
+    force : (K, 3) float64, world forces, N
+    out : (3N, 3N) float64, out, J
+    """
+    n = omega.shape[0]
+    m = 3 * n
+    out[:, :] = 0.0
+    if s.shape[0] == 0 or n == 0:
+        return
+    total = 0.0
+    for e in range(n):
+        total += length[e]
+    xs = np.empty((n + 1, 3))
+    Fs = np.empty((n + 1, 3, 3))
+    dX = np.empty((n, 3, 3))
+    dTh = np.empty((n, 3, 3))
+    J = np.empty((n, 3, 3))
+    Gp = np.empty(m)
+    Gm = np.empty(m)
+    w = omega.copy()
+    # the loads each element's coordinates move: those at or after the element's start
+    start = 0.0
+    first = np.empty(n, np.int64)
+    k = 0
+    for e in range(n):
+        while k < s.shape[0] and s[k] < start:
+            k += 1
+        first[e] = k
+        start += length[e]
+    for j in range(m):
+        e = j // 3
+        c = j % 3
+        lo = first[e]
+        if lo >= s.shape[0]:
+            continue
+        h = 1e-5 * (1.0 / total + abs(omega[e, c]))
+        w[e, c] = omega[e, c] + h
+        _point_load_forces(root, frame0, w, length, s[lo:], force[lo:], xs, Fs, dX, dTh, J, Gp)
+        w[e, c] = omega[e, c] - h
+        _point_load_forces(root, frame0, w, length, s[lo:], force[lo:], xs, Fs, dX, dTh, J, Gm)
+        w[e, c] = omega[e, c]
+        for i in range(m):
+            out[i, j] = -(Gp[i] - Gm[i]) / (2.0 * h)
+    for i in range(m):
+        for j in range(i + 1, m):
+            v = 0.5 * (out[i, j] + out[j, i])
+            out[i, j] = v
+            out[j, i] = v
