@@ -387,39 +387,27 @@ def _body_of(stage, model_path: Path):
     return path
 
 
-@main.command()
-@click.argument("model", type=click.Path(path_type=Path))
-@click.argument("body", type=click.Path(path_type=Path), required=False)
-@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
-              help="Output stage file [default: ./<name>.frames.h5].")
-@click.option("--scene", "scene_name", default="still", show_default=True, metavar="NAME|FILE.toml",
-              help="What the body does: still, motion, remove-body, trim, or a scene file (docs/scenes.md).")
-@click.option("--init", "init", type=click.Choice(["inverted", "naive", "gravity-only"]), default="inverted",
-              show_default=True,
-              help="Rest shape: the inverted model's, the input shape itself (naive), or the contact-free "
-                   "inversion (gravity-only), for comparison.")
-@click.option("--seconds", type=float, default=None, help="Simulated time, s [default: the scene's].")
-@click.option("--fps", type=float, default=None, help="Frames written per second [default: the scene's].")
-@settings_options
-@click.pass_obj
-@handle_errors
-def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, config_file, sets):
-    """Simulate an inverted MODEL under a scene and write its frames.
+def _init_option(fn):
+    return click.option("--init", "init", type=click.Choice(["inverted", "naive", "gravity-only"]),
+                        default="inverted", show_default=True,
+                        help="Rest shape: the inverted model's, the input shape itself (naive), or the "
+                             "contact-free inversion (gravity-only), for comparison.")(fn)
 
-    MODEL is a stage file written by `hairinv invert`. BODY is the body mesh
-    in the hairstyle's original units; without it, the body the model was
-    inverted against is used if it is still where it was. Writes the model's
-    groups and /frames; each frame's contacts, solver residual, energies and
-    largest displacement are printed as it is done.
+
+def _load_simulation(say, model: Path, body: Path | None, output: Path | None, scene_name: str, quality,
+                     config_file, sets) -> dict:
+    """What ``simulate`` and ``verify`` share before running: the model's groups, the settings (contacts as the
+    model declared them, which --config and --set may still change), the scene and the body mesh.
+
+    ``say`` gets the lines about the body. Returns a dict: stage, helices, contacts, mesh, body, scene, settings.
     """
     import dataclasses
 
     from hairinv import config, stages
     from hairinv.contacts import Contacts
-    from hairinv.dynamics.run import run_scene
     from hairinv.dynamics.scene import Scene
     from hairinv.dynamics.simulate import validate_settings
-    from hairinv.errors import InputError, RunError
+    from hairinv.errors import InputError
     from hairinv.fit import Helices
     from hairinv.groom import load_body
 
@@ -434,8 +422,8 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
         if name not in stage:
             raise InputError(f"has no /{name} group: run `hairinv invert` on it first", model)
     scene = Scene.load(scene_name)
-    output = output or _default_output(model, "frames")
-    stages.check_output_path(output, inputs=[model, body])
+    if output is not None:
+        stages.check_output_path(output, inputs=[model, body])
     settings = config.resolve(quality, config_file, sets)
     # contacts as the model declared them, so the first step meets the inverted contacts again;
     # --config and --set may still change them
@@ -459,34 +447,179 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
         scale = float(curves.attrs.get("scale_to_m", 1.0))
         flip = str(curves.config.get("import", {}).get("flip", ""))
         mesh = load_body(body, scale, flip)
-        _say(obj, f"body: {body}")
+        say(f"body: {body}")
     elif scene.body != "removed":
-        _say(obj, "no body: only hair-hair contacts")
-    run_seconds = scene.seconds if seconds is None else seconds
-    run_fps = scene.fps if fps is None else fps
-    _say(obj, f"scene {scene.name}, {run_seconds:g} s at {run_fps:g} frames per second"
-         + (f": {scene.description}" if scene.description else ""))
-    steps = max(1, round(1.0 / (run_fps * settings.dynamics.time_step))) * max(0, round(run_seconds * run_fps))
-    bar = Progress(steps, "simulate", obj["progress"], unit="step")
+        say("no body: only hair-hair contacts")
+    return {"stage": stage, "helices": helices, "contacts": contacts, "mesh": mesh, "body": body, "scene": scene,
+            "settings": settings}
+
+
+def _run_simulation(obj, run: dict, init: str, seconds: float, fps: float, on_frame):
+    """``run_scene`` on what :func:`_load_simulation` loaded, with a progress bar of its steps."""
+    from hairinv import stages
+    from hairinv.dynamics.run import run_scene
+    from hairinv.errors import RunError
+
+    settings = run["settings"]
+    steps = max(1, round(1.0 / (fps * settings.dynamics.time_step))) * max(0, round(seconds * fps))
+    bar = Progress(steps, run["scene"].name, obj["progress"], unit="step")
     try:
-        frames = run_scene(helices, stage[stages.MODEL], contacts, mesh, scene, settings, init=init,
-                           seconds=seconds, fps=fps, on_frame=lambda log: _say(obj, log.line()), on_step=bar)
+        return run_scene(run["helices"], run["stage"][stages.MODEL], run["contacts"], run["mesh"], run["scene"],
+                         settings, init=init, seconds=seconds, fps=fps, on_frame=on_frame, on_step=bar)
     except FloatingPointError as exc:
         raise RunError(f"the simulation diverged ({exc}); no output was written; try a smaller "
                        "dynamics.time_step") from None
     finally:
         bar.close()
-    last = frames.log[-1]
-    _say(obj, f"simulated {last.time:g} s in {sum(f.seconds for f in frames.log):.1f} s; largest displacement "
-              f"{1e3 * max(f.displacement for f in frames.log):.3f} mm")
+
+
+def _write_frames(output: Path, model: Path, run: dict, frames, init: str) -> None:
+    """The model's groups and the run's /frames, written atomically."""
+    import dataclasses
+
+    from hairinv import stages
+
+    stage, body, settings = run["stage"], run["body"], run["settings"]
     groups = {name: stage[name] for name in (stages.CURVES, stages.HELICES, stages.CONTACTS, stages.MODEL)
               if name in stage}
     inputs = [stages.file_record(model)] + ([stages.file_record(body)] if body is not None else [])
     cfg = {"dynamics": dataclasses.asdict(settings.dynamics), "contacts": dataclasses.asdict(settings.contacts),
-           "scene": scene.name, "init": init}
+           "scene": run["scene"].name, "init": init}
     groups[stages.FRAMES] = frames.group(cfg, inputs)
     stages.write_stage(output, list(groups.values()), "simulate")
+
+
+@main.command()
+@click.argument("model", type=click.Path(path_type=Path))
+@click.argument("body", type=click.Path(path_type=Path), required=False)
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
+              help="Output stage file [default: ./<name>.frames.h5].")
+@click.option("--scene", "scene_name", default="still", show_default=True, metavar="NAME|FILE.toml",
+              help="What the body does: still, motion, remove-body, trim, or a scene file (docs/scenes.md).")
+@_init_option
+@click.option("--seconds", type=float, default=None, help="Simulated time, s [default: the scene's].")
+@click.option("--fps", type=float, default=None, help="Frames written per second [default: the scene's].")
+@settings_options
+@click.pass_obj
+@handle_errors
+def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, config_file, sets):
+    """Simulate an inverted MODEL under a scene and write its frames.
+
+    MODEL is a stage file written by `hairinv invert`. BODY is the body mesh
+    in the hairstyle's original units; without it, the body the model was
+    inverted against is used if it is still where it was. Writes the model's
+    groups and /frames; each frame's contacts, solver residual, energies and
+    largest displacement are printed as it is done.
+    """
+    output = output or _default_output(model, "frames")
+    run = _load_simulation(functools.partial(_say, obj), model, body, output, scene_name, quality, config_file,
+                           sets)
+    scene = run["scene"]
+    run_seconds = scene.seconds if seconds is None else seconds
+    run_fps = scene.fps if fps is None else fps
+    _say(obj, f"scene {scene.name}, {run_seconds:g} s at {run_fps:g} frames per second"
+         + (f": {scene.description}" if scene.description else ""))
+    frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=lambda log: _say(obj, log.line()))
+    last = frames.log[-1]
+    _say(obj, f"simulated {last.time:g} s in {sum(f.seconds for f in frames.log):.1f} s; largest displacement "
+              f"{1e3 * max(f.displacement for f in frames.log):.3f} mm")
+    _write_frames(output, model, run, frames, init)
     _say(obj, f"wrote {output}")
+
+
+# Rows of the table of moved strands that `verify` prints.
+VERIFY_ROWS = 20
+
+
+def _mm(metres: float) -> str:
+    """A distance in mm: three decimals, or two significant digits below a micrometre."""
+    mm = 1e3 * metres
+    return f"{mm:.3f}" if mm == 0 or mm >= 1e-3 else f"{mm:.1e}"
+
+
+def _verdict_lines(verdict, every_strand: bool, rows: int = VERIFY_ROWS) -> list[str]:
+    """The verdict line, then the table of strands (those that moved, or every strand), at most ``rows`` rows."""
+    tolerance = f"{1e3 * verdict.tolerance:g} mm"
+    largest = verdict.largest
+    biggest = f"largest {_mm(largest.displacement)} mm, strand {largest.index}" if largest else "no strands"
+    if verdict.passed:
+        lines = [f"verify: PASS, no strand point moved more than {tolerance} in {verdict.seconds_simulated:.3g} s "
+                 f"({biggest})"]
+    else:
+        head = f"verify: FAIL, {len(verdict.moved)} of {verdict.n_strands} strands moved more than {tolerance}"
+        lines = [f"{head}; stopped at {verdict.seconds_simulated:.3g} s" if verdict.stopped_early
+                 else f"{head} in {verdict.seconds_simulated:.3g} s ({biggest})"]
+    listed = verdict.strands if every_strand else verdict.moved
+    if listed:
+        lines.append(f"{'strand':>8}  {'moved (mm)':>12}  {'passed at (s)':>13}")
+        for s in listed[:rows]:
+            passed = f"{s.passed_at:.3f}" if s.passed_at is not None else "-"
+            lines.append(f"{s.index:8d}  {_mm(s.displacement):>12}  {passed:>13}")
+        if len(listed) > rows:
+            lines.append(f"... and {len(listed) - rows} more strands")
+    return lines
+
+
+@main.command()
+@click.argument("model", type=click.Path(path_type=Path))
+@click.argument("body", type=click.Path(path_type=Path), required=False)
+@click.option("--seconds", type=float, default=None,
+              help="Simulated time, s [default: the still scene's, 2].")
+@click.option("--tolerance", "tolerance_text", default="0.1mm", show_default=True, metavar="LENGTH",
+              help="Largest distance any strand point may move, with its unit: 0.1mm, 1e-4m, 0.01cm, 100um "
+                   "(a bare number is refused).")
+@click.option("--fps", type=float, default=None,
+              help="Checks per simulated second: the run stops at the first frame past the tolerance "
+                   "[default: the still scene's, 30].")
+@click.option("--full", is_flag=True,
+              help="Run to the end even after a strand has moved, and report every strand's largest displacement.")
+@_init_option
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON summary instead of the verdict and table.")
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
+              help="Also write the frames simulated to this stage file, as `simulate` does [default: none].")
+@settings_options
+@click.pass_obj
+@handle_errors
+def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, output, quality, config_file,
+           sets):
+    """Check that an inverted MODEL stays still: exit 0 if no strand point
+    moves more than the tolerance in the still scene, 1 if some do.
+
+    Runs the scene `hairinv simulate MODEL --scene still` runs (the body
+    still, the model's rest shape) and checks every strand after each frame;
+    the first frame in which a strand point is farther than the tolerance
+    from where it started ends the run (unless --full). Prints the verdict,
+    then the strands that moved: largest displacement and when each first
+    passed the tolerance. BODY is as for `simulate`.
+    """
+    from hairinv.dynamics.verify import judge, parse_length
+
+    tolerance = parse_length(tolerance_text, "--tolerance")
+    notes = []
+    run = _load_simulation(notes.append, model, body, output, "still", quality, config_file, sets)
+    scene = run["scene"]
+    run_seconds = scene.seconds if seconds is None else seconds
+    run_fps = scene.fps if fps is None else fps
+    stop = None if full else (lambda log: log.displacement > tolerance)
+    frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=stop)
+    verdict = judge(frames, tolerance, run_seconds)
+    if output is not None:
+        _write_frames(output, model, run, frames, init)
+    if as_json:
+        summary = {"model": str(model), "init": init, "fps": run_fps, **verdict.as_dict(every_strand=full)}
+        _say({**obj, "quiet": False}, json.dumps(summary, indent=2))
+    else:
+        for line in _verdict_lines(verdict, every_strand=full):
+            _say(obj, line)
+        notes.append(f"init {init}; checked at {run_fps:g} frames per second; simulated "
+                     f"{verdict.seconds_simulated:.3g} of {run_seconds:g} s in "
+                     f"{sum(f.seconds for f in frames.log):.1f} s")
+        if output is not None:
+            notes.append(f"wrote {output}")
+        for line in notes:
+            _say(obj, line)
+    if not verdict.passed:
+        sys.exit(FAILED)
 
 
 @main.command()

@@ -108,6 +108,24 @@ class ContactSettings:
     """Coulomb friction coefficient between two hairs."""
     samples_per_element: int = 8
     """Points per element at which the distance to the body and to other strands is measured (at least 2)."""
+    layer: bool = True
+    """Also declare body contacts where a strand runs along the body at a nearly constant gap beyond
+    body_distance (the empty layer above the skin of combed grooms and captures; paper, section 4.1)."""
+    layer_max_gap: float = 1e-2
+    """m. The widest hair layer looked for: 10 times the hair-hair distance, the paper's widest cylinders
+    (it widened near-body wisps 1 to 10 times by hand)."""
+    layer_tolerance: float = 1.5e-3
+    """m. How far above its run's gap (the median distance of the run) an element may lie and still rest
+    on the layer; farther, the strand is leaving the body there."""
+    layer_min_length: float = 2e-2
+    """m. Arc length a strand must run within layer_max_gap of the body (and over two elements at least)
+    before its gap is taken as a layer: a strand only passing by the body is not lying on it."""
+    wisp: bool = True
+    """Also declare hair-hair contacts where a strand rests on another one below it (against gravity)
+    within their wisps' width, derived from the local strand spacing, beyond hair_distance."""
+    hair_max_distance: float = 3e-3
+    """m. The widest wisp contact: centre lines this far apart may still rest on each other when the
+    strands around them are as far apart (sparse guide strands standing for wisps)."""
 
 
 @dataclass(frozen=True)

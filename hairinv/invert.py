@@ -44,7 +44,7 @@ TARGETS = ("actual", "zero", "uniform", "tip", "gravity-only")
 STABILIZE = ("stiffen", "off")
 #: inversions with stiffened strands tried before the remaining unstable strands are reported: a
 #: strand's factor makes it stable on the supports it had; the new forces may load other contacts
-STABILIZE_ROUNDS = 4
+STABILIZE_ROUNDS = 8
 
 
 @jit
@@ -145,9 +145,17 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
         # the load each side takes: the world force on A at s_A, its opposite on B at s_B
         side_index = np.flatnonzero(keep)[order]
         load_s = np.ascontiguousarray(contacts.s.ravel()[side_index])
+        slip_kind = np.zeros(rows.n_contacts, np.int64)
+        slip_dir = np.zeros((rows.n_contacts, 2))
         if force is None:
             load_f = np.zeros((len(side_index), 3))
         else:
+            r = np.asarray(force, dtype=np.float64)
+            tangential = np.hypot(r[:, 1], r[:, 2])
+            edge = loaded & (tangential >= SLIDING * contacts.mu * r[:, 0])
+            slip_kind[edge] = np.where(tangential[edge] > 0.0, 1, 2)  # 2: frictionless, both tangents free
+            moving = edge & (tangential > 0.0)
+            slip_dir[moving] = r[moving, 1:] / tangential[moving, None]
             world = np.einsum("cji,cj->ci", contacts.frame, np.asarray(force, dtype=np.float64))
             load_f = np.ascontiguousarray(world[side_index // 2] * np.where(side_index % 2 == 0, 1.0, -1.0)[:, None])
     else:
@@ -155,6 +163,7 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
         loaded = np.zeros(0, bool)
         ptr, cols, vals = np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
         load_s, load_f = np.zeros(0), np.zeros((0, 3))
+        slip_kind, slip_dir = np.zeros(0, np.int64), np.zeros((0, 2))
     unstable = np.zeros(S)
     free = np.zeros(S)
     always = np.zeros(S)
@@ -162,7 +171,8 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
     def check(lo: int, hi: int) -> None:
         _stability_chunk(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
                          material.linear_density, material.gravity, stiff, incident_ptr, incident, loaded, ptr,
-                         cols, vals, load_s, load_f, force is not None, lo, hi, unstable, free, always)
+                         cols, vals, load_s, load_f, force is not None, slip_kind, slip_dir, lo, hi, unstable,
+                         free, always)
 
     run_chunks(check, S, 64)
     return unstable, free, always
@@ -170,11 +180,14 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
 
 # an eigenvalue of the scaled Hessian I + K^-1/2 V'' K^-1/2 below this is a direction of instability
 _NEGATIVE = -1e-6
+# a contact whose friction force is at least this fraction of mu r_N is on the edge of its cone: sliding
+SLIDING = 1.0 - 1e-4
 
 
 @jit
 def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, incident_ptr, incident, loaded,
-                     ptr, cols, vals, load_s, load_f, with_loads, lo, hi, unstable, free, always):
+                     ptr, cols, vals, load_s, load_f, with_loads, slip_kind, slip_dir, lo, hi, unstable, free,
+                     always):
     """:func:`stability` for strands ``lo`` to ``hi``."""
     for s in range(lo, hi):
         e0 = offsets[s]
@@ -196,22 +209,34 @@ def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, 
             unstable[s] = free[s]
             always[s] = free[s]
             continue
-        # the rows of H on this strand's columns: those of the contacts carrying force first, then the others
+        # the rows of H on this strand's columns: those of the contacts carrying force first, then the others.
+        # A loaded contact on the edge of its friction cone holds its point along the normal and across the
+        # friction force only: along the direction the friction resists it slides as soon as it is pushed
+        # (the friction then acts as a dead load, which the reaction's Hessian share below accounts for)
         C = np.zeros((3 * n, m))
         j = 0
         n_loaded = 0
+        rows_loaded = 0
         for first in (True, False):
             for k in range(incident_ptr[s], incident_ptr[s + 1]):
                 i = incident[k]
                 if loaded[i] != first:
                     continue
+                kind = slip_kind[i] if first else 0
                 for t in range(ptr[i], ptr[i + 1]):
                     c = cols[t] - c0
                     if 0 <= c < m:
-                        for row in range(3):
-                            C[3 * j + row, c] = vals[t, row] * scale[c]
-                j += 1
+                        C[j, c] = vals[t, 0] * scale[c]
+                        if kind == 0:
+                            C[j + 1, c] = vals[t, 1] * scale[c]
+                            C[j + 2, c] = vals[t, 2] * scale[c]
+                        elif kind == 1:  # across the friction force (cos, sin) in the tangent plane
+                            C[j + 1, c] = (-slip_dir[i, 1] * vals[t, 1] + slip_dir[i, 0] * vals[t, 2]) * scale[c]
+                j += 3 if kind == 0 else (2 if kind == 1 else 1)
                 n_loaded += first
+                if first:
+                    rows_loaded = j
+        C = C[:j]
         if with_loads and n_loaded > 0:
             # the held points' reactions: their share -sum r . d^2 x of the Lagrangian's Hessian
             ks = np.empty(n_loaded, np.int64)
@@ -227,8 +252,98 @@ def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, 
             for i in range(m):
                 for j in range(m):
                     A[i, j] += hess[i, j] * scale[i] * scale[j]
-        unstable[s] = free[s] if n_loaded == 0 else _lowest_held(A, C[:3 * n_loaded])
+        unstable[s] = free[s] if n_loaded == 0 else _lowest_held(A, C[:rows_loaded])
         always[s] = _lowest_held(A, C)
+
+
+#: the joint check of strands coupled by loaded hair-hair contacts is dense: groups of up to this many
+#: coordinates (an eigen-decomposition of at most 3,000 x 3,000, a few seconds); larger groups keep the
+#: per-strand check and are reported
+GROUP_DOFS = 3000
+
+
+def group_margins(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows, contacts: Contacts,
+                  carrying: np.ndarray, force: np.ndarray) -> tuple[list[np.ndarray], np.ndarray, int]:
+    """The joint stability of strands that lean on each other: per group of strands joined by loaded
+    hair-hair contacts, the smallest eigenvalue of their scaled Hessian on the motions that keep every
+    loaded contact in place, both sides moving (the per-strand check holds the other strand fixed, and
+    misses two wisps leaning on each other that fall over together).
+
+    Returns (the groups, as arrays of strand indices; their eigenvalues (G,); the strands in groups too
+    large to check, over ``GROUP_DOFS`` coordinates). Groups of one strand are left to :func:`stability`.
+    """
+    S = helices.n_strands
+    loaded = np.asarray(carrying, bool) & (contacts.strand[:, 1] >= 0)
+    if not loaded.any():
+        return [], np.zeros(0), 0
+    # connected components of the loaded hair-hair graph
+    parent = np.arange(S)
+
+    def find(k):
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    for a, b in contacts.strand[loaded]:
+        ra, rb = find(a), find(b)
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    roots = np.array([find(k) for k in range(S)])
+    members = [np.flatnonzero(roots == r) for r in np.unique(roots)]
+    members = [g for g in members if len(g) > 1]
+    counts = np.diff(helices.offsets)
+    world = np.einsum("cji,cj->ci", contacts.frame, np.asarray(force, dtype=np.float64))
+    tangential = np.hypot(force[:, 1], force[:, 2])
+    edge = np.asarray(carrying, bool) & (tangential >= SLIDING * contacts.mu * force[:, 0])
+    checked, lams, too_large = [], [], 0
+    for g in members:
+        dofs = 3 * int(counts[g].sum())
+        if dofs > GROUP_DOFS:
+            too_large += len(g)
+            continue
+        cols = np.concatenate([np.arange(3 * helices.offsets[k], 3 * helices.offsets[k + 1]) for k in g])
+        index = np.full(3 * helices.n_elements, -1, dtype=np.int64)
+        index[cols] = np.arange(len(cols))
+        scale = 1.0 / np.sqrt(stiff[cols])
+        A = np.zeros((dofs, dofs))
+        in_group = np.isin(contacts.strand, g) & (contacts.strand >= 0)
+        for k in g:
+            a, z = helices.offsets[k], helices.offsets[k + 1]
+            m = 3 * (z - a)
+            hess = np.empty((m, m))
+            gravity_hessian(helices.root[k], helices.frame0[k], helices.omega[a:z], helices.length[a:z],
+                            material.linear_density, material.gravity, hess)
+            hess = 0.5 * (hess + hess.T)
+            sides = np.argwhere((contacts.strand == k) & np.asarray(carrying, bool)[:, None])
+            if len(sides):
+                load_s = contacts.s[sides[:, 0], sides[:, 1]]
+                load_f = world[sides[:, 0]] * np.where(sides[:, 1] == 0, 1.0, -1.0)[:, None]
+                order = np.argsort(load_s)
+                extra = np.empty((m, m))
+                point_load_hessian(helices.root[k], helices.frame0[k], helices.omega[a:z], helices.length[a:z],
+                                   np.ascontiguousarray(load_s[order]), np.ascontiguousarray(load_f[order]), extra)
+                hess += extra
+            at = index[3 * a:3 * z]
+            A[np.ix_(at, at)] = hess * np.outer(scale[at], scale[at])
+            A[at, at] += 1.0
+        rows_out = []
+        for i in np.flatnonzero(np.asarray(carrying, bool) & in_group.any(axis=1)):
+            row = np.zeros((3, dofs))
+            for t in range(rows.ptr[i], rows.ptr[i + 1]):
+                j = index[rows.cols[t]]
+                if j >= 0:
+                    row[:, j] = rows.vals[t] * scale[j]
+            if edge[i]:  # on the edge of its cone: held along the normal and across the friction force only
+                if tangential[i] > 0:
+                    c, s_ = force[i, 1] / tangential[i], force[i, 2] / tangential[i]
+                    row = np.stack([row[0], -s_ * row[1] + c * row[2]])
+                else:
+                    row = row[:1]
+            rows_out.append(row)
+        lams.append(float(_lowest_held(A, np.ascontiguousarray(np.concatenate(rows_out)))))
+        checked.append(g)
+    return checked, np.asarray(lams), too_large
 
 
 @jit
@@ -286,6 +401,10 @@ class InvertReport:
     """inversions solved again with stiffened strands"""
     total_sweeps: int = 0
     checked: bool = True
+    unstable_groups: int = 0
+    """groups of strands joined by loaded hair-hair contacts that are unstable together"""
+    unchecked_together: int = 0
+    """strands in groups too large for the joint check (``GROUP_DOFS``): checked one by one only"""
 
     def lines(self) -> list[str]:
         r = self.result
@@ -317,6 +436,9 @@ class InvertReport:
         if self.unstable:
             lines.append(f"warning: {self.unstable} of {self.strands} strands rest in an unstable equilibrium "
                          f"(a simulation may let them fall away from the input shape)")
+            if self.unstable_groups:
+                lines.append(f"{self.unstable_groups} groups of strands leaning on each other are unstable together, "
+                             "though each holds with the others in place")
             if self.unstable_held and self.contacts and not stiffened:
                 # without contacts the count is the one above
                 lines.append(f"{self.unstable_held} of them stay unstable even with every declared contact held "
@@ -326,6 +448,9 @@ class InvertReport:
                 lines.append("solver.stabilize = stiffen (the default) stiffens such strands just enough to hold")
         elif self.checked:
             lines.append("every strand rests in a stable equilibrium")
+        if self.unchecked_together:
+            lines.append(f"note: {self.unchecked_together} strands lean on each other in groups too large to check "
+                         f"together (over {GROUP_DOFS} coordinates); each was checked with the others in place")
         if self.contacts and self.checked:
             lines.append(f"for comparison, the gravity-only inversion leaves {self.unstable_gravity_only} "
                          "strands unstable" + (
@@ -343,7 +468,7 @@ STRAND_NEWTON_ITERS = 50
 
 
 def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray, contacts: Contacts,
-                     target: float) -> np.ndarray:
+                     target: float, mu: np.ndarray) -> np.ndarray:
     """Body contacts only: the strands do not interact, so each strand's contacts are solved together,
     by nonsmooth Newton on their dense block of ``W`` (:mod:`hairinv.solver.blocks`) to the natural-map
     residual ``target`` (N). The forces are the Gauss-Seidel's warm start, which then has little or
@@ -359,7 +484,7 @@ def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarr
     r = np.zeros((n, 3))
     f = np.zeros(rows.n_dofs)
     done = np.zeros(len(group_ptr) - 1, dtype=np.bool_)
-    run_chunks(lambda lo, hi: _group_newton(scaled.ptr, scaled.cols, scaled.vals, gammas, b, contacts.mu, members,
+    run_chunks(lambda lo, hi: _group_newton(scaled.ptr, scaled.cols, scaled.vals, gammas, b, mu, members,
                                             group_ptr, block_ptr, blocks, Wd, r, f, target, STRAND_NEWTON_ITERS,
                                             False, False, lo, hi, done), len(done), 16)
     return r
@@ -425,6 +550,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         factor = np.ones(S) if stiffening is None else np.asarray(stiffening, dtype=np.float64).copy()
         if factor.shape != (S,) or not np.all(np.isfinite(factor)) or np.any(factor < 1.0):
             raise InputError(f"the starting stiffening must hold one finite factor >= 1 per strand ({S})")
+    mu = contacts.mu
     q = helices.omega.ravel()
     weight = np.ones(helices.n_elements)
     target = target_shape(helices, settings.target)
@@ -439,15 +565,15 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         if start.shape != (contacts.n_contacts, 3) or not np.all(np.isfinite(start)):
             raise InputError(f"the starting forces must be finite, one row of 3 per contact "
                              f"({contacts.n_contacts}), got shape {start.shape}")
-        r0 = project_forces(start, contacts.mu)
+        r0 = project_forces(start, mu)
 
     def solve(stiff: np.ndarray, r0: np.ndarray | None, first: bool):
         # D = w K^-2; b = H D (F_g - K (q - t))
         d = np.repeat(weight, 3) / stiff ** 2
         b = rows.matvec(d * (F_g - stiff * (q - target.ravel())))
         if first and r0 is None and contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0):
-            r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
-        result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, S,
+            r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale, mu)
+        result = solve_cone_qp(rows, d, settings.gamma, b, mu, contacts.strand, S,
                                force_scale, settings.tolerance, settings.max_sweeps, settings.check_every, r0=r0,
                                progress=progress, s=contacts.s, accelerate=settings.accelerate,
                                part_of=split_strands(helices.root, contacts.strand),
@@ -464,6 +590,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     first_residual = result.history[0][1] if result.history else np.nan
     newton_start = newton_start and r0 is not None
     unstable = unstable_g = unstable_held = 0
+    unstable_groups = too_large = 0
     gravity_only_factor = 1.0
     stiffened_rounds = 0
     sweeps = result.sweeps
@@ -476,18 +603,32 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
             else int(np.count_nonzero(free < _NEGATIVE))
         gravity_only_factor = float(needed_free.max()) if S else 1.0
         unstable_held = int(np.count_nonzero(always < _NEGATIVE))
+        groups, group_lam, too_large = group_margins(helices, material, stiff, rows, contacts, carrying, result.r)
         if stabilize:
             for _ in range(STABILIZE_ROUNDS):
                 weak = supported < _NEGATIVE
-                if not weak.any():
+                weak_groups = [(g, lam) for g, lam in zip(groups, group_lam) if lam < _NEGATIVE]
+                if not weak.any() and not weak_groups:
                     break
+                before = factor.copy()
                 factor[weak] *= (1.0 - supported[weak]) * settings.stiffen_margin
+                # the groups that fall over together are stiffened uniformly, so that the closed form holds
+                # for the group as for one strand (from the factors the check saw)
+                for g, lam in weak_groups:
+                    factor[g] = np.maximum(factor[g], before[g] * (1.0 - lam) * settings.stiffen_margin)
                 stiff = stiffness(helices, material, factor)
                 result, carrying, _ = solve(stiff, result.r, False)
                 sweeps += result.sweeps
                 stiffened_rounds += 1
                 supported, _, always = stability_margins(helices, material, stiff, rows, contacts, carrying, result.r)
-        unstable = int(np.count_nonzero(supported < _NEGATIVE))
+                groups, group_lam, too_large = group_margins(helices, material, stiff, rows, contacts, carrying,
+                                                             result.r)
+        weak_together = np.zeros(S, dtype=bool)
+        for g, lam in zip(groups, group_lam):
+            if lam < _NEGATIVE:
+                weak_together[g] = True
+        unstable_groups = int(np.count_nonzero(group_lam < _NEGATIVE))
+        unstable = int(np.count_nonzero((supported < _NEGATIVE) | weak_together))
     r = result.r
     # q0 = q - K^-1 (F_g + H^T r), eq. (4), with the stiffness the strands were inverted with
     load = F_g + rows.rmatvec(r)
@@ -517,6 +658,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     report.stiffened_rounds = stiffened_rounds
     report.total_sweeps = sweeps
     report.checked = check_stability
+    report.unstable_groups = unstable_groups
+    report.unchecked_together = too_large
     if warm:
         report.notes.append(f"the solver started from the given forces (after {prior} earlier sweeps), at relative "
                             f"residual {first_residual / force_scale:.2g}")

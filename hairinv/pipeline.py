@@ -159,7 +159,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         lines.append(f"the contacts in {style.name} {stale}; detecting them again")
     if mesh is None and settings.contacts.body:
         lines.append("no body given: only hair-hair contacts are declared")
-    found, detect_report = detect_contacts(helices, mesh, settings.contacts)
+    found, detect_report = detect_contacts(helices, mesh, settings.contacts, up=up)
     lines += detect_report.lines()
     scene.contacts = found
     groups[stages.CONTACTS] = found.group(settings.contacts, inputs)

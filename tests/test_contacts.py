@@ -37,7 +37,8 @@ FACET_COS = np.cos(np.radians(3.0))
 SETTINGS = ContactSettings()
 # hair-hair geometry tests: no root clearance and no cap per element, so every element pair within reach counts
 HAIR_ONLY = dataclasses.replace(SETTINGS, body=False, root_clearance=0.0, max_hair_per_element=0)
-BODY_ONLY = dataclasses.replace(SETTINGS, hair_hair=False, root_clearance=0.0)
+# the fixed-radius rules alone (the layer rule is tested on its own below)
+BODY_ONLY = dataclasses.replace(SETTINGS, hair_hair=False, root_clearance=0.0, layer=False)
 
 
 def frame_with_tangent(t, n2=None) -> np.ndarray:
@@ -422,7 +423,11 @@ def check_geometry(h: Helices, body, contacts: Contacts, settings: ContactSettin
     if body_rows.any():
         closest, distance, _ = trimesh.proximity.closest_point(body, contacts.point[body_rows])
         reach = max(settings.body_distance, report.deepest_inside)
-        assert np.all(distance <= reach + 1e-5)  # trimesh's closest point is off by up to 1e-5 m at times
+        # trimesh's closest point is off by up to 1e-5 m at times; the layer rule's contacts lie beyond
+        # body_distance, as many as it reports, and within the widest layer
+        beyond = distance > reach + 1e-5
+        assert abs(int(beyond.sum()) - report.body_layer) <= max(2, 0.01 * report.body_layer)
+        assert np.all(distance <= max(reach, settings.layer_max_gap if settings.layer else 0.0) + 1e-5)
         # the normal leads to a closest surface point (towards it inside, away from it outside; which of
         # several equally close points, as inside a crease, is not compared)
         apart = distance > 1e-4
@@ -543,3 +548,99 @@ def test_hair_contacts_per_element_are_capped_closest_first():
     gap = np.abs(capped.strand[:, 0] - capped.strand[:, 1])
     assert np.all(gap == 1)  # the closest neighbours, 0.2 mm away
     assert any("max_hair_per_element" in note for note in report.notes)
+
+
+# --- the hair layer and wisps ------------------------------------------------------------------------------------
+
+LAYERED = dataclasses.replace(SETTINGS, hair_hair=False)
+
+
+def draped_over_sphere(radius, gap, arc_angle=1.2, arc_elements=8, tail=0.1, tail_elements=4):
+    """From the top of a sphere, a strand following it at ``gap`` (a circle of radius ``radius + gap``
+    about its centre) for ``arc_angle`` radians, then leaving it along its tangent for ``tail`` m."""
+    R = radius + gap
+    root = np.array([0.0, R, 0.0])
+    F = frame_with_tangent([1.0, 0.0, 0.0], n2=[0.0, 1.0, 0.0])  # n2 away from the centre: it bends towards it
+    omega = np.concatenate([np.tile([1.0 / R, 0.0, 0.0], (arc_elements, 1)), np.zeros((tail_elements, 3))])
+    length = np.concatenate([np.full(arc_elements, R * arc_angle / arc_elements),
+                             np.full(tail_elements, tail / tail_elements)])
+    return (root, F, omega, length), R * arc_angle
+
+
+@pytest.mark.parametrize("gap", [0.005, 0.007])
+def test_a_strand_lying_on_a_sphere_at_a_gap_gets_layer_contacts_and_none_where_it_leaves(gap):
+    """Beyond body_distance (4 mm) the fixed radius declares nothing; the layer rule declares the arc's
+    elements at their gap, and nothing along the tail, whose distance grows as it leaves the sphere."""
+    radius = 0.1
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=radius)
+    strand, arc = draped_over_sphere(radius, gap)
+    h = helices([strand])
+    fixed, _ = detect_contacts(h, sphere, dataclasses.replace(LAYERED, layer=False))
+    assert fixed.n_contacts == 0
+    contacts, report = detect_contacts(h, sphere, LAYERED)
+    # every arc element past the root clearance declares one, at the gap (the facets lie within 0.1 mm)
+    arc_starts = np.cumsum(np.r_[0.0, h.length[:7]])
+    expected = int(np.count_nonzero(arc_starts + h.length[:8] > SETTINGS.root_clearance))
+    assert contacts.n_body == report.body_layer == expected
+    np.testing.assert_allclose(contacts.gap, gap, atol=1.5e-4)
+    assert contacts.s[:, 0].max() <= arc + 1e-9
+    # the tail's distances: it leaves the sphere (independently, from trimesh)
+    tail = points_on(h, 0, np.linspace(arc + 0.03, arc + 0.1, 8))
+    assert np.all(-trimesh.proximity.signed_distance(sphere, tail) > gap + SETTINGS.layer_tolerance)
+    assert report.layer_strands == 1 and report.layer_gaps == pytest.approx([gap], abs=1.5e-4)
+    assert any("hair layer" in line for line in report.lines())
+    # normals point away from the centre, up to the facets' tilt
+    radial = contacts.point / np.linalg.norm(contacts.point, axis=1, keepdims=True)
+    assert np.all(np.einsum("ij,ij->i", contacts.frame[:, 0], radial) > FACET_COS)
+
+
+def test_a_strand_only_passing_the_body_gets_no_layer_contact():
+    """A straight strand passing 7 mm over the edge of a box: it comes that near over about a centimetre
+    only (the distance to an edge grows linearly), so it is not lying on the body. Along the box's face at
+    the same distance it is."""
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
+    out = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
+    across = np.array([1.0, -1.0, 0.0]) / np.sqrt(2.0)
+    passing = straight(np.array([0.1, 0.1, 0.0]) + 0.007 * out - 0.2 * across, across, 0.4, 20)
+    contacts, report = detect_contacts(helices([passing]), box, LAYERED)
+    assert contacts.n_body == 0 and report.body_layer == 0
+    lying = straight([0.107, 0.09, -0.15], [0.0, 0.0, 1.0], 0.3, 15)
+    contacts, report = detect_contacts(helices([lying]), box, LAYERED)
+    assert contacts.n_body == report.body_layer > 10
+    np.testing.assert_allclose(contacts.gap, 0.007, atol=1e-9)
+
+
+def stacked_pair(gap, side_by_side=False):
+    """Two straight horizontal strands along +x, 2 mm above a floor and ``gap`` above (or beside) it."""
+    low = straight([0.0, 0.002, 0.0], [1.0, 0.0, 0.0], 0.1, 5)
+    offset = [0.0, 0.0, gap] if side_by_side else [0.0, gap, 0.0]
+    high = straight(np.array([0.0, 0.002, 0.0]) + offset, [1.0, 0.0, 0.0], 0.1, 5)
+    return helices([low, high])
+
+
+def test_a_strand_resting_on_another_beyond_the_fixed_radius_is_supported():
+    """Two strands stacked 2 mm apart (twice hair_distance, the groom's own spacing): the wisp rule
+    declares their contacts, normals vertical; side by side at the same spacing they get none (nothing
+    to hold against gravity), nor without the up axis or with the rule off. Inverted on a floor the
+    upper strand does rest on the lower one: its contacts carry its weight."""
+    from hairinv.config import SolverSettings
+    from hairinv.invert import Material, invert
+    from hairinv.config import MaterialSettings
+
+    up = np.array([0.0, 1.0, 0.0])
+    settings = dataclasses.replace(SETTINGS, body_distance=0.0025, root_clearance=0.005, layer=False)
+    h = stacked_pair(0.002)
+    contacts, report = detect_contacts(h, plane(), settings, up=up)
+    hair = contacts.strand[:, 1] >= 0
+    assert hair.sum() == report.hair_wisp > 0
+    np.testing.assert_allclose(contacts.gap[hair], 0.002, atol=1e-9)
+    assert np.all(np.abs(contacts.frame[hair, 0] @ up) == pytest.approx(1.0))
+    assert np.all(contacts.strand[~hair, 0] == 0)  # only the lower strand reaches the floor
+    assert report.wisp_radius == pytest.approx([1.25 * 0.002] * 2)
+    for other in (detect_contacts(stacked_pair(0.002, side_by_side=True), plane(), settings, up=up)[0],
+                  detect_contacts(h, plane(), settings)[0],
+                  detect_contacts(h, plane(), dataclasses.replace(settings, wisp=False), up=up)[0]):
+        assert not np.any(other.strand[:, 1] >= 0)
+    model, _ = invert(h, contacts, Material.from_settings(MaterialSettings(), up), SolverSettings(tolerance=1e-8))
+    weight = Material.from_settings(MaterialSettings(), up).linear_density * 9.81 * 0.1
+    assert model.force[hair, 0].sum() > 0.3 * weight

@@ -52,12 +52,34 @@ class DetectReport:
     notes: list[str] = field(default_factory=list)
     deepest_inside: float = 0.0
     """m. Depth of the deepest sample inside the body (0 if none)."""
+    body_layer: int = 0
+    """body contacts declared by the layer rule (beyond body_distance, on a strand's hair layer)"""
+    layer_gaps: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """m, the gap of every run of a strand along the body that declared layer contacts"""
+    layer_strands: int = 0
+    hair_wisp: int = 0
+    """hair-hair contacts declared by the wisp rule (beyond hair_distance, resting on a strand below)"""
+    wisp_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """m, per strand, the wisp contact distance derived from the local spacing (hair_distance where none)"""
 
     def lines(self) -> list[str]:
         lines = [
             f"declared {self.n_body + self.n_hair} contacts in {self.seconds:.2f} s: {self.n_body} hair-body "
             f"on {self.strands_touching_body} strands, {self.n_hair} hair-hair"
         ]
+        if self.body_layer:
+            g = 1e3 * self.layer_gaps
+            lines.append(
+                f"hair layer: {self.body_layer} of the body contacts lie beyond body_distance, on {self.layer_strands} "
+                f"strands running along the body at a nearly constant gap (gap, mm: 5th percentile "
+                f"{np.percentile(g, 5):.2f}, median {np.median(g):.2f}, 95th {np.percentile(g, 95):.2f}, max "
+                f"{g.max():.2f}; contacts.layer)")
+        if self.hair_wisp:
+            w = 1e3 * self.wisp_radius
+            lines.append(
+                f"wisps: {self.hair_wisp} of the hair-hair contacts rest on a strand below beyond hair_distance, "
+                f"within the wisp width of the local spacing (mm: median {np.median(w):.2f}, max {w.max():.2f}; "
+                "contacts.wisp)")
         if self.points_inside_body:
             lines.append(
                 f"warning: {self.points_inside_body} sample points on {self.strands_inside_body} "
@@ -85,6 +107,10 @@ def validate_settings(settings: ContactSettings) -> None:
     if not isinstance(settings.max_hair_per_element, int) or settings.max_hair_per_element < 0:
         raise InputError("contacts.max_hair_per_element must be an integer >= 0 (0: no limit), "
                          f"got {settings.max_hair_per_element!r}")
+    for name in ("layer_max_gap", "layer_tolerance", "layer_min_length", "hair_max_distance"):
+        value = getattr(settings, name)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            raise InputError(f"contacts.{name} must be a distance >= 0 m, got {value!r}")
     value = settings.samples_per_element
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 2:
         raise InputError(f"contacts.samples_per_element must be an integer >= 2 (an element's two ends), got {value!r}")
@@ -164,7 +190,8 @@ def _closest_per_element(ea, eb, dist, keep, cap, elements, out):
             out[k] = False
 
 
-def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=None) -> tuple[Contacts, DetectReport]:
+def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=None,
+                    up: np.ndarray | None = None) -> tuple[Contacts, DetectReport]:
     """Declare hair-body and hair-hair contacts of fitted strands.
 
     Parameters
@@ -179,6 +206,10 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         Called with a number of strands after each chunk of strands is
         sampled and tested against the body (the calls sum to the strand
         count); hair-hair detection follows, over all strands at once.
+    up : (3,) float64, optional
+        The world up axis (against gravity). The wisp rule (``settings.wisp``)
+        declares only contacts where a strand rests on one below it, so it
+        needs it; without it only ``hair_distance`` applies.
 
     Returns
     -------
@@ -223,18 +254,28 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
     b_normal = np.zeros((elements, 3))
     b_sd = np.zeros(elements)
 
+    # elements within the widest layer get their closest point too; those beyond body_distance are kept
+    # only where the layer rule takes them (the others' contacts are the same as without the rule)
+    body_reach = float(max(settings.body_distance, settings.layer_max_gap) if settings.layer else
+                       settings.body_distance)
+
     def strands_chunk(lo: int, hi: int) -> None:
         element_starts(root, frame0, offsets, omega, length, lo, hi, xs, Fs, s0)
         e0, e1 = int(offsets[lo]), int(offsets[hi])
         sample_elements(xs, Fs, omega, length, e0, e1, samples)
         if mesh is not None:
             element_body_contacts(e0, e1, samples, xs, Fs, omega, length, s0, is_last, *mesh.tree,
-                                  float(settings.body_distance), float(settings.root_clearance),
+                                  body_reach, float(settings.root_clearance),
                                   COINCIDENT * float(settings.body_distance), REFINE_ITERATIONS, inside, deepest,
                                   has, sigma, b_point, b_normal, b_sd)
 
     run_chunks(strands_chunk, count, CHUNK, progress)
 
+    layer = np.zeros(elements, dtype=bool)
+    layer_gaps = np.zeros(0)
+    if mesh is not None and settings.layer:
+        layer, layer_gaps = _layer_elements(has, b_sd, sigma, deepest, samples, s0, length, offsets, mesh, settings)
+        has = has.astype(bool) & ((b_sd < settings.body_distance) | layer)
     body_idx = np.flatnonzero(has)
     body_part = Contacts(
         np.stack([strand_of[body_idx], np.full(len(body_idx), BODY, np.int64)], axis=1),
@@ -248,8 +289,12 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
     body_part = body_part.subset(np.lexsort((body_part.s[:, 0], body_part.strand[:, 0])))
 
     hair_part = Contacts.empty()
+    hair_wisp = 0
+    wisp_radius = np.zeros(0)
     if settings.hair_hair and elements:
-        ea, eb, sa, sb, _close = hair_pairs(samples, omega, length, strand_of, float(settings.hair_distance))
+        wisp = settings.wisp and up is not None and settings.hair_max_distance > settings.hair_distance
+        hair_reach = float(settings.hair_max_distance if wisp else settings.hair_distance)
+        ea, eb, sa, sb, _close = hair_pairs(samples, omega, length, strand_of, hair_reach)
         pairs = len(ea)
         pa = np.empty((pairs, 3))
         pb = np.empty((pairs, 3))
@@ -260,9 +305,22 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
                    pairs, 4096)
         # one contact per element pair within reach; a closest point on an element's end starts the next
         # element, whose pair with the same other element is at least as close and declares its own
-        keep = dist < settings.hair_distance
+        keep = dist < hair_reach
         keep &= ~((sa == length[ea]) & (is_last[ea] == 0))
         keep &= ~((sb == length[eb]) & (is_last[eb] == 0))
+        wisp_radius = np.full(count, float(settings.hair_distance))
+        by_wisp = np.zeros(pairs, dtype=bool)
+        if wisp:
+            wisp_radius = _wisp_radius(ea[keep], eb[keep], dist[keep], strand_of, count, settings)
+            beyond = keep & (dist >= settings.hair_distance)
+            reach = np.minimum(wisp_radius[strand_of[ea]], wisp_radius[strand_of[eb]])
+            apart = pa - pb
+            vertical = np.abs(apart @ np.asarray(up, dtype=np.float64)) / np.maximum(dist, 1e-300)
+            vertical /= np.linalg.norm(up)
+            # resting on the strand below: the two centre lines stacked against gravity (within 60 degrees
+            # of the vertical), and within the narrower wisp's width
+            by_wisp = beyond & (dist < reach) & (vertical >= WISP_VERTICAL)
+            keep &= (dist < settings.hair_distance) | by_wisp
         # both points within root_clearance of their clamped roots: no coordinate moves either
         # point, the contact only makes W singular there (its forces would be fixed by gamma alone)
         near_roots = keep & (s0[ea] + sa < settings.root_clearance) & (s0[eb] + sb < settings.root_clearance)
@@ -278,6 +336,7 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
                              f"(contacts.max_hair_per_element); {int((keep & ~capped).sum())} farther ones "
                              "were not declared")
             keep = capped
+        hair_wisp = int(np.count_nonzero(by_wisp & keep))
         ea, eb, sa, sb = ea[keep], eb[keep], sa[keep], sb[keep]
         normal = _hair_normals(pa[keep], pb[keep], ta[keep], tb[keep], dist[keep],
                                COINCIDENT * float(settings.hair_distance))
@@ -309,5 +368,112 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         seconds=time.perf_counter() - start,
         notes=notes,
         deepest_inside=float(-deepest.min()) if points_inside else 0.0,
+        body_layer=int(np.count_nonzero(layer & (b_sd >= settings.body_distance) & has.astype(bool))),
+        layer_gaps=layer_gaps,
+        layer_strands=int(len(np.unique(strand_of[layer]))) if layer.any() else 0,
+        hair_wisp=hair_wisp,
+        wisp_radius=wisp_radius,
     )
     return contacts, report
+
+
+#: a wisp contact joins strands stacked against gravity: |unit(xA - xB) . up| at least cos 60 degrees
+WISP_VERTICAL = 0.5
+#: a wisp is a little wider than the spacing of its strands, so that neighbouring wisps touch where
+#: their centre lines are that spacing apart
+WISP_WIDTH = 1.25
+
+
+def _layer_elements(has: np.ndarray, sd: np.ndarray, sigma: np.ndarray, least: np.ndarray, samples: np.ndarray,
+                    s0: np.ndarray, length: np.ndarray, offsets: np.ndarray, mesh: BodyMesh,
+                    settings: ContactSettings) -> tuple[np.ndarray, np.ndarray]:
+    """The elements whose body contact the layer rule declares, (E,) bool, and the gaps of the runs
+    that declared any (m).
+
+    ``sd`` and ``sigma`` are the signed distance and the arc length along its element of each element's
+    contact point (where ``has``), ``least`` the least
+    signed distance of its own samples (inf where none came within reach). The samples of the elements
+    within ``layer_max_gap`` are measured; along each strand, a run is a maximal stretch of consecutive
+    samples within ``layer_max_gap`` (past ``root_clearance``). Its gap ``g`` is the median of their
+    distances (inside counted as 0). The strand lies on the layer where its samples stay within
+    ``g + layer_tolerance`` over at least ``layer_min_length`` of arc: a strand passing the body comes
+    that close over a short stretch only. The elements beyond ``body_distance`` whose contact point lies
+    in such a stretch, at most ``g + layer_tolerance`` from the body, are declared; where the distance
+    grows past it, the strand is leaving the body, and nothing more is.
+    """
+    E, n = samples.shape[0], samples.shape[1]
+    has = has.astype(bool)
+    out = np.zeros(E, dtype=bool)
+    gaps: list[float] = []
+    near = np.flatnonzero(np.minimum(np.where(has, sd, np.inf), least) <= settings.layer_max_gap)
+    if not len(near):
+        return out, np.zeros(0)
+    dist = mesh.closest(np.ascontiguousarray(samples[near].reshape(-1, 3)))[0].reshape(-1, n)
+    arc = s0[near, None] + length[near, None] * np.minimum(np.arange(n) / (n - 1), 1.0)[None, :]
+    strand_of = np.searchsorted(offsets, near, side="right") - 1
+    order_start = 0
+    while order_start < len(near):
+        # one strand's near elements, in order
+        k = strand_of[order_start]
+        stop = order_start
+        while stop < len(near) and strand_of[stop] == k:
+            stop += 1
+        els = near[order_start:stop]
+        d = dist[order_start:stop].ravel()
+        s = arc[order_start:stop].ravel()
+        owner = np.repeat(els, n)
+        valid = (s >= settings.root_clearance) & (d <= settings.layer_max_gap)
+        # a run breaks where a sample is out of reach or where two near elements are not consecutive
+        jump = np.r_[False, np.diff(owner) > 1]
+        run = np.cumsum(~valid | jump)
+        for r in np.unique(run[valid]):
+            members = valid & (run == r)
+            gap = float(np.median(np.maximum(d[members], 0.0)))
+            band = members & (d <= gap + settings.layer_tolerance)
+            # stretches of consecutive samples within the band, and their arc lengths
+            idx = np.flatnonzero(members)
+            inside_band = band[idx]
+            stretch = np.cumsum(np.r_[True, inside_band[1:] != inside_band[:-1]])
+            declared = False
+            for t in np.unique(stretch[inside_band]):
+                sel = idx[inside_band & (stretch == t)]
+                if s[sel].max() - s[sel].min() < settings.layer_min_length:
+                    continue
+                lo, hi = s[sel].min(), s[sel].max()
+                for e in np.unique(owner[sel]):
+                    where = s0[e] + sigma[e]  # the contact point, within the stretch (up to a sample)
+                    step = length[e] / (n - 1)
+                    if (has[e] and settings.body_distance <= sd[e] <= gap + settings.layer_tolerance
+                            and lo - step <= where <= hi + step):
+                        out[e] = True
+                        declared = True
+            if declared:
+                gaps.append(gap)
+        order_start = stop
+    return out, np.asarray(gaps, dtype=np.float64)
+
+
+def _wisp_radius(ea: np.ndarray, eb: np.ndarray, dist: np.ndarray, strand_of: np.ndarray, count: int,
+                 settings: ContactSettings) -> np.ndarray:
+    """Per strand, the distance within which its centre line rests on another strand's, (S,), m.
+
+    A guide strand's centre line stands for a wisp as wide as the spacing of the strands around it:
+    the median, over its elements, of the distance to the nearest element of another strand (within
+    ``hair_max_distance``). The contact distance is ``WISP_WIDTH`` times that spacing (so that neighbours
+    that far apart touch), clamped to ``[hair_distance, hair_max_distance]``; a strand with no neighbour
+    in reach keeps ``hair_distance``.
+    """
+    n_elements = len(strand_of)
+    nearest = np.full(n_elements, np.inf)
+    np.minimum.at(nearest, ea, dist)
+    np.minimum.at(nearest, eb, dist)
+    radius = np.full(count, float(settings.hair_distance))
+    finite = np.isfinite(nearest)
+    if finite.any():
+        order = np.argsort(strand_of[finite], kind="stable")
+        values = nearest[finite][order]
+        owners = strand_of[finite][order]
+        bounds = np.searchsorted(owners, np.arange(count + 1))
+        for k in np.flatnonzero(np.diff(bounds)):
+            radius[k] = float(np.median(values[bounds[k]:bounds[k + 1]]))
+    return np.clip(WISP_WIDTH * radius, settings.hair_distance, settings.hair_max_distance)

@@ -52,6 +52,8 @@ class FrameLog:
     """substeps beyond one per step: how often the frame's steps were halved"""
     halved_by: int = -1
     """the strand that last made a step of the frame halve by turning an element too far (-1: none)"""
+    strand_displacement: np.ndarray | None = None
+    """(S,) float64, m: each strand's largest point distance from where it started (``displacement`` is their max)."""
 
     def line(self) -> str:
         by = str(self.halved_by) if self.halved_by >= 0 else "-"
@@ -75,6 +77,8 @@ class Frames:
     trimmed: bool = False
     body_removed: bool = False
     attrs: dict = field(default_factory=dict)
+    stopped: bool = False
+    """``on_frame`` stopped the run: the arrays and the log hold only the frames done."""
 
     def group(self, config: dict, inputs: list[dict]) -> stages.Group:
         data = {"time": self.time, "omega": self.omega, "root": self.root, "frame0": self.frame0,
@@ -131,7 +135,7 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
     body_mesh : trimesh.Trimesh or None, in metres
     scene : Scene
     settings : Settings (``material`` is taken from the model when there is one)
-    on_frame : callable(FrameLog), optional, after every frame
+    on_frame : callable(FrameLog), optional, after every frame; returning True stops the run there
     on_step : callable(), optional, after every step
     """
     seconds = float(scene.seconds if seconds is None else seconds)
@@ -189,7 +193,7 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
                  attrs={"time_step": h, "steps_per_frame": steps_per_frame, "fps": fps, "init": init,
                         "scene": scene.name})
 
-    def record(index: int, t: float, reports: list[StepReport], seconds_used: float) -> None:
+    def record(index: int, t: float, reports: list[StepReport], seconds_used: float) -> bool:
         R, c, _ = state(t)
         out.time[index] = t
         out.omega[index] = sim.q
@@ -199,7 +203,9 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
         out.body_transform[index, :3, :3] = R
         out.body_transform[index, :3, 3] = c
         now = _samples(helices, sim.q)
-        moved = max((float(np.max(np.linalg.norm(a - b, axis=1))) for a, b in zip(now, start_points)), default=0.0)
+        per_strand = np.array([np.max(np.linalg.norm(a - b, axis=1)) for a, b in zip(now, start_points)],
+                              dtype=np.float64)
+        moved = float(per_strand.max()) if len(per_strand) else 0.0
         log = FrameLog(index, t, reports[-1].contacts if reports else sim.contacts.n_contacts,
                        reports[-1].n_body if reports else sim.contacts.n_body,
                        max((r.sweeps for r in reports), default=0),
@@ -207,14 +213,15 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
                        sum(r.status != "CONVERGED" for r in reports),
                        sim.kinetic_energy(), sim.elastic_energy(), moved, seconds_used,
                        sum(r.substeps - 1 for r in reports),
-                       next((r.turned for r in reversed(reports) if r.turned >= 0), -1))
+                       next((r.turned for r in reversed(reports) if r.turned >= 0), -1), per_strand)
         out.log.append(log)
-        if on_frame is not None:
-            on_frame(log)
+        return on_frame is not None and bool(on_frame(log))
 
-    record(0, 0.0, [], 0.0)
+    stop = record(0, 0.0, [], 0.0)
     t = 0.0
     for index in range(1, n_frames):
+        if stop:
+            break
         began = time.perf_counter()
         reports = []
         for _ in range(steps_per_frame):
@@ -223,5 +230,10 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
             t += h
             if on_step is not None:
                 on_step()
-        record(index, index / fps, reports, time.perf_counter() - began)
+        stop = record(index, index / fps, reports, time.perf_counter() - began)
+    done = len(out.log)
+    if done < n_frames:
+        out.stopped = True
+        out.time, out.omega, out.root = out.time[:done], out.omega[:done], out.root[:done]
+        out.frame0, out.body_transform = out.frame0[:done], out.body_transform[:done]
     return out

@@ -23,6 +23,7 @@ answer is ``r = h r_inverse`` and ``v+ = 0``: a still body keeps a still groom.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -442,6 +443,10 @@ class Simulation:
         self.strand_weight = float(weight * lengths.max()) if len(lengths) else 1.0
         # contact velocities are measured against the speed gravity adds in one step, g h
         self.velocity_scale = float(np.linalg.norm(material.gravity))
+        # new contacts come from the fixed distances: the hair layer and the wisps describe the input groom
+        # (the model's own contacts of those rules persist at their distances, see _persist)
+        self._detect_settings = dataclasses.replace(contacts, layer=False, wisp=False)
+        self._up = -np.asarray(material.gravity, dtype=np.float64) / max(np.linalg.norm(material.gravity), 1e-300)
         # contact memory: key -> (thickness, impulse in world coordinates: frames may turn between steps)
         self._keys = np.zeros(0, dtype=np.int64)
         self._arc = np.zeros((0, 2))  # where each remembered contact sits on its strands
@@ -525,7 +530,11 @@ class Simulation:
                 return self._last_found
             if not self.contact_settings.hair_hair and not redo.all():
                 return self._detect_strands(np.flatnonzero(redo))
-        found, _ = detect_contacts(self.current(), self.body, self.contact_settings)
+        # the first detection is the model's own, on the starting shape: the same rules as the contacts it was
+        # inverted with (the hair layer and wisps included), so the first step meets them again
+        rules = self.contact_settings if self._last_found is None and self._initial is not None else \
+            self._detect_settings
+        found, _ = detect_contacts(self.current(), self.body, rules, up=self._up)
         self._stale = np.zeros(found.n_contacts, dtype=np.bool_)
         self._redetected = S
         self._last_found, self._q_detected = found, self.q.copy()
@@ -538,7 +547,7 @@ class Simulation:
         elements = np.concatenate([np.arange(h.offsets[k], h.offsets[k + 1]) for k in which])
         sub = Helices(h.root[which], h.frame0[which], np.r_[0, np.cumsum(counts[which])].astype(np.int64),
                       h.length[elements], self.q[elements], h.fit_error[which])
-        fresh, _ = detect_contacts(sub, self.body, self.contact_settings)
+        fresh, _ = detect_contacts(sub, self.body, self._detect_settings)
         # back to the groom's numbering: strands, and elements (a body contact's second is -1)
         fresh.strand[:, 0] = which[fresh.strand[:, 0]]
         fresh.element[:, 0] = elements[fresh.element[:, 0]]
@@ -680,6 +689,11 @@ class Simulation:
         frame = old_frame
         frame[redo] = contact_frames(normal[redo])
         keep = np.ones(len(strand), bool)
+        # a remembered contact that touches beyond the detection distance (declared on a hair layer or
+        # between wisps) keeps its own reach: its thickness and the layer tolerance
+        thick = np.where(remembered[redo] >= 0, self._thickness[np.maximum(remembered[redo], 0)], 0.0) \
+            if len(self._thickness) else np.zeros(len(redo))
+        limit = np.where(thick > limit, thick + self.contact_settings.layer_tolerance, limit)
         keep[redo] = gap[redo] < limit  # contacts that have opened beyond reach end here
         # where detection found a point clearly closer than the remembered one (the strand slides or
         # rolls over the surface), the contact moves there: the remembered point would leave the
