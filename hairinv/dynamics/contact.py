@@ -142,7 +142,9 @@ def contact_keys(strand: np.ndarray, s: np.ndarray, offsets: np.ndarray, length:
     position = strand_of + (cumulative[:-1] - cumulative[offsets[:-1]][strand_of]) / span[strand_of]
 
     def element(k: np.ndarray, arc: np.ndarray) -> np.ndarray:
-        where = k + np.clip(arc, 0.0, total[k]) / span[k]
+        # a point at an element's start belongs to it (detection declares nothing at an element's end):
+        # nudged past the round-off of the two sums of lengths, so that it does not fall in the one before
+        where = k + np.clip(arc, 0.0, total[k]) / span[k] + 1e-12
         return np.clip(np.searchsorted(position, where, side="right") - 1, offsets[k], offsets[k + 1] - 1)
 
     keys = element(strand[:, 0], s[:, 0])

@@ -484,6 +484,17 @@ class Simulation:
                                                                          if contacts.body and body is not None else [])
         self._detect_distance = min(used) if used else np.inf
         self._q_detected = None
+        if self._initial is not None:
+            # the starting contacts are those the model was inverted with, on this very shape: they are the
+            # first detection, as stored (detecting them again could differ in round-off, or by the version
+            # of the rules), provided their elements name them one by one
+            elements = self._elements_of(self._initial)
+            keys = self._keys_of(dataclasses.replace(self._initial, element=elements))
+            if len(np.unique(keys)) == len(keys):
+                self._initial = dataclasses.replace(self._initial, element=elements)
+                self._last_found = self._initial
+                self._q_detected = self.q.copy()
+                self._stale = np.zeros(self._initial.n_contacts, dtype=np.bool_)
         self._strand_length = (np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements
                                else np.zeros(helices.n_strands))
         self.last = None
