@@ -140,12 +140,12 @@ def validation() -> dict:
     still = lambda t: Motion.still(mat.gravity)  # noqa: E731
     runs = {}
     for label, rest, initial, force, seconds in (
-            ("inverted", model.omega_rest, contacts, model.force, STILL_SECONDS),
+            ("inverted", model.rest, contacts, model.force, STILL_SECONDS),
             ("naive", settled.omega, contacts, None, STILL_SECONDS),
             ("gravity-only", gravity_only, contacts, None, GRAVITY_ONLY_SECONDS)):
         log(f"still body, {label}, {seconds} s")
         sim = Simulation(settled, rest, mat, body, settings.contacts, settings.dynamics, initial=initial,
-                         initial_force=force)
+                         initial_force=force, stiffening=model.stiffening if label == "inverted" else None)
         runs[label] = _run(sim, seconds, still)
     no_body = dataclasses.replace(settings.contacts, body=False)
     released = {}
@@ -154,12 +154,13 @@ def validation() -> dict:
     fine = dataclasses.replace(settings.dynamics, time_step=settings.dynamics.time_step / RELEASE_FINE)
     for label, rest, force, dynamics in (
             ("reference", np.zeros_like(settled.omega), None, settings.dynamics),
-            ("inverted", model.omega_rest, model.force, settings.dynamics),
+            ("inverted", model.rest, model.force, settings.dynamics),
             ("reference, fine step", np.zeros_like(settled.omega), None, fine)):
         log(f"body removed, {label}, {RELEASE_SECONDS} s")
         hair_only = contacts.subset(contacts.strand[:, 1] >= 0)
         sim = Simulation(settled, rest, mat, None, no_body, dynamics, initial=hair_only,
-                         initial_force=None if force is None else force[contacts.strand[:, 1] >= 0])
+                         initial_force=None if force is None else force[contacts.strand[:, 1] >= 0],
+                         stiffening=model.stiffening if label == "inverted" else None)
         samples = []
         released[label] = _run(sim, RELEASE_SECONDS, still,
                                watch=lambda tr, sim=sim, samples=samples: samples.append(_samples(settled, sim.q)))
@@ -179,14 +180,15 @@ def validation() -> dict:
         refit = prepare(curves_only, SAMPLES / "body.obj", file_settings)
     refit_model, refit_report = invert(refit.helices, refit.contacts, mat, file_settings.solver)
     log(f"still body, inverted from the refitted file, {STILL_SECONDS} s")
-    sim = Simulation(refit.helices, refit_model.omega_rest, mat, body, file_settings.contacts,
-                     file_settings.dynamics, initial=refit.contacts, initial_force=refit_model.force)
+    sim = Simulation(refit.helices, refit_model.rest, mat, body, file_settings.contacts,
+                     file_settings.dynamics, initial=refit.contacts, initial_force=refit_model.force,
+                     stiffening=refit_model.stiffening)
     runs["inverted, refitted from settled.h5"] = _run(sim, STILL_SECONDS, still)
     runs["inverted, refitted from settled.h5"]["unstable"] = refit_report.unstable
     return {"settings": settings, "mat": mat, "body": body, "scene": scene, "settled": settled,
             "settle": settle_trace, "contacts": contacts, "model": model, "report": report,
             "invert_seconds": invert_seconds,
-            "error": mean_curvature(model.omega_rest, settled.length),
+            "error": mean_curvature(model.rest, settled.length),
             "error_gravity_only": mean_curvature(gravity_only, settled.length),
             "runs": runs, "released": released, "release_gap": gaps, "release_fall": fallen,
             "release_step_gap": step_gaps}
@@ -205,8 +207,8 @@ def motion_and_trim(v: dict) -> dict:
         return Motion(R.T @ mat.gravity, R.T @ m.acceleration, R.T @ m.velocity, R.T @ m.omega, R.T @ m.alpha)
 
     log(f"motion scene, {MOTION_SECONDS} s")
-    sim = Simulation(settled, model.omega_rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
-                     initial_force=model.force)
+    sim = Simulation(settled, model.rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
+                     initial_force=model.force, stiffening=model.stiffening)
     motion = _run(sim, MOTION_SECONDS, moving)
     # trim: a curly groom (its own shape as the reference rest shape) settled on the bust, inverted with
     # target actual, then cut at half length: reference and inverted model side by side
@@ -224,21 +226,23 @@ def motion_and_trim(v: dict) -> dict:
     cut, element_map = trim_helices(settled_wavy, length=trim.trim.length, fraction=trim.trim.fraction)
     tips_before = np.array([p[-1] for p in _samples(cut, cut.omega)])
     rises, trims = {}, {}
-    for label, rest in (("reference", ref_rest), ("inverted", wavy_model.omega_rest)):
+    for label, rest in (("reference", ref_rest), ("inverted", wavy_model.rest)):
         log(f"trim scene, {label}, {TRIM_SECONDS} s")
-        sim = Simulation(cut, rest[element_map], mat, body, wavy_settings.contacts, wavy_settings.dynamics)
+        sim = Simulation(cut, rest[element_map], mat, body, wavy_settings.contacts, wavy_settings.dynamics,
+                         stiffening=wavy_model.stiffening if label == "inverted" else None)
         trims[label] = _run(sim, TRIM_SECONDS, lambda t: Motion.still(mat.gravity))
         tips_after = np.array([p[-1] for p in _samples(cut, sim.q)])
         rises[label] = (tips_after - tips_before) @ up
     curly_still = {}
-    for label, rest, force in (("inverted", wavy_model.omega_rest, wavy_model.force), ("naive", settled_wavy.omega,
+    for label, rest, force in (("inverted", wavy_model.rest, wavy_model.force), ("naive", settled_wavy.omega,
                                                                                       None)):
         log(f"still body, curly, {label}, {STILL_SECONDS} s")
         sim = Simulation(settled_wavy, rest, mat, body, wavy_settings.contacts, wavy_settings.dynamics,
-                         initial=wavy_contacts, initial_force=force)
+                         initial=wavy_contacts, initial_force=force,
+                         stiffening=wavy_model.stiffening if label == "inverted" else None)
         curly_still[label] = _run(sim, STILL_SECONDS, lambda t: Motion.still(mat.gravity))
     w = settled_wavy.length / settled_wavy.length.sum()
-    recovered = float(np.sum(np.linalg.norm(wavy_model.omega_rest - ref_rest, axis=1) * w))
+    recovered = float(np.sum(np.linalg.norm(wavy_model.rest - ref_rest, axis=1) * w))
     unchanged = float(np.sum(np.linalg.norm(settled_wavy.omega - ref_rest, axis=1) * w))
     return {"motion": motion, "trim": trims, "rise": rises, "cut_strands": cut.n_strands,
             "curly_unstable": wavy_report.unstable, "curly_still": curly_still,
