@@ -68,7 +68,9 @@ def summarise(stage: stages.StageFile) -> dict:
         }
     if stages.MODEL in stage:
         g = stage[stages.MODEL]
-        rest, target, force = g["omega_rest"], g["omega_target"], g["force"]
+        # the rest shape the model is simulated with (the stiffened strands' own where it has them)
+        rest = g["omega_rest_stiffened"] if "omega_rest_stiffened" in g.datasets else g["omega_rest"]
+        target, force = g["omega_target"], g["force"]
         drift = np.linalg.norm(rest - target, axis=1)
         normal = force[:, 0] if len(force) else np.zeros(0)
         out["groups"]["model"] = {
