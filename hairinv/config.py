@@ -115,11 +115,11 @@ class ContactSettings:
     """m. The widest hair layer looked for: 10 times the hair-hair distance, the paper's widest cylinders
     (it widened near-body wisps 1 to 10 times by hand)."""
     layer_tolerance: float = 1.5e-3
-    """m. How far above its run's gap (the median distance of the run) an element may lie and still rest
-    on the layer; farther, the strand is leaving the body there."""
+    """m. How far above its run's gap (the median distance of the run's samples) a point may lie and still
+    rest on the layer; farther, the strand is leaving the body there."""
     layer_min_length: float = 2e-2
-    """m. Arc length a strand must run within layer_max_gap of the body (and over two elements at least)
-    before its gap is taken as a layer: a strand only passing by the body is not lying on it."""
+    """m. Arc length over which a strand must stay within its gap + layer_tolerance of the body before it
+    is taken as lying on a layer: a strand only passing by the body comes that close over a short stretch."""
     wisp: bool = True
     """Also declare hair-hair contacts where a strand rests on another one below it (against gravity)
     within their wisps' width, derived from the local strand spacing, beyond hair_distance."""
