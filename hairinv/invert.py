@@ -468,7 +468,7 @@ STRAND_NEWTON_ITERS = 50
 
 
 def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray, contacts: Contacts,
-                     target: float, mu: np.ndarray) -> np.ndarray:
+                     target: float) -> np.ndarray:
     """Body contacts only: the strands do not interact, so each strand's contacts are solved together,
     by nonsmooth Newton on their dense block of ``W`` (:mod:`hairinv.solver.blocks`) to the natural-map
     residual ``target`` (N). The forces are the Gauss-Seidel's warm start, which then has little or
@@ -484,7 +484,7 @@ def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarr
     r = np.zeros((n, 3))
     f = np.zeros(rows.n_dofs)
     done = np.zeros(len(group_ptr) - 1, dtype=np.bool_)
-    run_chunks(lambda lo, hi: _group_newton(scaled.ptr, scaled.cols, scaled.vals, gammas, b, mu, members,
+    run_chunks(lambda lo, hi: _group_newton(scaled.ptr, scaled.cols, scaled.vals, gammas, b, contacts.mu, members,
                                             group_ptr, block_ptr, blocks, Wd, r, f, target, STRAND_NEWTON_ITERS,
                                             False, False, lo, hi, done), len(done), 16)
     return r
@@ -550,7 +550,6 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         factor = np.ones(S) if stiffening is None else np.asarray(stiffening, dtype=np.float64).copy()
         if factor.shape != (S,) or not np.all(np.isfinite(factor)) or np.any(factor < 1.0):
             raise InputError(f"the starting stiffening must hold one finite factor >= 1 per strand ({S})")
-    mu = contacts.mu
     q = helices.omega.ravel()
     weight = np.ones(helices.n_elements)
     target = target_shape(helices, settings.target)
@@ -565,15 +564,15 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         if start.shape != (contacts.n_contacts, 3) or not np.all(np.isfinite(start)):
             raise InputError(f"the starting forces must be finite, one row of 3 per contact "
                              f"({contacts.n_contacts}), got shape {start.shape}")
-        r0 = project_forces(start, mu)
+        r0 = project_forces(start, contacts.mu)
 
     def solve(stiff: np.ndarray, r0: np.ndarray | None, first: bool):
         # D = w K^-2; b = H D (F_g - K (q - t))
         d = np.repeat(weight, 3) / stiff ** 2
         b = rows.matvec(d * (F_g - stiff * (q - target.ravel())))
         if first and r0 is None and contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0):
-            r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale, mu)
-        result = solve_cone_qp(rows, d, settings.gamma, b, mu, contacts.strand, S,
+            r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
+        result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, S,
                                force_scale, settings.tolerance, settings.max_sweeps, settings.check_every, r0=r0,
                                progress=progress, s=contacts.s, accelerate=settings.accelerate,
                                part_of=split_strands(helices.root, contacts.strand),
