@@ -118,6 +118,7 @@ for _p in (ROOT, ROOT / "samples"):
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
+from make_samples import write_obj as _write_obj  # noqa: E402
 from make_samples import (  # noqa: E402  (generic curve helpers of the sample generator)
     arclength,
     blur,
@@ -236,15 +237,9 @@ def build_mannequin(n_rings=100, n_seg=90):
 
 
 def write_obj(path, mesh):
-    lines = [
-        "# hairinv test mannequin: head, neck, shoulders, upper back and torso, closed at the waist",
-        "# units: metres; +Y up; face toward +Z",
-        "# written by bench/grooms.py",
-        f"# {len(mesh.vertices)} vertices, {len(mesh.faces)} triangles",
-    ]
-    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in mesh.vertices]
-    lines += [f"f {i + 1} {j + 1} {k + 1}" for i, j, k in mesh.faces]
-    Path(path).write_text("\n".join(lines) + "\n")
+    """The mannequin as OBJ, with the sample body's writer (``samples/make_samples.py``)."""
+    _write_obj(path, mesh, ("hairinv test mannequin: head, neck, shoulders, upper back and torso, closed at the waist",
+                            "units: metres; +Y up; face toward +Z", "written by bench/grooms.py"))
 
 
 class Mannequin:
@@ -268,25 +263,9 @@ class Mannequin:
     def distance(self, p):
         return self.bm.closest(np.ascontiguousarray(np.reshape(p, (-1, 3))))[0].reshape(np.shape(p)[:-1])
 
-    def project_out(self, p, need, iters=8, tol=1e-10):
-        """Points ``p`` moved outward along the distance gradient to at least ``need`` from the body."""
-        p = np.array(p, float)
-        shape = p.shape[:-1]
-        flat = p.reshape(-1, 3)
-        need = np.broadcast_to(need, shape).reshape(-1)
-        todo = np.arange(len(flat))
-        for _ in range(iters):
-            d, n = self.query(flat[todo])
-            deficit = need[todo] - d
-            short = deficit > tol
-            if not short.any():
-                break
-            todo = todo[short]
-            flat[todo] += deficit[short, None] * n[short]
-        return flat.reshape(shape + (3,))
-
-    def set_distance(self, p, target, iters=8, tol=1e-10):
-        """Points ``p`` moved along the distance gradient to exactly ``target`` from the body."""
+    def _move(self, p, target, outward_only, iters=8, tol=1e-10):
+        """Points ``p`` moved along the distance gradient until their distance reaches ``target``
+        (only those short of it when ``outward_only``)."""
         p = np.array(p, float)
         shape = p.shape[:-1]
         flat = p.reshape(-1, 3)
@@ -295,12 +274,20 @@ class Mannequin:
         for _ in range(iters):
             d, n = self.query(flat[todo])
             err = target[todo] - d
-            off = np.abs(err) > tol
+            off = err > tol if outward_only else np.abs(err) > tol
             if not off.any():
                 break
             todo = todo[off]
             flat[todo] += err[off, None] * n[off]
         return flat.reshape(shape + (3,))
+
+    def project_out(self, p, need, iters=8, tol=1e-10):
+        """Points ``p`` moved outward along the distance gradient to at least ``need`` from the body."""
+        return self._move(p, need, True, iters, tol)
+
+    def set_distance(self, p, target, iters=8, tol=1e-10):
+        """Points ``p`` moved along the distance gradient to exactly ``target`` from the body."""
+        return self._move(p, target, False, iters, tol)
 
 
 @functools.lru_cache(maxsize=1)

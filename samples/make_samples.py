@@ -186,13 +186,9 @@ def capped(mesh):
     return trimesh.Trimesh(verts, np.vstack([mesh.faces, cap]), process=False)
 
 
-def write_obj(path, mesh):
-    lines = [
-        "# hairinv sample body: a stylised bust (head, neck, shoulders), open at the chest",
-        "# units: metres; +Y up; face toward +Z",
-        "# written by samples/make_samples.py",
-        f"# {len(mesh.vertices)} vertices, {len(mesh.faces)} triangles",
-    ]
+def write_obj(path, mesh, header=("hairinv sample body: a stylised bust (head, neck, shoulders), open at the chest",
+                                  "units: metres; +Y up; face toward +Z", "written by samples/make_samples.py")):
+    lines = [f"# {line}" for line in header] + [f"# {len(mesh.vertices)} vertices, {len(mesh.faces)} triangles"]
     lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in mesh.vertices]
     lines += [f"f {i + 1} {j + 1} {k + 1}" for i, j, k in mesh.faces]
     Path(path).write_text("\n".join(lines) + "\n")
