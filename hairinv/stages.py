@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +16,7 @@ import h5py
 import numpy as np
 
 from . import __version__
+from .atomic import atomic_path
 from .errors import InputError
 
 FORMAT = "hairinv"
@@ -163,32 +162,20 @@ def write_stage(path, groups: list[Group], command: str) -> Path:
     path = Path(path)
     order = {name: i for i, name in enumerate(PIPELINE)}
     groups = sorted(groups, key=lambda g: order.get(g.name, len(order)))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        with h5py.File(tmp, "w") as fh:
-            fh.attrs["format"] = FORMAT
-            fh.attrs["schema_version"] = SCHEMA_VERSION
-            fh.attrs["producer"] = f"hairinv {__version__} {command}"
-            fh.attrs["stages"] = ",".join(g.name for g in groups)
-            for group in groups:
-                h5 = fh.create_group(group.name)
-                for key, value in group.datasets.items():
-                    value = np.asarray(value)
-                    h5.create_dataset(key, data=value)
-                for key, value in group.attrs.items():
-                    h5.attrs[key] = value
-                h5.attrs["config"] = json.dumps(group.config, sort_keys=True, default=str)
-                h5.attrs["inputs"] = json.dumps(group.inputs)
-        # mkstemp creates 0600; give the file the permissions a plain open() would
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as fh:
+        fh.attrs["format"] = FORMAT
+        fh.attrs["schema_version"] = SCHEMA_VERSION
+        fh.attrs["producer"] = f"hairinv {__version__} {command}"
+        fh.attrs["stages"] = ",".join(g.name for g in groups)
+        for group in groups:
+            h5 = fh.create_group(group.name)
+            for key, value in group.datasets.items():
+                value = np.asarray(value)
+                h5.create_dataset(key, data=value)
+            for key, value in group.attrs.items():
+                h5.attrs[key] = value
+            h5.attrs["config"] = json.dumps(group.config, sort_keys=True, default=str)
+            h5.attrs["inputs"] = json.dumps(group.inputs)
     return path
 
 

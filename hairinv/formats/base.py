@@ -9,13 +9,13 @@ units and axes are applied afterwards by :mod:`hairinv.groom`.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
+from .. import atomic
 from ..errors import InputError
 
 __all__ = [
@@ -152,12 +152,9 @@ def check_strands(points: np.ndarray, offsets: np.ndarray, path: Path, fmt: str)
 
 
 def write_atomic(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
+    """Write ``data`` to ``path`` with the atomic writer (:mod:`hairinv.atomic`): the old file or the new one."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
+        atomic.write_bytes(path, data)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
         raise InputError(f"cannot be written ({exc.strerror or exc})", path) from None

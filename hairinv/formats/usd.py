@@ -20,12 +20,11 @@ Time-sampled data is read at the default time, else at the earliest sample.
 
 from __future__ import annotations
 
-import os
-import uuid
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_path
 from ..errors import InputError
 from .base import check_strands, register_curves_reader, register_curves_writer
 
@@ -156,8 +155,8 @@ def write_usd_curves(path: Path, points, offsets, widths=None, up: str = "y", me
     meters_per_unit : float
         Stage ``metersPerUnit``.
 
-    The stage is saved to a temporary file in the same folder, then renamed
-    over ``path``, so a reader never sees a half-written file.
+    The stage is saved with :func:`save_stage` (a temporary file in the same
+    folder, then a rename), so a reader never sees a half-written file.
     """
     from pxr import Usd, UsdGeom, Vt
 
@@ -178,30 +177,38 @@ def write_usd_curves(path: Path, points, offsets, widths=None, up: str = "y", me
         elif widths.shape != (len(raw.points),):
             raise InputError(f"widths must be a number or one value per point, not shape {widths.shape}", path)
 
-    tmp = path.with_name(f".{path.stem}.{uuid.uuid4().hex}{path.suffix}")
+    stage = Usd.Stage.CreateInMemory()
+    root = UsdGeom.Xform.Define(stage, "/Root")
+    stage.SetDefaultPrim(root.GetPrim())
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if str(up).lower() == "y" else UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, float(meters_per_unit))
+    curves = UsdGeom.BasisCurves.Define(stage, "/Root/Hair")
+    curves.CreateTypeAttr(UsdGeom.Tokens.linear)
+    curves.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)
+    pts32 = np.ascontiguousarray(raw.points, dtype=np.float32)
+    curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts32))
+    curves.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy(counts.astype(np.int32)))
+    pad = 0.0
+    if widths is not None:
+        curves.CreateWidthsAttr(Vt.FloatArray.FromNumpy(widths))
+        curves.SetWidthsInterpolation(UsdGeom.Tokens.constant if len(widths) == 1 else UsdGeom.Tokens.vertex)
+        pad = float(widths.max()) / 2
+    lo, hi = pts32.min(axis=0) - pad, pts32.max(axis=0) + pad
+    curves.CreateExtentAttr(Vt.Vec3fArray.FromNumpy(np.stack([lo, hi]).astype(np.float32)))
+    save_stage(stage, path)
+
+
+def save_stage(stage, path: Path) -> None:
+    """Save a USD stage's root layer to ``path`` through the atomic writer (:mod:`hairinv.atomic`).
+
+    The file format follows the suffix (``.usda`` text, ``.usdc`` and ``.usd`` binary crate). Raises
+    :class:`InputError` naming ``path`` if it cannot be written; the destination is then unchanged.
+    """
+    path = Path(path)
     try:
-        stage = Usd.Stage.CreateNew(str(tmp))
-        root = UsdGeom.Xform.Define(stage, "/Root")
-        stage.SetDefaultPrim(root.GetPrim())
-        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if str(up).lower() == "y" else UsdGeom.Tokens.z)
-        UsdGeom.SetStageMetersPerUnit(stage, float(meters_per_unit))
-        curves = UsdGeom.BasisCurves.Define(stage, "/Root/Hair")
-        curves.CreateTypeAttr(UsdGeom.Tokens.linear)
-        curves.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)
-        pts32 = np.ascontiguousarray(raw.points, dtype=np.float32)
-        curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts32))
-        curves.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy(counts.astype(np.int32)))
-        pad = 0.0
-        if widths is not None:
-            curves.CreateWidthsAttr(Vt.FloatArray.FromNumpy(widths))
-            curves.SetWidthsInterpolation(UsdGeom.Tokens.constant if len(widths) == 1 else UsdGeom.Tokens.vertex)
-            pad = float(widths.max()) / 2
-        lo, hi = pts32.min(axis=0) - pad, pts32.max(axis=0) + pad
-        curves.CreateExtentAttr(Vt.Vec3fArray.FromNumpy(np.stack([lo, hi]).astype(np.float32)))
-        stage.GetRootLayer().Save()
-        del stage, root, curves
-        os.replace(tmp, path)
-    except Exception as exc:
-        tmp.unlink(missing_ok=True)
+        with atomic_path(path, suffix=f".tmp{path.suffix}") as tmp:
+            if not stage.GetRootLayer().Export(str(tmp)):
+                raise OSError("the USD layer could not be exported")
+    except Exception as exc:  # pxr raises Tf.ErrorException, the file system OSError
         reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
         raise InputError(f"cannot be written as USD ({reason})", path) from None
