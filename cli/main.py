@@ -623,6 +623,33 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
 
 
 @main.command()
+@click.argument("stage_file", type=click.Path(path_type=Path))
+@click.option("-o", "--output", type=click.Path(path_type=Path), required=True,
+              help="Output file; its suffix chooses the format: .usda .usdc .usd (USD), .hair, .data, .obj.")
+@click.option("--shape", default=None, metavar="input|rest|frame:N|all",
+              help="What to write: the input shape, the rest shape (needs /model), frame N of /frames (from 0), "
+                   "or all the file holds (USD only) [default: all for USD, input for the others].")
+@click.pass_obj
+@handle_errors
+def export(obj, stage_file, output, shape):
+    """Write the groom of STAGE_FILE for other tools: USD, Yuksel .hair, USC .data or OBJ polylines.
+
+    USD holds every shape the file carries: the input curves with their rest shape (a second prim and a
+    `rest` primvar), the simulated frames as time samples, Unreal groom primvars and hairinv's per-strand
+    and per-vertex quantities, and the body mesh if it is still where it was. The polyline formats hold
+    one shape, in metres, with the format's up axis. docs/export.md says what each file holds.
+    """
+    from hairinv.export import export as run_export
+
+    report = run_export(stage_file, output, shape)
+    if not obj.get("quiet"):
+        for line in report.warnings:
+            click.echo(f"hairinv: {line}", err=True)
+    for line in report.lines:
+        _say(obj, line)
+
+
+@main.command()
 @click.argument("file", type=click.Path(path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @click.pass_obj

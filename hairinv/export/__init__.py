@@ -1,1 +1,45 @@
-"""Planned stage: see the issues; nothing here yet."""
+"""``hairinv export``: a stage file's groom in the formats other tools load (docs/export.md).
+
+One module per output kind registers its writer by suffix (:mod:`hairinv.export.base`); importing this
+package imports them all. Every writer writes through the one atomic writer (:mod:`hairinv.atomic`): on
+any error nothing is left behind and an existing output is replaced only on success.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+# Each module of an output kind registers its writer when imported.
+from . import data, hair, obj, usd  # noqa: F401
+from .base import EXPORTERS, ExportReport, check_export_path, exporter_for
+from .source import ExportSource, Shape, parse_shape
+
+__all__ = ["EXPORTERS", "ExportReport", "ExportSource", "Shape", "export", "parse_shape"]
+
+
+def export(stage_path, output, shape: str | None = None) -> ExportReport:
+    """Write the groom of ``stage_path`` to ``output``, in the format of its suffix.
+
+    Parameters
+    ----------
+    stage_path : path-like, a hairinv stage file
+    output : path-like, ``.usda``, ``.usdc``, ``.usd``, ``.hair``, ``.data`` or ``.obj``
+    shape : str, optional
+        ``input``, ``rest``, ``frame:N`` or ``all``; default: the format's (USD ``all``, the others ``input``).
+
+    Raises
+    ------
+    InputError
+        Unknown suffix, a shape the file does not carry, an output that would overwrite an input or a file
+        that is not a hairstyle; nothing is written.
+    """
+    output = Path(output)
+    exporter = exporter_for(output)
+    wanted = parse_shape(shape if shape is not None else exporter.default_shape)
+    source = ExportSource(stage_path)
+    check_export_path(output, inputs=[source.path, *source.input_files()])
+    if wanted.kind != "all":
+        source.require(wanted)
+    report = ExportReport()
+    exporter.write(source, output, wanted, report)
+    return report

@@ -96,7 +96,7 @@ def read_obj_curves(path: Path):
 
 
 @register_curves_writer(".obj")
-def write_obj_curves(path: Path, points, offsets) -> None:
+def write_obj_curves(path: Path, points, offsets, header=()) -> None:
     """Write strands as OBJ ``v`` lines and one ``l`` element per strand.
 
     Parameters
@@ -105,6 +105,8 @@ def write_obj_curves(path: Path, points, offsets) -> None:
         Vertices, strand after strand (written with full float64 precision).
     offsets : (S + 1,) int
         CSR offsets; every strand needs at least 2 points.
+    header : iterable of str
+        Comment lines written after the first one (without the ``#``), e.g. the units and up axis.
     """
     path = Path(path)
     raw = check_strands(points, offsets, path, "obj-lines")
@@ -113,6 +115,7 @@ def write_obj_curves(path: Path, points, offsets) -> None:
         s = int(np.argmax(counts < 2))
         raise InputError(f"has {int(counts[s])} points but an OBJ polyline needs at least 2", path, strand=s)
     out = ["# hairstyle written by hairinv: one 'l' element per strand, root first\n"]
+    out += [f"# {line}\n" for text in header for line in str(text).splitlines()]
     out += [f"v {x!r} {y!r} {z!r}\n" for x, y, z in raw.points.tolist()]
     for a, b in zip(raw.offsets[:-1].tolist(), raw.offsets[1:].tolist()):
         out.append("l " + " ".join(map(str, range(a + 1, b + 1))) + "\n")

@@ -16,6 +16,9 @@ space and turns each curve into a polyline of points that lie on the curve:
 
 Periodic (closed) curves are refused: they are not hair strands.
 Time-sampled data is read at the default time, else at the earliest sample.
+Prims that ``hairinv export`` marks as another shape of the groom beside it
+(custom data ``hairinv:role`` other than ``groom``: the rest shape, a trimmed
+simulation) are skipped, so an exported file reads back as the groom it holds.
 """
 
 from __future__ import annotations
@@ -27,6 +30,10 @@ import numpy as np
 from ..atomic import atomic_path
 from ..errors import InputError
 from .base import check_strands, register_curves_reader, register_curves_writer
+
+ROLE_KEY = "hairinv:role"
+"""Prim custom data naming what a curves prim written by ``hairinv export`` holds (``groom``, ``rest``, ``frames``)."""
+GROOM_ROLE = "groom"
 
 
 def _get(attr):
@@ -74,7 +81,8 @@ def read_usd_curves(path: Path):
         ``offsets`` (S + 1,) int64, ``up`` from the stage (``"y"``/``"z"``),
         ``scale_to_m`` the stage's metersPerUnit if authored, else None.
         ``extras["widths"]`` (P,) when every prim is linear with per-vertex
-        widths; ``extras["prims"]`` lists the prim paths read.
+        widths; ``extras["prims"]`` lists the prim paths read, ``extras["skipped_prims"]``
+        the curves prims skipped as another shape of the groom (see the module docstring).
     """
     from pxr import Usd, UsdGeom
 
@@ -86,13 +94,17 @@ def read_usd_curves(path: Path):
     if stage is None:
         raise InputError("could not be opened as a USD stage", path)
 
-    pieces, counts, widths, prims = [], [], [], []
+    pieces, counts, widths, prims, skipped = [], [], [], [], []
     strand = 0
     for prim in stage.Traverse(Usd.TraverseInstanceProxies()):
         if not prim.IsA(UsdGeom.BasisCurves):
             continue
         curves = UsdGeom.BasisCurves(prim)
         name = str(prim.GetPath())
+        role = prim.GetCustomDataByKey(ROLE_KEY)
+        if role is not None and role != GROOM_ROLE:
+            skipped.append(name)
+            continue
         pts = _get(curves.GetPointsAttr())
         vcounts = _get(curves.GetCurveVertexCountsAttr())
         pts = np.zeros((0, 3)) if pts is None else np.asarray(pts, dtype=np.float64).reshape(-1, 3)
@@ -135,6 +147,7 @@ def read_usd_curves(path: Path):
     if all(w is not None for w in widths):
         raw.extras["widths"] = np.concatenate(widths)
     raw.extras["prims"] = prims
+    raw.extras["skipped_prims"] = skipped
     return raw
 
 

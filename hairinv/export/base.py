@@ -1,0 +1,101 @@
+"""The registry of export writers, one module per output kind, chosen by the output's suffix.
+
+A module registers its writer with :func:`register_exporter`; adding a format touches only that module
+(and the import list of :mod:`hairinv.export`). A writer gets the stage file as an
+:class:`~hairinv.export.source.ExportSource`, the output path and the shape asked for, writes through the
+atomic writer (:mod:`hairinv.atomic`, through the format's own writer in :mod:`hairinv.formats` or
+:func:`hairinv.formats.usd.save_stage`) and says what it wrote in the :class:`ExportReport`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import InputError
+
+__all__ = ["EXPORTERS", "ExportReport", "Exporter", "check_export_path", "exporter_for", "register_exporter"]
+
+
+@dataclass
+class ExportReport:
+    """What an export did: ``lines`` for stdout, ``warnings`` for stderr (things left out, and why)."""
+
+    lines: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Exporter:
+    """One output kind.
+
+    Attributes
+    ----------
+    name : str, e.g. ``"USD"``
+    suffixes : tuple of str, lower case with the dot
+    write : callable(source, path, shape, report)
+    default_shape : str, the ``--shape`` used when none is given
+    several_shapes : bool, whether one file carries several shapes (``--shape all``)
+    """
+
+    name: str
+    suffixes: tuple[str, ...]
+    write: Callable
+    default_shape: str
+    several_shapes: bool = False
+
+
+EXPORTERS: dict[str, Exporter] = {}
+
+
+def register_exporter(*suffixes: str, name: str, default_shape: str = "input", several_shapes: bool = False):
+    """Register ``fn(source, path, shape, report)`` as the writer of files with these suffixes."""
+
+    def decorate(fn):
+        exporter = Exporter(name, tuple(s.lower() for s in suffixes), fn, default_shape, several_shapes)
+        for suffix in exporter.suffixes:
+            EXPORTERS[suffix] = exporter
+        return fn
+
+    return decorate
+
+
+def exporter_for(path) -> Exporter:
+    """The exporter of ``path``'s suffix, or an :class:`InputError` naming the suffixes supported."""
+    path = Path(path)
+    exporter = EXPORTERS.get(path.suffix.lower())
+    if exporter is None:
+        known = ", ".join(sorted(EXPORTERS))
+        if not path.suffix:
+            raise InputError(f"has no suffix to choose the format by; hairinv export writes {known}", path)
+        raise InputError(f"hairinv export cannot write {path.suffix!r} files; it writes {known}", path)
+    return exporter
+
+
+def check_export_path(out, inputs=()) -> Path:
+    """Refuse an output path that would destroy something the user gave us.
+
+    Refused: a folder, a missing folder, one of ``inputs`` (the stage file and the files it was made from),
+    and an existing file that hairinv does not read as a hairstyle of the output's kind (a body mesh, a USD
+    scene without curves, a file of another kind under that suffix). An existing hairstyle file is replaced
+    (atomically, when the export succeeds), as a Makefile rerun expects.
+    """
+    from .. import formats
+
+    out = Path(out)
+    resolved = out.resolve()
+    for src in inputs:
+        if src is not None and Path(src).resolve() == resolved:
+            raise InputError("the output file would overwrite an input of the export; choose another -o", out)
+    if out.is_dir():
+        raise InputError("the output path is a folder", out)
+    if not out.parent.exists():
+        raise InputError("the output folder does not exist", out.parent)
+    if out.exists():
+        try:
+            formats.read_curves(out)
+        except InputError:
+            raise InputError("exists and is not a hairstyle file hairinv reads; refusing to overwrite it "
+                             "(remove it or choose another -o)", out) from None
+    return out

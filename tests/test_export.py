@@ -1,0 +1,585 @@
+"""``hairinv export``: every file read back as other tools (and hairinv's own readers) read it.
+
+Two kinds of stage files:
+
+- a hand-made one (two strands in centimetres, +Z up, with a model, contacts and frames) whose every
+  shape has a closed form: each element is a helix whose frame turns about its constant world Darboux
+  vector, evaluated here with Rodrigues' formula, independently of hairinv.rod;
+- a real one: ``hairinv invert`` on samples/settled_curly.h5 and body.obj, then short still, motion and
+  trim simulations (about 20 s warm in all).
+
+Runtime: about 40 s warm.
+"""
+
+from __future__ import annotations
+
+import itertools
+import shutil
+
+import numpy as np
+import pytest
+from conftest import SAMPLES
+from pxr import Usd, UsdGeom  # usd-core, a dependency of hairinv
+from test_cli import assert_refused, hairinv, snapshot
+
+from hairinv import stages
+from hairinv.config import ImportSettings
+from hairinv.errors import InputError
+from hairinv.export import export
+from hairinv.formats import read_curves
+from hairinv.groom import load_groom
+
+# USD stores points as float32: about 1e-7 relative, so 1e-6 m on a groom within 2 m of the origin.
+FLOAT32_M = 1e-6
+# The closed forms against themselves in float64 (rotations chained over a few elements).
+ROUNDOFF_M = 1e-12
+
+
+# --------------------------------------------------------------------------- independent evaluation
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rodrigues: ``v`` (n, 3) turned by ``angle`` about the unit ``axis``."""
+    c, s = np.cos(angle), np.sin(angle)
+    return v * c + np.cross(axis, v) * s + np.outer(v @ axis, axis) * (1.0 - c)
+
+
+def _step(x: np.ndarray, F: np.ndarray, omega: np.ndarray, sigma: float):
+    """Point and frame after ``sigma`` along one element from (x, F): the frame (rows t, n1, n2) turns about
+    ``W = kappa1 n1 + kappa2 n2 + tau t`` at the rate |W|; x(sigma) = x + the integral of t."""
+    W = omega[0] * F[1] + omega[1] * F[2] + omega[2] * F[0]
+    k = float(np.linalg.norm(W))
+    t = F[0]
+    if k * sigma < 1e-12:
+        return x + sigma * t, F.copy()
+    b = W / k
+    along = (t @ b) * b
+    across = t - along
+    point = x + sigma * along + np.sin(k * sigma) / k * across + (1.0 - np.cos(k * sigma)) / k * np.cross(b, across)
+    return point, _rotate(F, b, k * sigma)
+
+
+def centerline(root, frame0, omega, length, s) -> np.ndarray:
+    """Points at arc lengths ``s`` of one strand (clamped to its length)."""
+    starts = np.concatenate([[0.0], np.cumsum(length)])
+    xs, Fs = [np.asarray(root, float)], [np.asarray(frame0, float)]
+    for e in range(len(length)):
+        x, F = _step(xs[-1], Fs[-1], omega[e], length[e])
+        xs.append(x)
+        Fs.append(F)
+    out = []
+    for sj in np.clip(s, 0.0, starts[-1]):
+        e = min(int(np.searchsorted(starts, sj, side="right")) - 1, len(length) - 1)
+        out.append(_step(xs[e], Fs[e], omega[e], sj - starts[e])[0])
+    return np.array(out)
+
+
+def vertex_arc_lengths(points, offsets, element_offsets, length) -> list[np.ndarray]:
+    """docs/export.md: vertex i at L * c_i / c_n (c the chord length from the root, L the fitted length)."""
+    out = []
+    for k in range(len(offsets) - 1):
+        p = points[offsets[k]:offsets[k + 1]]
+        c = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+        out.append(c / c[-1] * length[element_offsets[k]:element_offsets[k + 1]].sum())
+    return out
+
+
+def evaluate(points, offsets, element_offsets, length, roots, frames, omega) -> np.ndarray:
+    """Every strand's centerline at its vertices' arc lengths."""
+    s = vertex_arc_lengths(points, offsets, element_offsets, length)
+    return np.concatenate([centerline(roots[k], frames[k], omega[element_offsets[k]:element_offsets[k + 1]],
+                                      length[element_offsets[k]:element_offsets[k + 1]], s[k])
+                           for k in range(len(offsets) - 1)])
+
+
+def test_independent_evaluation_is_a_circle_for_pure_bending():
+    """The helper itself: one element bent by kappa2 is an arc of radius 1/kappa2 in the (t, n1) plane."""
+    F = np.eye(3)
+    s = np.linspace(0.0, 0.3, 7)
+    pts = centerline(np.zeros(3), F, np.array([[0.0, 4.0, 0.0], [0.0, 4.0, 0.0]]), np.array([0.1, 0.2]), s)
+    expected = np.stack([np.sin(4 * s) / 4, (1 - np.cos(4 * s)) / 4, 0 * s], axis=1)
+    assert np.abs(pts - expected).max() < ROUNDOFF_M
+
+
+# --------------------------------------------------------------------------- a hand-made stage file
+
+UP_Z = np.array([0.0, 0.0, 1.0])
+# Strand 0 hangs along -Z with three helical elements, strand 1 is straight; 2 cm apart.
+FRAME0 = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])  # rows t, n1, n2 = t x n1
+ROOTS = np.array([[0.0, 0.0, 0.0], [0.02, 0.0, 0.0]])
+ELEMENT_OFFSETS = np.array([0, 3, 5])
+LENGTH = np.array([0.031, 0.042, 0.027, 0.05, 0.05])  # m; no vertex (every 5 mm) on an element joint
+OMEGA = np.array([[5.0, 0.0, 0.0], [0.0, 8.0, 2.0], [3.0, -4.0, 10.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+OMEGA_REST = np.array([[10.0, 0.0, 0.0], [0.0, 20.0, 0.0], [3.0, 4.0, 0.0], [0.0, 6.0, 0.0], [0.0, 6.0, 0.0]])
+OMEGA_REST_STIFFENED = OMEGA_REST.copy()
+OMEGA_REST_STIFFENED[3:] = [0.0, 3.0, 1.0]
+RADIUS = 5e-5
+FPS = 25.0
+N_FRAMES = 3
+
+
+def _contact_frames(rng, n):
+    q, _ = np.linalg.qr(rng.normal(size=(n, 3, 3)))
+    return np.where(np.linalg.det(q)[:, None, None] < 0, -q, q)  # proper rotations, rows orthonormal
+
+
+def _body_motion(k: int) -> np.ndarray:
+    T = np.eye(4)
+    a = 0.1 * k
+    T[:3, :3] = [[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]]
+    T[:3, 3] = [0.001 * k, 0.0, 0.002 * k]
+    return T
+
+
+def make_stage(path, *, up=UP_Z, scale_to_m=0.01, model=True, stiffened=False, frames=True, rng=None):
+    """Write the hand-made stage file; returns a dict of what the tests compare with."""
+    rng = np.random.default_rng(7) if rng is None else rng
+    # the input vertices lie on the fitted curve, every 5 mm of arc
+    s_in = [np.linspace(0.0, LENGTH[a:z].sum(), round(LENGTH[a:z].sum() / 0.005) + 1)
+            for a, z in itertools.pairwise(ELEMENT_OFFSETS)]
+    points = np.concatenate([centerline(ROOTS[k], FRAME0, OMEGA[ELEMENT_OFFSETS[k]:ELEMENT_OFFSETS[k + 1]],
+                                        LENGTH[ELEMENT_OFFSETS[k]:ELEMENT_OFFSETS[k + 1]], s_in[k]) for k in range(2)])
+    offsets = np.concatenate([[0], np.cumsum([len(s) for s in s_in])]).astype(np.int64)
+    frame0 = np.stack([FRAME0, FRAME0])
+    groups = [
+        stages.Group(stages.CURVES, {"points": points, "offsets": offsets},
+                     attrs={"source": "hand-made", "scale_to_m": scale_to_m, "up": np.asarray(up, float)},
+                     config={"import": {"flip": ""}}),
+        stages.Group(stages.HELICES, {"root": ROOTS, "frame0": frame0, "offsets": ELEMENT_OFFSETS, "length": LENGTH,
+                                      "omega": OMEGA, "fit_error": np.array([[1e-5, 3e-5], [2e-5, 4e-5]])}),
+    ]
+    truth = {"points": points, "offsets": offsets}
+    s_v = vertex_arc_lengths(points, offsets, ELEMENT_OFFSETS, LENGTH)
+    if model:
+        # four contacts: body at strand 0's vertex 2; body and hair-hair at its vertex 5, the latter at
+        # strand 1's vertex 3 (pushing it the other way) with a body contact there too; each placed off
+        # the vertex, nearer to it than to its neighbours
+        def near(k, i, f):
+            return s_v[k][i] + f * (s_v[k][i + 1] - s_v[k][i])
+
+        strand = np.array([[0, -1], [0, -1], [0, 1], [1, -1]])
+        s = np.array([[near(0, 2, 0.3), 0.0], [near(0, 4, 0.8), 0.0], [near(0, 5, 0.1), near(1, 3, 0.4)],
+                      [near(1, 2, 0.7), 0.0]])
+        frame = _contact_frames(rng, 4)
+        force = np.array([[2e-4, 1e-5, -2e-5], [1e-4, 0.0, 3e-5], [5e-5, -1e-5, 0.0], [3e-5, 1e-5, 1e-5]])
+        world = np.array([frame[c].T @ force[c] for c in range(4)])
+        expected_force = np.zeros(len(points))
+        expected_force[offsets[0] + 2] = np.linalg.norm(world[0])
+        expected_force[offsets[0] + 5] = np.linalg.norm(world[1] + world[2])
+        expected_force[offsets[1] + 3] = np.linalg.norm(world[3] - world[2])
+        truth["contact_force"] = expected_force
+        groups.append(stages.Group(stages.CONTACTS, {"strand": strand, "s": s, "point": np.zeros((4, 3)),
+                                                     "frame": frame, "mu": np.full(4, 0.3)}))
+        data = {"omega_rest": OMEGA_REST, "omega_target": np.zeros_like(OMEGA), "target_weight": np.ones(5),
+                "force": force}
+        if stiffened:
+            data["stiffening"] = np.array([1.0, 2.0])
+            data["omega_rest_stiffened"] = OMEGA_REST_STIFFENED
+        groups.append(stages.Group(stages.MODEL, data, attrs={
+            "youngs_modulus": 4e9, "shear_modulus": 1.5e9, "density": 1300.0, "radius": RADIUS,
+            "gravity": -9.81 * np.asarray(up, float), "gamma": 1e-6, "target": "actual", "iterations": 1,
+            "residual": 0.0, "seconds": 0.0}))
+    if frames:
+        T = np.stack([_body_motion(k) for k in range(N_FRAMES)])
+        groups.append(stages.Group(stages.FRAMES, {
+            "time": np.arange(N_FRAMES) / FPS,
+            "omega": np.stack([OMEGA * (1.0 + 0.1 * k) for k in range(N_FRAMES)]),
+            "root": np.stack([ROOTS @ T[k, :3, :3].T + T[k, :3, 3] for k in range(N_FRAMES)]),
+            "frame0": np.stack([frame0 @ T[k, :3, :3].T for k in range(N_FRAMES)]),
+            "body_transform": T}, attrs={"fps": FPS}))
+    stages.write_stage(path, groups, "test")
+    return truth
+
+
+def _expected_rest(truth, stiffened=False):
+    rest = OMEGA_REST_STIFFENED if stiffened else OMEGA_REST
+    return evaluate(truth["points"], truth["offsets"], ELEMENT_OFFSETS, LENGTH, ROOTS, np.stack([FRAME0, FRAME0]), rest)
+
+
+def _expected_frame(truth, k):
+    T = _body_motion(k)
+    roots = ROOTS @ T[:3, :3].T + T[:3, 3]
+    frames = np.stack([FRAME0, FRAME0]) @ T[:3, :3].T
+    return evaluate(truth["points"], truth["offsets"], ELEMENT_OFFSETS, LENGTH, roots, frames,
+                    OMEGA * (1.0 + 0.1 * k))
+
+
+def _open(path):
+    stage = Usd.Stage.Open(str(path))
+    assert stage is not None
+    return stage
+
+
+def _curves(stage, path="/Root/Hair"):
+    prim = stage.GetPrimAtPath(path)
+    assert prim and prim.IsA(UsdGeom.BasisCurves), path
+    return UsdGeom.BasisCurves(prim)
+
+
+def _primvar(curves, name):
+    primvar = UsdGeom.PrimvarsAPI(curves.GetPrim()).GetPrimvar(name)
+    assert primvar, name
+    return primvar
+
+
+# --------------------------------------------------------------------------- USD of the hand-made file
+
+
+@pytest.mark.parametrize("stiffened", [False, True], ids=["material", "stiffened"])
+def test_usd_holds_every_shape_in_the_groom_units(tmp_path, stiffened):
+    truth = make_stage(tmp_path / "syn.h5", stiffened=stiffened)
+    report = export(tmp_path / "syn.h5", tmp_path / "out.usda")
+    assert any("records no body" in w for w in report.warnings)
+    stage = _open(tmp_path / "out.usda")
+    # the groom's units and up axis, as the stage file records them (centimetres, +Z)
+    assert UsdGeom.GetStageMetersPerUnit(stage) == pytest.approx(0.01)
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    cm = UsdGeom.GetStageMetersPerUnit(stage)
+    hair = _curves(stage)
+    assert hair.GetTypeAttr().Get() == UsdGeom.Tokens.linear
+    assert list(hair.GetCurveVertexCountsAttr().Get()) == np.diff(truth["offsets"]).tolist()
+    points = np.array(hair.GetPointsAttr().Get(Usd.TimeCode.Default()), dtype=np.float64) * cm
+    assert np.abs(points - truth["points"]).max() < FLOAT32_M
+    # widths: the rod diameter in stage units, per vertex
+    widths = np.array(hair.GetWidthsAttr().Get())
+    assert hair.GetWidthsInterpolation() == UsdGeom.Tokens.vertex
+    assert widths.shape == (len(points),) and np.allclose(widths * cm, 2 * RADIUS, rtol=1e-6)
+    # the rest shape: the second prim and the vertex primvar `rest`, both q0 evaluated without load
+    expected_rest = _expected_rest(truth, stiffened)
+    rest_prim = np.array(_curves(stage, "/Root/Rest").GetPointsAttr().Get(), dtype=np.float64) * cm
+    rest = _primvar(hair, "rest")
+    assert rest.GetInterpolation() == UsdGeom.Tokens.vertex
+    assert np.abs(rest_prim - expected_rest).max() < FLOAT32_M
+    assert np.abs(np.array(rest.Get(), dtype=np.float64) * cm - expected_rest).max() < FLOAT32_M
+    assert np.abs(expected_rest - truth["points"]).max() > 1e-3  # the rest shape is another shape
+    # frames: time samples at the run's frame rate, each the frame's centerlines
+    assert stage.GetTimeCodesPerSecond() == FPS and stage.GetFramesPerSecond() == FPS
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, N_FRAMES - 1.0)
+    assert hair.GetPointsAttr().GetTimeSamples() == [float(k) for k in range(N_FRAMES)]
+    for k in range(N_FRAMES):
+        at = np.array(hair.GetPointsAttr().Get(Usd.TimeCode(k)), dtype=np.float64) * cm
+        assert np.abs(at - _expected_frame(truth, k)).max() < FLOAT32_M
+    # Unreal groom primvars, per curve
+    for name in ("groom_id", "groom_guide", "id"):
+        assert _primvar(hair, name).GetInterpolation() == UsdGeom.Tokens.uniform
+    assert list(_primvar(hair, "groom_id").Get()) == [0, 1]
+    assert list(_primvar(hair, "groom_guide").Get()) == [1, 1]
+    # hairinv's quantities: per strand and per vertex
+    assert np.allclose(_primvar(hair, "groom_fit_error_max").Get(), [3e-5, 4e-5])
+    if stiffened:
+        assert list(_primvar(hair, "groom_stiffening").Get()) == [1.0, 2.0]
+    else:
+        assert not UsdGeom.PrimvarsAPI(hair.GetPrim()).GetPrimvar("groom_stiffening")
+    force = _primvar(hair, "groom_contact_force")
+    assert force.GetInterpolation() == UsdGeom.Tokens.vertex
+    assert np.allclose(force.Get(), truth["contact_force"], rtol=1e-6, atol=0)
+    # rest curvature of the element holding each vertex
+    rest_omega = OMEGA_REST_STIFFENED if stiffened else OMEGA_REST
+    expected = []
+    for k, s in enumerate(vertex_arc_lengths(truth["points"], truth["offsets"], ELEMENT_OFFSETS, LENGTH)):
+        a, z = ELEMENT_OFFSETS[k], ELEMENT_OFFSETS[k + 1]
+        starts = np.concatenate([[0.0], np.cumsum(LENGTH[a:z])])
+        e = np.minimum(np.searchsorted(starts, s, side="right") - 1, z - a - 1) + a
+        expected.append(np.hypot(rest_omega[e, 0], rest_omega[e, 1]))
+    assert np.allclose(_primvar(hair, "groom_rest_curvature").Get(), np.concatenate(expected), rtol=1e-6)
+
+
+def test_usd_single_shapes(tmp_path):
+    truth = make_stage(tmp_path / "syn.h5")
+    export(tmp_path / "syn.h5", tmp_path / "rest.usdc", shape="rest")
+    export(tmp_path / "syn.h5", tmp_path / "f2.usd", shape="frame:2")
+    rest = _open(tmp_path / "rest.usdc")
+    assert not rest.GetPrimAtPath("/Root/Rest") and not _curves(rest).GetPointsAttr().GetTimeSamples()
+    pts = np.array(_curves(rest).GetPointsAttr().Get(), dtype=np.float64) * 0.01
+    assert np.abs(pts - _expected_rest(truth)).max() < FLOAT32_M
+    frame = _open(tmp_path / "f2.usd")
+    pts = np.array(_curves(frame).GetPointsAttr().Get(), dtype=np.float64) * 0.01
+    assert np.abs(pts - _expected_frame(truth, 2)).max() < FLOAT32_M
+    assert (tmp_path / "f2.usd").read_bytes()[:8] == b"PXR-USDC"  # .usd is written as binary crate
+
+
+def test_usd_up_axis_other_than_y_or_z_is_turned_onto_y(tmp_path):
+    truth = make_stage(tmp_path / "syn.h5", up=(1.0, 0.0, 0.0), scale_to_m=1.0, frames=False)
+    report = export(tmp_path / "syn.h5", tmp_path / "out.usda")
+    assert any("+X to +Y" in line for line in report.lines)
+    stage = _open(tmp_path / "out.usda")
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.y
+    pts = np.array(_curves(stage).GetPointsAttr().Get(), dtype=np.float64)
+    # a rotation: distances kept, and the groom's up (+X) became +Y
+    d_in = np.linalg.norm(truth["points"][1:] - truth["points"][0], axis=1)
+    assert np.allclose(np.linalg.norm(pts[1:] - pts[0], axis=1), d_in, atol=FLOAT32_M)
+    R, *_ = np.linalg.lstsq(truth["points"] - truth["points"][0], pts - pts[0], rcond=None)
+    assert np.allclose(np.array([1.0, 0.0, 0.0]) @ R, [0.0, 1.0, 0.0], atol=1e-5)
+
+
+# --------------------------------------------------------------------------- round trips through hairinv's readers
+
+# Turning the groom's up axis onto a format's: the two conventions' rotations, written out by hand.
+Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # (x, y, z) -> (x, z, -y)
+Y_UP_TO_Z_UP = Z_UP_TO_Y_UP.T  # (x, y, z) -> (x, -z, y)
+
+
+@pytest.mark.parametrize("suffix, turn, tolerance", [
+    (".usda", np.eye(3), FLOAT32_M), (".usdc", np.eye(3), FLOAT32_M),
+    (".hair", np.eye(3), FLOAT32_M),  # Yuksel: +Z up, like the groom
+    (".data", Z_UP_TO_Y_UP, FLOAT32_M),
+    (".obj", Z_UP_TO_Y_UP, ROUNDOFF_M),  # full float64 text
+])
+def test_round_trip_through_hairinv_readers(tmp_path, suffix, turn, tolerance):
+    """Exported input curves read again by ``load_groom`` (what `hairinv fit` runs): the same strands in
+    metres, with gravity along the same physical direction (the format's up is the groom's, turned)."""
+    truth = make_stage(tmp_path / "syn.h5")
+    out = tmp_path / f"out{suffix}"
+    export(tmp_path / "syn.h5", out, shape="input")
+    groom, _ = load_groom(out, ImportSettings())
+    assert groom.offsets.tolist() == truth["offsets"].tolist()
+    assert np.abs(groom.points - truth["points"] @ turn.T).max() < tolerance
+    assert np.allclose(groom.up, turn @ UP_Z)
+
+
+@pytest.mark.parametrize("suffix", [".hair", ".data", ".obj"])
+def test_polyline_shapes_are_the_closed_forms(tmp_path, suffix):
+    truth = make_stage(tmp_path / "syn.h5")
+    turn = np.eye(3) if suffix == ".hair" else Z_UP_TO_Y_UP
+    for shape, expected in (("rest", _expected_rest(truth)), ("frame:1", _expected_frame(truth, 1))):
+        out = tmp_path / f"{shape.replace(':', '')}{suffix}"
+        export(tmp_path / "syn.h5", out, shape=shape)
+        raw = read_curves(out)
+        assert raw.offsets.tolist() == truth["offsets"].tolist()
+        assert np.abs(raw.points - expected @ turn.T).max() < FLOAT32_M
+    if suffix == ".hair":
+        raw = read_curves(tmp_path / f"rest{suffix}")
+        assert raw.extras["info"].startswith("metres, +Z up; rest shape")
+
+
+def test_usd_all_reads_back_as_the_input_groom(tmp_path):
+    """The rest prim and the time samples are beside the groom: hairinv's reader reads only /Root/Hair."""
+    truth = make_stage(tmp_path / "syn.h5")
+    export(tmp_path / "syn.h5", tmp_path / "out.usda")
+    raw = read_curves(tmp_path / "out.usda")
+    assert raw.extras["prims"] == ["/Root/Hair"] and raw.extras["skipped_prims"] == ["/Root/Rest"]
+    assert np.abs(raw.points * raw.scale_to_m - truth["points"]).max() < FLOAT32_M
+
+
+# --------------------------------------------------------------------------- atomic writes, bad input (in-process)
+
+
+@pytest.mark.parametrize("suffix", [".usda", ".hair", ".data", ".obj"])
+def test_failed_export_leaves_an_existing_output_as_it_was(tmp_path, monkeypatch, suffix):
+    make_stage(tmp_path / "syn.h5")
+    out = tmp_path / f"out{suffix}"
+    export(tmp_path / "syn.h5", out, shape="input")
+    before = snapshot(tmp_path)
+
+    def interrupted(src, dst):  # the rename is the last step: everything before it was written
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("hairinv.atomic.os.replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        export(tmp_path / "syn.h5", out, shape="rest")
+    assert snapshot(tmp_path) == before  # the old output, and no temporary file
+    monkeypatch.undo()
+    export(tmp_path / "syn.h5", out, shape="rest")  # succeeding, it replaces the old output
+    assert snapshot(tmp_path) != before and sorted(p.name for p in tmp_path.iterdir()) == sorted(before)
+
+
+@pytest.mark.parametrize("shape, fragment", [
+    ("rest", "no /model group"), ("frame:0", "no /frames group"), ("frame:x", "--shape takes"),
+])
+def test_a_shape_the_file_lacks_is_refused(tmp_path, shape, fragment):
+    make_stage(tmp_path / "syn.h5", model=False, frames=False)
+    before = snapshot(tmp_path)
+    with pytest.raises(InputError, match=fragment):
+        export(tmp_path / "syn.h5", tmp_path / "out.usda", shape=shape)
+    assert snapshot(tmp_path) == before
+
+
+# --------------------------------------------------------------------------- the command, on a real model
+
+
+@pytest.fixture(scope="module")
+def real(tmp_path_factory):
+    """settled_curly inverted on the sample bust, and 0.1-0.2 s of the still, motion and trim scenes."""
+    folder = tmp_path_factory.mktemp("export")
+    shutil.copyfile(SAMPLES / "settled_curly.h5", folder / "curly.h5")
+    shutil.copyfile(SAMPLES / "body.obj", folder / "body.obj")
+    for args in (["invert", "curly.h5", "body.obj", "-o", "model.h5"],
+                 ["simulate", "model.h5", "--seconds", "0.1", "--fps", "20", "-o", "still.h5"],
+                 ["simulate", "model.h5", "--scene", "motion", "--seconds", "0.2", "--fps", "10", "-o", "motion.h5"],
+                 ["simulate", "model.h5", "--scene", "trim", "--seconds", "0.1", "--fps", "10", "-o", "trim.h5"]):
+        result = hairinv(folder, "-q", *args)
+        assert result.returncode == 0, result.stderr
+    return folder
+
+
+def _obj_mesh(path):
+    v, f = [], []
+    for line in path.read_text().splitlines():
+        words = line.split()
+        if words and words[0] == "v":
+            v.append([float(w) for w in words[1:4]])
+        elif words and words[0] == "f":
+            f.append([int(w.split("/")[0]) - 1 for w in words[1:]])
+    return np.array(v), f
+
+
+def _frames_expected(stage_file, k, layout=None):
+    """Frame k of a real stage file, evaluated independently at the vertex arc lengths."""
+    s = stages.read_stage(stage_file)
+    c, h, f = s["curves"], s["helices"], s["frames"]
+    offsets = f["offsets"] if layout == "trimmed" else h["offsets"]
+    length = f["length"] if layout == "trimmed" else h["length"]
+    s_v = vertex_arc_lengths(c["points"], c["offsets"], h["offsets"], h["length"])
+    out = []
+    for i in range(len(c["offsets"]) - 1):
+        a, z = offsets[i], offsets[i + 1]
+        q = s_v[i]
+        if layout == "trimmed":
+            total = length[a:z].sum()
+            q = np.append(q[q < total * (1 - 1e-9)], total)
+        out.append(centerline(f["root"][k][i], f["frame0"][k][i], f["omega"][k][a:z], length[a:z], q))
+    return out
+
+
+def test_usd_of_a_real_simulation(real):
+    result = hairinv(real, "export", "still.h5", "-o", "still.usda")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""  # the body was found: no warning
+    assert "wrote still.usda" in result.stdout
+    s = stages.read_stage(real / "still.h5")
+    curves, model, frames = s["curves"], s["model"], s["frames"]
+    stage = _open(real / "still.usda")
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0 and UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.y
+    hair = _curves(stage)
+    assert len(hair.GetCurveVertexCountsAttr().Get()) == len(curves["offsets"]) - 1
+    assert list(hair.GetCurveVertexCountsAttr().Get()) == np.diff(curves["offsets"]).tolist()
+    points = np.array(hair.GetPointsAttr().Get(Usd.TimeCode.Default()), dtype=np.float64)
+    assert np.abs(points - curves["points"]).max() < FLOAT32_M
+    assert np.allclose(hair.GetWidthsAttr().Get(), 2 * model.attrs["radius"], rtol=1e-6)
+    # the rest prim is the model's rest shape (the stiffened one where it has one), evaluated independently
+    rest_omega = model["omega_rest_stiffened"] if "omega_rest_stiffened" in model.datasets else model["omega_rest"]
+    h = s["helices"]
+    expected = evaluate(curves["points"], curves["offsets"], h["offsets"], h["length"], h["root"], h["frame0"],
+                        rest_omega)
+    assert np.abs(np.array(_curves(stage, "/Root/Rest").GetPointsAttr().Get()) - expected).max() < FLOAT32_M
+    # time samples: one per frame at the run's rate, each the frame's centerlines
+    fps = float(frames.attrs["fps"])
+    assert stage.GetTimeCodesPerSecond() == fps == 20.0
+    codes = hair.GetPointsAttr().GetTimeSamples()
+    assert codes == [round(t * fps) for t in frames["time"]] == [0.0, 1.0, 2.0]
+    for k, code in enumerate(codes):
+        at = np.array(hair.GetPointsAttr().Get(Usd.TimeCode(code)), dtype=np.float64)
+        assert np.abs(at - np.concatenate(_frames_expected(real / "still.h5", k))).max() < FLOAT32_M
+        # a still groom: each frame within the fit tolerance (0.2 mm) of the input vertices
+        assert np.abs(at - curves["points"]).max() < 2e-4
+    # the body: the recorded mesh, vertex for vertex, triangle for triangle
+    body = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Body"))
+    vertices, faces = _obj_mesh(real / "body.obj")
+    assert np.abs(np.array(body.GetPointsAttr().Get()) - vertices).max() < FLOAT32_M
+    assert len(body.GetFaceVertexCountsAttr().Get()) == len(faces)
+
+
+def test_usd_carries_the_body_motion(real):
+    result = hairinv(real, "export", "motion.h5", "-o", "motion.usdc")
+    assert result.returncode == 0, result.stderr
+    frames = stages.read_stage(real / "motion.h5")["frames"]
+    stage = _open(real / "motion.usdc")
+    body = UsdGeom.Xformable(stage.GetPrimAtPath("/Root/Body"))
+    hair = _curves(stage)
+    offsets = stages.read_stage(real / "motion.h5")["curves"]["offsets"]
+    for k, T in enumerate(frames["body_transform"]):
+        usd = np.array(body.GetLocalTransformation(Usd.TimeCode(k)))
+        assert np.allclose(usd.T, T, atol=1e-12)  # USD matrices act on row vectors
+        at = np.array(hair.GetPointsAttr().Get(Usd.TimeCode(k)), dtype=np.float64)
+        assert np.abs(at[offsets[:-1]] - frames["root"][k]).max() < FLOAT32_M
+    assert not np.allclose(frames["body_transform"][-1], np.eye(4))
+
+
+def test_usd_of_a_trimmed_run_keeps_the_frames_on_their_own_prim(real):
+    result = hairinv(real, "export", "trim.h5", "-o", "trim.usda")
+    assert result.returncode == 0, result.stderr
+    stage = _open(real / "trim.usda")
+    trimmed = _curves(stage, "/Root/Frames")
+    expected = _frames_expected(real / "trim.h5", 1, layout="trimmed")
+    assert list(trimmed.GetCurveVertexCountsAttr().Get()) == [len(p) for p in expected]
+    at = np.array(trimmed.GetPointsAttr().Get(Usd.TimeCode(1)), dtype=np.float64)
+    assert np.abs(at - np.concatenate(expected)).max() < FLOAT32_M
+    assert sum(len(p) for p in expected) < len(stages.read_stage(real / "trim.h5")["curves"]["points"])
+    assert not _curves(stage).GetPointsAttr().GetTimeSamples()  # the input prim is not animated
+
+
+def test_a_removed_body_is_hidden_during_the_frames(real, tmp_path):
+    shutil.copyfile(real / "model.h5", tmp_path / "model.h5")
+    shutil.copyfile(real / "body.obj", tmp_path / "body.obj")
+    result = hairinv(tmp_path, "-q", "simulate", "model.h5", "--scene", "remove-body", "--seconds", "0.1", "--fps",
+                     "10", "-o", "removed.h5")
+    assert result.returncode == 0, result.stderr
+    result = hairinv(tmp_path, "export", "removed.h5", "-o", "removed.usda")
+    assert result.returncode == 0, result.stderr
+    stage = _open(tmp_path / "removed.usda")  # held: its prims are valid only while the stage lives
+    body = UsdGeom.Imageable(stage.GetPrimAtPath("/Root/Body"))
+    assert body.ComputeVisibility(Usd.TimeCode.Default()) == UsdGeom.Tokens.inherited  # the input, on its body
+    assert body.ComputeVisibility(Usd.TimeCode(0)) == UsdGeom.Tokens.invisible
+
+
+def test_round_trip_of_a_real_groom_through_fit_input(real, tmp_path):
+    """A Y-up groom: .hair turns it onto +Z, the others keep it; `hairinv fit` reads each back."""
+    points = stages.read_stage(real / "model.h5")["curves"]["points"]
+    for suffix, turn in ((".hair", Y_UP_TO_Z_UP), (".data", np.eye(3)), (".obj", np.eye(3)), (".usda", np.eye(3))):
+        out = tmp_path / f"curly{suffix}"
+        result = hairinv(real, "export", "model.h5", "-o", out, "--shape", "input")
+        assert result.returncode == 0, result.stderr
+        groom, _ = load_groom(out, ImportSettings())
+        assert np.abs(groom.points - points @ turn.T).max() < FLOAT32_M, suffix
+
+
+def test_a_changed_body_is_left_out_with_a_warning(real, tmp_path):
+    shutil.copyfile(real / "model.h5", tmp_path / "model.h5")
+    (tmp_path / "body.obj").write_bytes((real / "body.obj").read_bytes() + b"# changed\n")
+    result = hairinv(tmp_path, "export", "model.h5", "-o", "out.usda")
+    assert result.returncode == 0, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "warning" in lines[0] and "SHA-256" in lines[0] and "model.h5" in lines[0]
+    stage = _open(tmp_path / "out.usda")
+    assert stage.GetPrimAtPath("/Root/Hair") and not stage.GetPrimAtPath("/Root/Body")
+
+
+def _bad(real, folder):
+    for name in ("model.h5", "still.h5", "body.obj"):
+        shutil.copyfile(real / name, folder / name)
+    (folder / "mesh.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (folder / "notes.txt").write_text("precious\n")
+
+
+@pytest.mark.parametrize("args, name, fragment", [
+    (["model.h5", "-o", "out.png"], "out.png", ".usda"),
+    (["model.h5", "-o", "out"], "out", ".hair"),
+    (["model.h5", "-o", "out.usda", "--shape", "frame:0"], "model.h5", "no /frames group"),
+    (["still.h5", "-o", "out.obj", "--shape", "frame:3"], "still.h5", "no frame 3"),
+    (["still.h5", "-o", "out.obj", "--shape", "all"], "out.obj", "one shape"),
+    (["still.h5", "-o", "out.usda", "--shape", "sideways"], "sideways", "--shape takes"),
+    (["missing.h5", "-o", "out.usda"], "missing.h5", "no such file"),
+    (["notes.txt", "-o", "out.usda"], "notes.txt", "not a hairinv stage file"),
+    (["model.h5", "-o", "nodir/out.usda"], "nodir", "does not exist"),
+    (["model.h5", "-o", "body.obj"], "body.obj", "input"),
+    (["model.h5", "-o", "mesh.obj"], "mesh.obj", "refusing to overwrite"),
+], ids=["unknown suffix", "no suffix", "no frames", "frame out of range", "all in OBJ", "bad shape",
+        "missing file", "not a stage file", "missing folder", "over the body", "over a mesh"])
+def test_bad_input_exits_2_with_one_sentence_and_writes_nothing(real, tmp_path, args, name, fragment):
+    _bad(real, tmp_path)
+    assert_refused(tmp_path, ["export", *args], name, fragment)
+
+
+def test_rest_of_a_fitted_file_is_refused(real, tmp_path):
+    shutil.copyfile(real / "curly.h5", tmp_path / "curly.h5")
+    assert_refused(tmp_path, ["export", "curly.h5", "-o", "rest.hair", "--shape", "rest"], "curly.h5",
+                   "no /model group")
+
+
+def test_an_existing_hairstyle_output_is_replaced(real, tmp_path):
+    shutil.copyfile(real / "model.h5", tmp_path / "model.h5")
+    for shape in ("input", "rest"):
+        result = hairinv(tmp_path, "export", "model.h5", "-o", "out.obj", "--shape", shape)
+        assert result.returncode == 0, result.stderr
+    assert "rest shape" in (tmp_path / "out.obj").read_text().splitlines()[1]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model.h5", "out.obj"]
