@@ -583,3 +583,22 @@ def test_an_existing_hairstyle_output_is_replaced(real, tmp_path):
         assert result.returncode == 0, result.stderr
     assert "rest shape" in (tmp_path / "out.obj").read_text().splitlines()[1]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.h5", "out.obj"]
+
+
+def test_the_readme_export_examples_run_as_written(real, tmp_path):
+    """The commands of the README's export section, on the curly model and a run of it."""
+    readme = (SAMPLES.parent / "README.md").read_text()
+    section = readme.split("### Exporting for other tools", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
+    commands = [line.split() for line in section.strip().splitlines()]
+    assert len(commands) == 3 and all(c[:2] == ["hairinv", "export"] for c in commands)
+    shutil.copyfile(real / "model.h5", tmp_path / "curly.model.h5")
+    shutil.copyfile(real / "still.h5", tmp_path / "curly.frames.h5")
+    shutil.copyfile(real / "body.obj", tmp_path / "body.obj")
+    for command in commands:
+        result = hairinv(tmp_path, *command[1:])
+        assert result.returncode == 0, (command, result.stderr)
+        assert result.stderr == ""
+        out = tmp_path / command[command.index("-o") + 1]
+        assert read_curves(out).n_strands == 40
+    stage = _open(tmp_path / "curly.usda")
+    assert stage.GetPrimAtPath("/Root/Body").IsA(UsdGeom.Mesh)

@@ -142,7 +142,7 @@ class _Writer:
             for k, code in enumerate(codes):
                 op.Set(Gf.Matrix4d(self.axes.transform(self.source.body_transform(k)).T.tolist()),
                        Usd.TimeCode(code))
-            moved = "its motion as time samples"
+            moved = "its transform at each frame as time samples"
             if self.source.body_removed:
                 body.CreateVisibilityAttr().Set(UsdGeom.Tokens.invisible, Usd.TimeCode(codes[0]))
                 moved = "hidden during the frames (the scene removed it)"
