@@ -144,7 +144,8 @@ def main(ctx, quiet, no_progress):
     Stages read and write HDF5 stage files: fit (curves to super-helices),
     detect (hair-body and hair-hair contacts), invert (rest shape and
     contact forces). `hairinv invert STYLE BODY` runs whatever stage is
-    missing; `hairinv info FILE.h5` summarises any stage file.
+    missing; `hairinv info FILE.h5` summarises any stage file; `hairinv
+    export FILE.h5 -o OUT` writes its groom as USD, .hair, .data or OBJ.
     """
     ctx.ensure_object(dict)
     ctx.obj["quiet"] = quiet

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import InputError
+
 # Each module of an output kind registers its writer when imported.
 from . import data, hair, obj, usd  # noqa: F401
 from .base import EXPORTERS, ExportReport, check_export_path, exporter_for
@@ -36,6 +38,8 @@ def export(stage_path, output, shape: str | None = None) -> ExportReport:
     output = Path(output)
     exporter = exporter_for(output)
     wanted = parse_shape(shape if shape is not None else exporter.default_shape)
+    if wanted.kind == "all" and not exporter.several_shapes:
+        raise InputError(f"the {exporter.name} format holds one shape; choose --shape input, rest or frame:N", output)
     source = ExportSource(stage_path)
     check_export_path(output, inputs=[source.path, *source.input_files()])
     if wanted.kind != "all":

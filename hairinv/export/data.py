@@ -9,6 +9,6 @@ from .polylines import polyline_shape, wrote
 
 @register_exporter(".data", name="USC-HairSalon .data")
 def export_data(source, path, shape, report) -> None:
-    strands, _, _ = polyline_shape(source, path, shape, "y", "a .data file", report)
+    strands, _, _ = polyline_shape(source, shape, "y", report)
     write_usc(path, strands.points, strands.offsets)
     wrote(report, path, strands, "USC-HairSalon .data, +Y up")

@@ -13,7 +13,7 @@ from .polylines import polyline_shape, wrote
 
 @register_exporter(".hair", name="Yuksel .hair")
 def export_hair(source, path, shape, report) -> None:
-    strands, axes, header = polyline_shape(source, path, shape, "z", "a .hair file", report)
+    strands, axes, header = polyline_shape(source, shape, "z", report)
     radius, _ = source.radius
     write_hair(path, strands.points, strands.offsets, thickness=float(axes.length(2.0 * radius)), info=header)
     wrote(report, path, strands, "Yuksel .hair, +Z up")

@@ -13,6 +13,6 @@ from .polylines import polyline_shape, wrote
 
 @register_exporter(".obj", name="OBJ polylines")
 def export_obj(source, path, shape, report) -> None:
-    strands, _, header = polyline_shape(source, path, shape, "y", "an OBJ file", report)
+    strands, _, header = polyline_shape(source, shape, "y", report)
     write_obj_curves(path, strands.points, strands.offsets, header=[header])
     wrote(report, path, strands, "OBJ polylines, +Y up")

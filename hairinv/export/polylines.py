@@ -5,22 +5,20 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import __version__
-from ..errors import InputError
 from .base import ExportReport
 from .source import ExportSource, OutputAxes, Shape, Strands
 
 __all__ = ["polyline_shape"]
 
 
-def polyline_shape(source: ExportSource, path: Path, shape: Shape, up: str, what: str,
+def polyline_shape(source: ExportSource, shape: Shape, up: str,
                    report: ExportReport) -> tuple[Strands, OutputAxes, str]:
-    """The strands of ``shape`` in the coordinates of a format whose up axis is ``up``, in metres.
+    """The strands of ``shape`` (one shape, not ``all``) in the coordinates of a format whose up axis is
+    ``up``, in metres.
 
     Returns the strands (points already converted), the axes used and a one-line description for the
-    file's header (``what`` names the format with its article: "an OBJ file").
+    file's header.
     """
-    if shape.kind == "all":
-        raise InputError(f"{what} holds one shape; choose --shape input, rest or frame:N", path)
     strands = source.strands(shape)
     axes = OutputAxes.onto(source.up, up)
     if axes.note:
