@@ -32,7 +32,7 @@ def _free_step(helices, q0, mat, v, settings: DynamicsSettings, motion: Motion):
     _free_chunk(helices.root, helices.frame0, helices.offsets, helices.length, sim.q, sim.v, sim.rest, sim.stiff,
                 sim.lam, sim.rot, settings.damping, settings.air_damping, H, motion.packed(), sim.gx, sim.gw,
                 sim.chol, sim.chol_ptr, v_free, sim.kinetic, sim.hess, sim.mass, np.ones(helices.n_strands, np.bool_),
-                sim.factored_h, 0, helices.n_strands)
+                sim.factored_h, np.zeros_like(sim.hess), 0, helices.n_strands)
     return sim, v_free
 
 
@@ -133,7 +133,7 @@ def test_a_kept_gravity_hessian_gives_the_same_step():
     _free_chunk(helices.root, helices.frame0, helices.offsets, helices.length, sim.q, v, sim.rest, sim.stiff,
                 sim.lam, sim.rot, settings.damping, settings.air_damping, H, Motion.still(mat.gravity).packed(),
                 sim.gx, sim.gw, sim.chol, sim.chol_ptr, again, sim.kinetic, sim.hess, sim.mass,
-                np.zeros(helices.n_strands, np.bool_), sim.factored_h, 0, helices.n_strands)
+                np.zeros(helices.n_strands, np.bool_), sim.factored_h, np.zeros_like(sim.hess), 0, helices.n_strands)
     assert np.array_equal(again, v_free)
 
 
@@ -305,3 +305,66 @@ def test_the_detection_bounds_hold_at_every_point(rng, size):
     turn = np.linalg.norm(q_to - helices.omega, axis=1) * helices.length
     lengths = np.add.reduceat(helices.length, helices.offsets[:-1])
     assert true <= (np.add.reduceat(turn, helices.offsets[:-1]) * lengths).max()
+
+
+def test_the_step_stiffness_holds_the_contact_forces_share():
+    """The step matrix's stiffness is the Hessian of the whole potential the step linearises: elastic,
+    gravity and the remembered contact forces held in the world at their points (their share is what
+    holds a strand pressed near its root; explicit, it limits the step). Checked on an inverted sample
+    against second differences of the load potential from centerline points and against central
+    differences of the gravity forces, both independent of the step's kernels."""
+    from conftest import SAMPLES
+    from test_statics import point_load_potential
+    from hairinv import config
+    from hairinv.invert import Material, invert
+    from hairinv.pipeline import prepare
+
+    settings = config.apply(config.resolve(), {"import": {"guides": 20}, "solver": {"max_sweeps": 100}})
+    scene = prepare(SAMPLES / "wavy.h5", SAMPLES / "body.obj", settings)
+    mat = Material.from_settings(settings.material, scene.up)
+    model, _ = invert(scene.helices, scene.contacts, mat, settings.solver)
+    c = scene.contacts
+    sim = Simulation(scene.helices, model.omega_rest, mat, None, settings.contacts, settings.dynamics,
+                     initial=c, initial_force=model.force)
+    fresh = np.ones(scene.helices.n_strands, np.bool_)
+    held = sim._contact_hessians(fresh)
+    world = np.einsum("cji,cj->ci", c.frame, model.force)
+    helices = scene.helices
+    loaded_strands = np.unique(np.concatenate([c.strand[model.force[:, 0] > 0, 0],
+                                               c.strand[(model.force[:, 0] > 0) & (c.strand[:, 1] >= 0), 1]]))
+    assert len(loaded_strands) >= 3
+    for k in loaded_strands[:3]:
+        a, z = helices.offsets[k], helices.offsets[k + 1]
+        n = 3 * (z - a)
+        # the loads on strand k: +f on a contact's first strand, -f on its second
+        first, second = c.strand[:, 0] == k, c.strand[:, 1] == k
+        s = np.concatenate([c.s[first, 0], c.s[second, 1]])
+        f = np.concatenate([world[first], -world[second]])
+        step = 1e-2
+        fd = np.empty((n, n))
+        flat = helices.omega[a:z].ravel()
+        for i in range(n):
+            for j in range(n):
+                def v(di, dj):
+                    w = flat.copy()
+                    w[i] += di
+                    w[j] += dj
+                    return point_load_potential(helices.root[k], helices.frame0[k], w.reshape(-1, 3),
+                                                helices.length[a:z], s, f)
+                fd[i, j] = (v(step, step) - v(step, -step) - v(-step, step) + v(-step, -step)) / (4 * step * step)
+        mine = held[sim.chol_ptr[k]:sim.chol_ptr[k + 1]].reshape(n, n)
+        assert np.abs(fd).max() > 0
+        assert np.abs(mine - fd).max() <= 1e-5 * np.abs(fd).max()
+    # and one step keeps it: the kept stiffness is gravity's Hessian plus this share (where it is positive)
+    sim.step(Motion.still(mat.gravity))
+    checked = 0
+    for k in loaded_strands:
+        a, z = helices.offsets[k], helices.offsets[k + 1]
+        n = 3 * (z - a)
+        G = _gravity_hessian(helices, mat, k)
+        total = G + held[sim.chol_ptr[k]:sim.chol_ptr[k + 1]].reshape(n, n)
+        if np.linalg.eigvalsh(total + np.diag(sim.stiff[3 * a:3 * z]))[0] > 0:
+            kept = sim.hess[sim.chol_ptr[k]:sim.chol_ptr[k + 1]].reshape(n, n)
+            assert np.abs(kept - total).max() <= 1e-5 * np.abs(total).max()
+            checked += 1
+    assert checked >= 3
