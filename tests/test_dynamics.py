@@ -315,6 +315,7 @@ def test_the_step_stiffness_holds_the_contact_forces_share():
     differences of the gravity forces, both independent of the step's kernels."""
     from conftest import SAMPLES
     from test_statics import point_load_potential
+
     from hairinv import config
     from hairinv.invert import Material, invert
     from hairinv.pipeline import prepare
@@ -343,15 +344,17 @@ def test_the_step_stiffness_holds_the_contact_forces_share():
         step = 1e-2
         fd = np.empty((n, n))
         flat = helices.omega[a:z].ravel()
+
+        def v(i, j, di, dj, k=k, a=a, z=z, s=s, f=f, flat=flat):
+            w = flat.copy()
+            w[i] += di
+            w[j] += dj
+            return point_load_potential(helices.root[k], helices.frame0[k], w.reshape(-1, 3), helices.length[a:z],
+                                        s, f)
         for i in range(n):
             for j in range(n):
-                def v(di, dj):
-                    w = flat.copy()
-                    w[i] += di
-                    w[j] += dj
-                    return point_load_potential(helices.root[k], helices.frame0[k], w.reshape(-1, 3),
-                                                helices.length[a:z], s, f)
-                fd[i, j] = (v(step, step) - v(step, -step) - v(-step, step) + v(-step, -step)) / (4 * step * step)
+                fd[i, j] = (v(i, j, step, step) - v(i, j, step, -step) - v(i, j, -step, step)
+                            + v(i, j, -step, -step)) / (4 * step * step)
         mine = held[sim.chol_ptr[k]:sim.chol_ptr[k + 1]].reshape(n, n)
         assert np.abs(fd).max() > 0
         assert np.abs(mine - fd).max() <= 1e-5 * np.abs(fd).max()
