@@ -316,7 +316,8 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
     """
     from hairinv import config, stages
     from hairinv.errors import RunError
-    from hairinv.invert import Material, invert as run_invert, settings_dict, validate_settings, warm_start
+    from hairinv.invert import Material, settings_dict, validate_settings, warm_start
+    from hairinv.invert import invert as run_invert
     from hairinv.pipeline import prepare
 
     settings = config.resolve(quality, config_file, sets)
@@ -544,8 +545,8 @@ def _verdict_lines(verdict, every_strand: bool, rows: int = VERIFY_ROWS) -> list
     largest = verdict.largest
     biggest = f"largest {_mm(largest.displacement)} mm, strand {largest.index}" if largest else "no strands"
     if verdict.passed:
-        lines = [f"verify: PASS, no strand point moved more than {tolerance} in {verdict.seconds_simulated:.3g} s "
-                 f"({biggest})"]
+        lines = [(f"verify: PASS, no strand point moved more than {tolerance} in {verdict.seconds_simulated:.3g} s "
+                  f"({biggest})")]
     else:
         head = f"verify: FAIL, {len(verdict.moved)} of {verdict.n_strands} strands moved more than {tolerance}"
         lines = [f"{head}; stopped at {verdict.seconds_simulated:.3g} s" if verdict.stopped_early
@@ -626,23 +627,30 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
 @main.command()
 @click.argument("stage_file", type=click.Path(path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), required=True,
-              help="Output file; its suffix chooses the format: .usda .usdc .usd (USD), .hair, .data, .obj.")
+              help="Output file; its suffix chooses the format: .usda .usdc .usd (USD), .hair, .data, .obj, "
+                   ".json (summary), .png (picture).")
 @click.option("--shape", default=None, metavar="input|rest|frame:N|all",
               help="What to write: the input shape, the rest shape (needs /model), frame N of /frames (from 0), "
                    "or all the file holds (USD only) [default: all for USD, input for the others].")
+@click.option("--color", "color", default=None, metavar="contact-force|rest-curvature|stiffening|fit-error",
+              help="PNG: the quantity the strands are coloured by [default: contact-force for a model, "
+                   "fit-error for a fitted file].")
 @click.pass_obj
 @handle_errors
-def export(obj, stage_file, output, shape):
-    """Write the groom of STAGE_FILE for other tools: USD, Yuksel .hair, USC .data or OBJ polylines.
+def export(obj, stage_file, output, shape, color):
+    """Write STAGE_FILE for other tools and for people: its groom as USD, Yuksel .hair, USC .data or OBJ
+    polylines, its summary as JSON, or a picture as PNG.
 
     USD holds every shape the file carries: the input curves with their rest shape (a second prim and a
     `rest` primvar), the simulated frames as time samples, Unreal groom primvars and hairinv's per-strand
     and per-vertex quantities, and the body mesh if it is still where it was. The polyline formats hold
-    one shape, in metres, with the format's up axis. docs/export.md says what each file holds.
+    one shape, in metres, with the format's up axis. JSON summarises every stage (what `hairinv info
+    --json` prints); PNG shows the groom from the front and the side over the body, coloured by a
+    quantity. docs/export.md says what each file holds.
     """
     from hairinv.export import export as run_export
 
-    report = run_export(stage_file, output, shape)
+    report = run_export(stage_file, output, shape, color=color)
     if not obj.get("quiet"):
         for line in report.warnings:
             click.echo(f"hairinv: {line}", err=True)
@@ -657,9 +665,9 @@ def export(obj, stage_file, output, shape):
 @handle_errors
 def info(obj, file, as_json):
     """Summarise a hairinv stage file: groups, sizes and key figures."""
-    from hairinv.errors import InputError
-    from hairinv.summary import summarise
     from hairinv import stages
+    from hairinv.errors import InputError
+    from hairinv.summary import summarise, summary_lines
 
     if not file.exists():
         raise InputError("no such file", file)
@@ -668,11 +676,8 @@ def info(obj, file, as_json):
     if as_json:
         say(json.dumps(summary, indent=2))
         return
-    say(f"{file}: {summary['producer']}, schema {summary['schema_version']}, stages {summary['stages']}")
-    for name, group in summary["groups"].items():
-        say(f"/{name}")
-        for key, value in group.items():
-            say(f"  {key}: {value}")
+    for line in summary_lines(summary, str(file)):
+        say(line)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,10 @@
-"""Plain-data summaries of stage files (for ``hairinv info`` and reports)."""
+"""Plain-data summaries of stage files: one dictionary serves ``hairinv info`` (as text or ``--json``) and
+``hairinv export -o OUT.json`` (docs/export.md gives its schema).
+
+Every value is computed here once, at full precision; :func:`summary_lines` only formats it for a terminal.
+Keys are stable: every group present in the file has all its keys, ``null`` where the file does not record
+the value; a group the file lacks is ``null``.
+"""
 
 from __future__ import annotations
 
@@ -7,102 +13,235 @@ import numpy as np
 from . import stages
 from .groom import strand_lengths
 
+__all__ = ["SCHEMA", "summarise", "summary_lines"]
 
-def _stats(values, scale: float = 1.0, digits: int = 4) -> dict:
-    values = np.asarray(values, dtype=np.float64) * scale
+#: Version of the summary's layout: raised when a key is renamed, removed or changes meaning (keys are
+#: only ever added within one version).
+SCHEMA = 1
+# Significant digits of the numbers in the text summary.
+TEXT_DIGITS = 4
+
+
+def _stats(values, scale: float = 1.0) -> dict | None:
+    """``{min, median, max, mean}`` of ``values * scale``, or None for no values."""
+    values = np.asarray(values, dtype=np.float64).ravel() * scale
     if values.size == 0:
-        return {}
+        return None
+    return {"min": float(values.min()), "median": float(np.median(values)), "max": float(values.max()),
+            "mean": float(values.mean())}
+
+
+def _count(mask) -> int:
+    return int(np.count_nonzero(mask))
+
+
+def _curves(g: stages.Group) -> dict:
+    pts, off = g["points"], g["offsets"]
     return {
-        "min": round(float(values.min()), digits),
-        "median": round(float(np.median(values)), digits),
-        "max": round(float(values.max()), digits),
+        "source": str(g.attrs.get("source", "")),
+        "strands": int(len(off) - 1),
+        "points": len(pts),
+        "points_per_strand": _stats(np.diff(off)),
+        "length_m": _stats(strand_lengths(pts, off)),
+        "bbox_min_m": [float(v) for v in pts.min(axis=0)] if len(pts) else None,
+        "bbox_max_m": [float(v) for v in pts.max(axis=0)] if len(pts) else None,
+        "scale_to_m": float(g.attrs.get("scale_to_m", 1.0)),
+        "up": [float(v) for v in np.asarray(g.attrs.get("up", (0, 1, 0))).reshape(3)],
     }
+
+
+def _helices(g: stages.Group) -> dict:
+    off, omega, error = g["offsets"], g["omega"], g["fit_error"]
+    tolerance = g.config.get("fit", {}).get("tolerance")
+    return {
+        "strands": int(len(off) - 1),
+        "elements": int(off[-1]),
+        "elements_per_strand": _stats(np.diff(off)),
+        "curvature_1_per_m": _stats(np.hypot(omega[:, 0], omega[:, 1])),
+        "twist_1_per_m": _stats(np.abs(omega[:, 2])),
+        "fit_error_mean_mm": _stats(error[:, 0], 1e3),
+        "fit_error_max_mm": _stats(error[:, 1], 1e3),
+        "fit_tolerance_mm": None if tolerance is None else 1e3 * float(tolerance),
+        "strands_over_tolerance": None if tolerance is None else _count(error[:, 1] > float(tolerance)),
+    }
+
+
+def _contacts(g: stages.Group, model: stages.Group | None) -> dict:
+    """Contacts by kind (hair-body, hair-hair) and by the rule that declared them, and how many carry force.
+
+    The rule follows from the gap stored at detection and the distances of the detection's settings
+    (hairinv.contacts.detect): a body contact at ``gap >= body_distance`` was declared by the layer rule, a
+    hair-hair one at ``gap >= hair_distance`` by the wisp rule, every other by its distance.
+    """
+    strand = g["strand"]
+    body = strand[:, 1] < 0
+    gap = g.datasets.get("gap")
+    settings = g.config.get("contacts", {})
+    force = model["force"] if model is not None and len(model["force"]) == len(strand) else None
+    carrying = force[:, 0] > 0 if force is not None else None
+
+    def kind(mask, distance_key, rule):
+        out = {"declared": _count(mask),
+               "carrying_force": None if carrying is None else _count(mask & carrying),
+               "by_rule": None, "gap_mm": None if gap is None else _stats(gap[mask], 1e3)}
+        if gap is not None and distance_key in settings:
+            beyond = mask & (gap >= float(settings[distance_key]))
+            out["by_rule"] = {"distance": _count(mask & ~beyond), rule: _count(beyond)}
+        return out
+
+    return {
+        "contacts": len(strand),
+        "hair_body": _count(body),
+        "hair_hair": _count(~body),
+        "carrying_force": None if carrying is None else _count(carrying),
+        "strands_touching_body": len(np.unique(strand[body, 0])),
+        "inside_body": None if gap is None else _count(body & (gap < 0)),
+        "mu": _stats(g["mu"]),
+        "by_kind": {"hair_body": kind(body, "body_distance", "layer"),
+                    "hair_hair": kind(~body, "hair_distance", "wisp")},
+    }
+
+
+def _model(g: stages.Group) -> dict:
+    # the rest shape the model is simulated with (the stiffened strands' own where it has them)
+    rest = g["omega_rest_stiffened"] if "omega_rest_stiffened" in g.datasets else g["omega_rest"]
+    target, force = g["omega_target"], g["force"]
+    normal = force[:, 0] if len(force) else np.zeros(0)
+    history = g.datasets.get("residual_history")
+    stabilize = g.config.get("solver", {}).get("stabilize")
+    factor = np.asarray(g["stiffening"], dtype=np.float64) if "stiffening" in g.datasets else None
+    stiffened = None if factor is None else np.flatnonzero(factor > 1.0)
+    return {
+        "target": str(g.attrs.get("target", "")),
+        "status": str(g.attrs.get("status", "")),
+        "sweeps": int(g.attrs.get("iterations", 0)),
+        "prior_sweeps": int(g.attrs.get("prior_sweeps", 0)),
+        "residual_N": float(g.attrs.get("residual", 0.0)),
+        "relative_residual": float(g.attrs.get("relative_residual", 0.0)),
+        "residual_history": None if history is None else [[int(s), float(r)] for s, r in history],
+        "solve_seconds": float(g.attrs.get("seconds", 0.0)),
+        "rest_curvature_1_per_m": _stats(np.hypot(rest[:, 0], rest[:, 1])),
+        "drift_from_target_1_per_m": _stats(np.linalg.norm(rest - target, axis=1)),
+        "contacts_carrying_force": _count(normal > 0),
+        "normal_force_N": _stats(normal),
+        "youngs_modulus_Pa": float(g.attrs.get("youngs_modulus", 0.0)),
+        "radius_m": float(g.attrs.get("radius", 0.0)),
+        "gamma": float(g.attrs.get("gamma", 0.0)),
+        "stabilize": None if stabilize is None else str(stabilize),
+        "strands_stiffened": None if factor is None else len(stiffened),
+        "stiffening_factor": None if factor is None else _stats(factor),
+        "stiffened": None if factor is None else [{"strand": int(k), "factor": float(factor[k])} for k in stiffened],
+        # invert reports the strands left unstable, but the file does not store them
+        "unstable_strands": None,
+    }
+
+
+def _frames(g: stages.Group) -> dict:
+    time = g["time"]
+
+    def series(name, scale=1.0):
+        return _stats(g[name], scale) if name in g.datasets else None
+
+    def last(name, scale=1.0):
+        return scale * float(g[name][-1]) if name in g.datasets and len(g[name]) else None
+
+    return {
+        "frames": len(time),
+        "seconds": float(time[-1]) if len(time) else 0.0,
+        "fps": float(g.attrs["fps"]) if "fps" in g.attrs else None,
+        "scene": str(g.attrs.get("scene", "")),
+        "init": str(g.attrs.get("init", "")),
+        "time_step_s": float(g.attrs.get("time_step", 0.0)),
+        "body_removed": bool(g.attrs.get("body_removed", False)),
+        "trimmed": bool(g.attrs.get("trimmed", False)),
+        "largest_displacement_mm": None if "displacement" not in g.datasets else 1e3 * float(np.max(g["displacement"])),
+        "final_displacement_mm": last("displacement", 1e3),
+        "final_kinetic_energy_J": last("kinetic_energy"),
+        "final_elastic_energy_J": last("elastic_energy"),
+        "contacts": series("contact_count"),
+        "solver_relative_residual": series("solver_residual"),
+    }
+
+
+def _n(count: int, noun: str, plural: str | None = None) -> str:
+    return f"{count} {noun if count == 1 else plural or noun + 's'}"
+
+
+def _warnings(out: dict) -> list[str]:
+    """What a reader should know, from what the file records (the file stores no run-time messages)."""
+    g = out["groups"]
+    found = []
+    if g["helices"] and g["helices"]["strands_over_tolerance"]:
+        h = g["helices"]
+        found.append(f"{_n(h['strands_over_tolerance'], 'strand is', 'strands are')} fitted worse than the fit "
+                     f"tolerance {h['fit_tolerance_mm']:g} mm (largest {h['fit_error_max_mm']['max']:.3g} mm)")
+    if g["contacts"] and g["contacts"]["inside_body"]:
+        found.append(f"{_n(g['contacts']['inside_body'], 'body contact lies', 'body contacts lie')} inside the body")
+    if g["model"] and g["model"]["status"] not in ("", "CONVERGED"):
+        m = g["model"]
+        found.append(f"the contact solver stopped with status {m['status']} after {m['sweeps']} sweeps "
+                     f"(residual {m['residual_N']:.3g} N)")
+    if g["model"] and g["model"]["strands_stiffened"]:
+        m = g["model"]
+        found.append(f"{_n(m['strands_stiffened'], 'strand was', 'strands were')} stiffened so that "
+                     f"{'it rests' if m['strands_stiffened'] == 1 else 'they rest'} stably (factor up to "
+                     f"{m['stiffening_factor']['max']:.3g})")
+    return found
 
 
 def summarise(stage: stages.StageFile) -> dict:
-    """A JSON-ready dictionary describing every group of a stage file."""
+    """A JSON-ready dictionary describing every group of a stage file (docs/export.md, "JSON")."""
+    groups = stage.groups
     out = {
+        "schema": SCHEMA,
+        "file": stage.path.name,
+        "sha256": stages.sha256_file(stage.path) if stage.path.is_file() else None,
         "producer": stage.producer,
         "schema_version": stage.schema_version,
-        "stages": ",".join(stage.groups),
-        "groups": {},
+        "stages": ",".join(groups),
+        "groups": {
+            "curves": _curves(groups[stages.CURVES]) if stages.CURVES in groups else None,
+            "helices": _helices(groups[stages.HELICES]) if stages.HELICES in groups else None,
+            "contacts": (_contacts(groups[stages.CONTACTS], groups.get(stages.MODEL))
+                         if stages.CONTACTS in groups else None),
+            "model": _model(groups[stages.MODEL]) if stages.MODEL in groups else None,
+            "frames": _frames(groups[stages.FRAMES]) if stages.FRAMES in groups else None,
+        },
     }
-    if stages.CURVES in stage:
-        g = stage[stages.CURVES]
-        pts, off = g["points"], g["offsets"]
-        out["groups"]["curves"] = {
-            "source": g.attrs.get("source", ""),
-            "strands": int(len(off) - 1),
-            "points": int(len(pts)),
-            "points_per_strand": _stats(np.diff(off), digits=1),
-            "length_m": _stats(strand_lengths(pts, off)),
-            "bbox_min_m": [round(float(v), 4) for v in pts.min(axis=0)],
-            "bbox_max_m": [round(float(v), 4) for v in pts.max(axis=0)],
-            "scale_to_m": float(g.attrs.get("scale_to_m", 1.0)),
-            "up": [float(v) for v in np.asarray(g.attrs.get("up", (0, 1, 0)))],
-        }
-    if stages.HELICES in stage:
-        g = stage[stages.HELICES]
-        off = g["offsets"]
-        omega = g["omega"]
-        curvature = np.hypot(omega[:, 0], omega[:, 1])
-        out["groups"]["helices"] = {
-            "strands": int(len(off) - 1),
-            "elements": int(off[-1]),
-            "elements_per_strand": _stats(np.diff(off), digits=1),
-            "curvature_1_per_m": _stats(curvature, digits=3),
-            "twist_1_per_m": _stats(np.abs(omega[:, 2]), digits=3),
-            "fit_error_mean_mm": _stats(g["fit_error"][:, 0], 1e3),
-            "fit_error_max_mm": _stats(g["fit_error"][:, 1], 1e3),
-        }
-    if stages.CONTACTS in stage:
-        g = stage[stages.CONTACTS]
-        strand = g["strand"]
-        body = strand[:, 1] < 0
-        out["groups"]["contacts"] = {
-            "contacts": int(len(strand)),
-            "hair_body": int(body.sum()),
-            "hair_hair": int((~body).sum()),
-            "strands_touching_body": int(len(np.unique(strand[body, 0]))),
-            "mu": _stats(g["mu"], digits=3),
-        }
-    if stages.MODEL in stage:
-        g = stage[stages.MODEL]
-        # the rest shape the model is simulated with (the stiffened strands' own where it has them)
-        rest = g["omega_rest_stiffened"] if "omega_rest_stiffened" in g.datasets else g["omega_rest"]
-        target, force = g["omega_target"], g["force"]
-        drift = np.linalg.norm(rest - target, axis=1)
-        normal = force[:, 0] if len(force) else np.zeros(0)
-        out["groups"]["model"] = {
-            "target": g.attrs.get("target", ""),
-            "status": g.attrs.get("status", ""),
-            "sweeps": int(g.attrs.get("iterations", 0)),
-            "prior_sweeps": int(g.attrs.get("prior_sweeps", 0)),
-            "residual_N": float(g.attrs.get("residual", 0.0)),
-            "relative_residual": float(g.attrs.get("relative_residual", 0.0)),
-            "solve_seconds": round(float(g.attrs.get("seconds", 0.0)), 3),
-            "rest_curvature_1_per_m": _stats(np.hypot(rest[:, 0], rest[:, 1]), digits=3),
-            "drift_from_target_1_per_m": _stats(drift, digits=3),
-            "contacts_carrying_force": int((normal > 0).sum()),
-            "normal_force_N": _stats(normal, digits=9),
-            "youngs_modulus_Pa": float(g.attrs.get("youngs_modulus", 0.0)),
-            "radius_m": float(g.attrs.get("radius", 0.0)),
-        }
-        if "stiffening" in g.datasets:
-            factor = np.asarray(g["stiffening"])
-            out["groups"]["model"]["strands_stiffened"] = int((factor > 1.0).sum())
-            out["groups"]["model"]["stiffening_factor"] = _stats(factor, digits=3)
-    if stages.FRAMES in stage:
-        g = stage[stages.FRAMES]
-        time = g["time"]
-        frames = {"frames": int(len(time)), "seconds": float(time[-1]) if len(time) else 0.0,
-                  "scene": str(g.attrs.get("scene", "")), "init": str(g.attrs.get("init", "")),
-                  "time_step_s": float(g.attrs.get("time_step", 0.0)),
-                  "body_removed": bool(g.attrs.get("body_removed", False)),
-                  "trimmed": bool(g.attrs.get("trimmed", False))}
-        if "displacement" in g.datasets:
-            frames["largest_displacement_mm"] = round(1e3 * float(np.max(g["displacement"])), 6)
-            frames["final_kinetic_energy_J"] = float(g["kinetic_energy"][-1])
-            frames["contacts"] = _stats(g["contact_count"], digits=1)
-        out["groups"]["frames"] = frames
+    # seconds each stage took, where the file records it (only the contact solve of invert does)
+    model = out["groups"]["model"]
+    out["timings_s"] = {"fit": None, "detect": None, "invert": model["solve_seconds"] if model else None,
+                        "simulate": None}
+    out["warnings"] = _warnings(out)
     return out
+
+
+def _text(value) -> str:
+    if isinstance(value, bool) or value is None:
+        return "-" if value is None else str(value).lower()
+    if isinstance(value, float):
+        return f"{value:.{TEXT_DIGITS}g}"
+    if isinstance(value, dict):
+        return ", ".join(f"{k} {_text(v)}" for k, v in value.items())
+    if isinstance(value, list):
+        if len(value) > 6:
+            return f"{len(value)} entries"
+        return "[" + ", ".join(_text(v) for v in value) + "]"
+    return str(value)
+
+
+def summary_lines(summary: dict, name: str) -> list[str]:
+    """The summary as text for a terminal: a header line, then each group's keys, numbers to 4 digits."""
+    lines = [f"{name}: {summary['producer']}, schema {summary['schema_version']}, stages {summary['stages']}"]
+    for group, values in summary["groups"].items():
+        if values is None:
+            continue
+        lines.append(f"/{group}")
+        for key, value in values.items():
+            if isinstance(value, dict) and any(isinstance(v, dict) for v in value.values()):
+                lines.append(f"  {key}:")
+                lines += [f"    {k}: {_text(v)}" for k, v in value.items()]
+            else:
+                lines.append(f"  {key}: {_text(value)}")
+    lines += [f"warning: {w}" for w in summary["warnings"]]
+    return lines

@@ -14,8 +14,10 @@ Runtime: about 40 s warm.
 from __future__ import annotations
 
 import itertools
+import json
 import shutil
 
+import h5py
 import numpy as np
 import pytest
 from conftest import SAMPLES
@@ -549,10 +551,11 @@ def _bad(real, folder):
         shutil.copyfile(real / name, folder / name)
     (folder / "mesh.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     (folder / "notes.txt").write_text("precious\n")
+    (folder / "notes.json").write_text('{"precious": true}\n')
 
 
 @pytest.mark.parametrize("args, name, fragment", [
-    (["model.h5", "-o", "out.png"], "out.png", ".usda"),
+    (["model.h5", "-o", "out.txt"], "out.txt", ".usda"),
     (["model.h5", "-o", "out"], "out", ".hair"),
     (["model.h5", "-o", "out.usda", "--shape", "frame:0"], "model.h5", "no /frames group"),
     (["still.h5", "-o", "out.obj", "--shape", "frame:3"], "still.h5", "no frame 3"),
@@ -563,8 +566,12 @@ def _bad(real, folder):
     (["model.h5", "-o", "nodir/out.usda"], "nodir", "does not exist"),
     (["model.h5", "-o", "body.obj"], "body.obj", "input"),
     (["model.h5", "-o", "mesh.obj"], "mesh.obj", "refusing to overwrite"),
+    (["model.h5", "-o", "notes.json"], "notes.json", "refusing to overwrite"),
+    (["model.h5", "-o", "out.json", "--shape", "rest"], "out.json", "--shape does not apply"),
+    (["model.h5", "-o", "out.obj", "--color", "fit-error"], "out.obj", "--color applies to"),
 ], ids=["unknown suffix", "no suffix", "no frames", "frame out of range", "all in OBJ", "bad shape",
-        "missing file", "not a stage file", "missing folder", "over the body", "over a mesh"])
+        "missing file", "not a stage file", "missing folder", "over the body", "over a mesh", "over a json file",
+        "shape of a summary", "colour of a polyline"])
 def test_bad_input_exits_2_with_one_sentence_and_writes_nothing(real, tmp_path, args, name, fragment):
     _bad(real, tmp_path)
     assert_refused(tmp_path, ["export", *args], name, fragment)
@@ -590,7 +597,7 @@ def test_the_readme_export_examples_run_as_written(real, tmp_path):
     readme = (SAMPLES.parent / "README.md").read_text()
     section = readme.split("### Exporting for other tools", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
     commands = [line.split() for line in section.strip().splitlines()]
-    assert len(commands) == 3 and all(c[:2] == ["hairinv", "export"] for c in commands)
+    assert len(commands) == 4 and all(c[:2] == ["hairinv", "export"] for c in commands)
     shutil.copyfile(real / "model.h5", tmp_path / "curly.model.h5")
     shutil.copyfile(real / "still.h5", tmp_path / "curly.frames.h5")
     shutil.copyfile(real / "body.obj", tmp_path / "body.obj")
@@ -599,6 +606,152 @@ def test_the_readme_export_examples_run_as_written(real, tmp_path):
         assert result.returncode == 0, (command, result.stderr)
         assert result.stderr == ""
         out = tmp_path / command[command.index("-o") + 1]
-        assert read_curves(out).n_strands == 40
+        if out.suffix == ".json":
+            summary = json.loads(out.read_text())
+            assert summary["groups"]["curves"]["strands"] == 40 and summary["groups"]["frames"]["frames"] == 3
+        else:
+            assert read_curves(out).n_strands == 40
     stage = _open(tmp_path / "curly.usda")
     assert stage.GetPrimAtPath("/Root/Body").IsA(UsdGeom.Mesh)
+
+
+# --------------------------------------------------------------------------- JSON summary
+
+# Statistics recomputed here in float64 from the same datasets: equal to round-off.
+SUMMARY_RTOL = 1e-12
+
+
+def _h5(path):
+    """Every dataset and attribute of a stage file, read with h5py alone (not hairinv.stages)."""
+
+    out = {}
+    with h5py.File(path, "r") as fh:
+        for name, group in fh.items():
+            out[name] = {key: group[key][()] for key in group}
+            attrs = {key: group.attrs[key] for key in group.attrs}
+            attrs["config"] = json.loads(attrs.get("config", "{}"))
+            out[name]["attrs"] = attrs
+        out["attrs"] = dict(fh.attrs)
+    return out
+
+
+def _assert_stats(stats, values, scale=1.0):
+    values = np.asarray(values, dtype=np.float64).ravel() * scale
+    expected = {"min": values.min(), "median": np.median(values), "max": values.max(), "mean": values.mean()}
+    assert stats.keys() == expected.keys()
+    for key, value in expected.items():
+        assert stats[key] == pytest.approx(value, rel=SUMMARY_RTOL, abs=0), key
+
+
+def _assert_summary(summary, path):
+    """Every figure of the JSON summary against the file's datasets."""
+    f = _h5(path)
+    assert summary["schema"] == 1 and summary["file"] == path.name
+    assert summary["producer"] == f["attrs"]["producer"] and summary["stages"] == f["attrs"]["stages"]
+    assert list(summary["groups"]) == ["curves", "helices", "contacts", "model", "frames"]
+    for name in summary["groups"]:
+        assert (summary["groups"][name] is None) == (name not in f)
+    c = summary["groups"]["curves"]
+    offsets, points = f["curves"]["offsets"], f["curves"]["points"]
+    assert (c["strands"], c["points"]) == (len(offsets) - 1, len(points))
+    _assert_stats(c["points_per_strand"], np.diff(offsets))
+    lengths = [np.linalg.norm(np.diff(points[a:z], axis=0), axis=1).sum() for a, z in itertools.pairwise(offsets)]
+    _assert_stats(c["length_m"], lengths)
+    assert c["bbox_min_m"] == points.min(axis=0).tolist() and c["bbox_max_m"] == points.max(axis=0).tolist()
+    h = summary["groups"]["helices"]
+    assert h["elements"] == len(f["helices"]["length"]) == f["helices"]["offsets"][-1]
+    _assert_stats(h["fit_error_mean_mm"], f["helices"]["fit_error"][:, 0], 1e3)
+    _assert_stats(h["fit_error_max_mm"], f["helices"]["fit_error"][:, 1], 1e3)
+    omega = f["helices"]["omega"]
+    _assert_stats(h["curvature_1_per_m"], np.sqrt(omega[:, 0] ** 2 + omega[:, 1] ** 2))
+    tolerance = f["helices"]["attrs"]["config"].get("fit", {}).get("tolerance")
+    if tolerance is not None:
+        assert h["strands_over_tolerance"] == int((f["helices"]["fit_error"][:, 1] > tolerance).sum())
+    if "contacts" in f:
+        k = summary["groups"]["contacts"]
+        strand, force = f["contacts"]["strand"], f["model"]["force"]
+        body = strand[:, 1] == -1
+        carrying = force[:, 0] > 0
+        assert (k["contacts"], k["hair_body"], k["hair_hair"]) == (len(strand), body.sum(), (~body).sum())
+        assert k["carrying_force"] == carrying.sum() == summary["groups"]["model"]["contacts_carrying_force"]
+        settings = f["contacts"]["attrs"]["config"].get("contacts", {})
+        for kind, mask, distance, rule in (("hair_body", body, "body_distance", "layer"),
+                                           ("hair_hair", ~body, "hair_distance", "wisp")):
+            entry = k["by_kind"][kind]
+            assert entry["declared"] == mask.sum() and entry["carrying_force"] == (mask & carrying).sum()
+            if "gap" in f["contacts"]:
+                gap = f["contacts"]["gap"]
+                beyond = int((mask & (gap >= settings[distance])).sum())
+                assert entry["by_rule"] == {"distance": int(mask.sum()) - beyond, rule: beyond}
+            else:
+                assert entry["by_rule"] is None and entry["gap_mm"] is None
+    if "model" in f:
+        m, g = summary["groups"]["model"], f["model"]
+        assert m["status"] == g["attrs"].get("status", "") and m["sweeps"] == g["attrs"]["iterations"]
+        assert m["residual_N"] == g["attrs"]["residual"] and m["solve_seconds"] == g["attrs"]["seconds"]
+        assert summary["timings_s"]["invert"] == g["attrs"]["seconds"]
+        rest = g.get("omega_rest_stiffened", g["omega_rest"])
+        _assert_stats(m["drift_from_target_1_per_m"], np.linalg.norm(rest - g["omega_target"], axis=1))
+        _assert_stats(m["rest_curvature_1_per_m"], np.sqrt(rest[:, 0] ** 2 + rest[:, 1] ** 2))
+        if "residual_history" in g:
+            assert m["residual_history"] == g["residual_history"].tolist()
+        if "stiffening" in g:
+            factor = g["stiffening"]
+            assert m["stiffened"] == [{"strand": i, "factor": factor[i]} for i in np.flatnonzero(factor > 1)]
+            assert m["strands_stiffened"] == int((factor > 1).sum())
+        else:
+            assert m["stiffened"] is None and m["strands_stiffened"] is None
+        assert m["unstable_strands"] is None  # not stored in stage files
+    if "frames" in f:
+        r, g = summary["groups"]["frames"], f["frames"]
+        assert r["frames"] == len(g["time"]) and r["seconds"] == g["time"][-1]
+        assert r["fps"] == g["attrs"]["fps"]
+        if "displacement" in g:
+            assert r["largest_displacement_mm"] == pytest.approx(1e3 * g["displacement"].max(), rel=SUMMARY_RTOL)
+            _assert_stats(r["contacts"], g["contact_count"])
+            _assert_stats(r["solver_relative_residual"], g["solver_residual"])
+
+
+@pytest.mark.parametrize("stiffened", [False, True], ids=["material", "stiffened"])
+def test_json_summary_of_the_hand_made_file(tmp_path, stiffened):
+
+    make_stage(tmp_path / "syn.h5", stiffened=stiffened)
+    report = export(tmp_path / "syn.h5", tmp_path / "syn.json")
+    assert report.lines[0].startswith(f"wrote {tmp_path / 'syn.json'}: JSON summary (schema 1)")
+    summary = json.loads((tmp_path / "syn.json").read_text())
+    _assert_summary(summary, tmp_path / "syn.h5")
+    assert summary["groups"]["contacts"]["by_kind"]["hair_hair"]["declared"] == 1
+    if stiffened:
+        assert summary["groups"]["model"]["stiffened"] == [{"strand": 1, "factor": 2.0}]
+        assert any("1 strand was stiffened" in w for w in summary["warnings"])
+
+
+def test_json_summary_of_a_fitted_file_has_every_key(tmp_path):
+    """The keys are the same whatever the file holds: a group the file lacks is null."""
+
+    make_stage(tmp_path / "full.h5", frames=True)
+    make_stage(tmp_path / "fit.h5", model=False, frames=False)
+    export(tmp_path / "full.h5", tmp_path / "full.json")
+    export(tmp_path / "fit.h5", tmp_path / "fit.json")
+    full, fit = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("full", "fit"))
+    assert list(full) == list(fit)
+    assert [k for k, v in fit["groups"].items() if v is None] == ["contacts", "model", "frames"]
+    assert fit["timings_s"] == {"fit": None, "detect": None, "invert": None, "simulate": None}
+    assert list(full["groups"]["helices"]) == list(fit["groups"]["helices"])
+    _assert_summary(fit, tmp_path / "fit.h5")
+
+
+@pytest.mark.parametrize("name", ["curly.h5", "model.h5", "still.h5", "trim.h5"])
+def test_json_summary_of_real_files(real, tmp_path, name):
+
+    result = hairinv(real, "export", name, "-o", tmp_path / "out.json")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads((tmp_path / "out.json").read_text())
+    _assert_summary(summary, real / name)
+    # the same summary as `hairinv info --json`
+    info = hairinv(real, "info", "--json", name)
+    assert info.returncode == 0, info.stderr
+    assert json.loads(info.stdout) == summary
+    if name != "curly.h5":
+        rules = summary["groups"]["contacts"]["by_kind"]["hair_body"]["by_rule"]
+        assert rules["layer"] > 0 and rules["distance"] > 0  # the sample groom has a hair layer

@@ -35,25 +35,34 @@ class Exporter:
     name : str, e.g. ``"USD"``
     suffixes : tuple of str, lower case with the dot
     write : callable(source, path, shape, report)
-    default_shape : str, the ``--shape`` used when none is given
+    default_shape : str, the ``--shape`` used when none is given; None: the output takes no ``--shape`` (a
+        summary or a picture of the whole file)
     several_shapes : bool, whether one file carries several shapes (``--shape all``)
+    options : tuple of str, the further options the writer takes as keywords (``color``)
+    owns : callable(path) -> bool, or None
+        Whether an existing file at the output path is one this writer wrote (or of its kind), so that it
+        may be replaced; None: a hairstyle file hairinv reads.
     """
 
     name: str
     suffixes: tuple[str, ...]
     write: Callable
-    default_shape: str
+    default_shape: str | None
     several_shapes: bool = False
+    options: tuple[str, ...] = ()
+    owns: Callable | None = None
 
 
 EXPORTERS: dict[str, Exporter] = {}
 
 
-def register_exporter(*suffixes: str, name: str, default_shape: str = "input", several_shapes: bool = False):
-    """Register ``fn(source, path, shape, report)`` as the writer of files with these suffixes."""
+def register_exporter(*suffixes: str, name: str, default_shape: str | None = "input", several_shapes: bool = False,
+                      options: tuple[str, ...] = (), owns: Callable | None = None):
+    """Register ``fn(source, path, shape, report, **options)`` as the writer of files with these suffixes."""
 
     def decorate(fn):
-        exporter = Exporter(name, tuple(s.lower() for s in suffixes), fn, default_shape, several_shapes)
+        exporter = Exporter(name, tuple(s.lower() for s in suffixes), fn, default_shape, several_shapes, options,
+                            owns)
         for suffix in exporter.suffixes:
             EXPORTERS[suffix] = exporter
         return fn
@@ -73,13 +82,14 @@ def exporter_for(path) -> Exporter:
     return exporter
 
 
-def check_export_path(out, inputs=()) -> Path:
+def check_export_path(out, inputs=(), exporter: Exporter | None = None) -> Path:
     """Refuse an output path that would destroy something the user gave us.
 
     Refused: a folder, a missing folder, one of ``inputs`` (the stage file and the files it was made from),
-    and an existing file that hairinv does not read as a hairstyle of the output's kind (a body mesh, a USD
-    scene without curves, a file of another kind under that suffix). An existing hairstyle file is replaced
-    (atomically, when the export succeeds), as a Makefile rerun expects.
+    and an existing file that is not of the output's kind: for the groom formats one that hairinv does not
+    read as a hairstyle (a body mesh, a USD scene without curves, a file of another kind under that
+    suffix), for the others one that the exporter's ``owns`` does not recognise. An existing file of the
+    output's kind is replaced (atomically, when the export succeeds), as a Makefile rerun expects.
     """
     from .. import formats
 
@@ -92,7 +102,11 @@ def check_export_path(out, inputs=()) -> Path:
         raise InputError("the output path is a folder", out)
     if not out.parent.exists():
         raise InputError("the output folder does not exist", out.parent)
-    if out.exists():
+    if out.exists() and exporter is not None and exporter.owns is not None:
+        if not exporter.owns(out):
+            raise InputError(f"exists and is not a {exporter.name} file hairinv wrote; refusing to overwrite it "
+                             "(remove it or choose another -o)", out)
+    elif out.exists():
         try:
             formats.read_curves(out)
         except InputError:
