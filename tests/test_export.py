@@ -276,6 +276,12 @@ def test_usd_holds_every_shape_in_the_groom_units(tmp_path, stiffened):
     assert force.GetInterpolation() == UsdGeom.Tokens.vertex
     assert np.allclose(force.Get(), truth["contact_force"], rtol=1e-6, atol=0)
     # rest curvature of the element holding each vertex
+    assert np.allclose(_primvar(hair, "groom_rest_curvature").Get(), _expected_rest_curvature(truth, stiffened),
+                       rtol=1e-6)
+
+
+def _expected_rest_curvature(truth, stiffened=False):
+    """Per vertex, the curvature of the rest shape's element holding it, 1/m."""
     rest_omega = OMEGA_REST_STIFFENED if stiffened else OMEGA_REST
     expected = []
     for k, s in enumerate(vertex_arc_lengths(truth["points"], truth["offsets"], ELEMENT_OFFSETS, LENGTH)):
@@ -283,7 +289,7 @@ def test_usd_holds_every_shape_in_the_groom_units(tmp_path, stiffened):
         starts = np.concatenate([[0.0], np.cumsum(LENGTH[a:z])])
         e = np.minimum(np.searchsorted(starts, s, side="right") - 1, z - a - 1) + a
         expected.append(np.hypot(rest_omega[e, 0], rest_omega[e, 1]))
-    assert np.allclose(_primvar(hair, "groom_rest_curvature").Get(), np.concatenate(expected), rtol=1e-6)
+    return np.concatenate(expected)
 
 
 def test_usd_single_shapes(tmp_path):
@@ -597,7 +603,7 @@ def test_the_readme_export_examples_run_as_written(real, tmp_path):
     readme = (SAMPLES.parent / "README.md").read_text()
     section = readme.split("### Exporting for other tools", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
     commands = [line.split() for line in section.strip().splitlines()]
-    assert len(commands) == 4 and all(c[:2] == ["hairinv", "export"] for c in commands)
+    assert len(commands) == 5 and all(c[:2] == ["hairinv", "export"] for c in commands)
     shutil.copyfile(real / "model.h5", tmp_path / "curly.model.h5")
     shutil.copyfile(real / "still.h5", tmp_path / "curly.frames.h5")
     shutil.copyfile(real / "body.obj", tmp_path / "body.obj")
@@ -609,6 +615,10 @@ def test_the_readme_export_examples_run_as_written(real, tmp_path):
         if out.suffix == ".json":
             summary = json.loads(out.read_text())
             assert summary["groups"]["curves"]["strands"] == 40 and summary["groups"]["frames"]["frames"] == 3
+        elif out.suffix == ".png":
+            pixels, text = _png(out)
+            assert pixels.shape[:2] == (1300, 1200) and text["hairinv:quantity"] == "contact-force"
+            assert _body_pixels(pixels) > 0.05 * pixels.shape[0] * pixels.shape[1]
         else:
             assert read_curves(out).n_strands == 40
     stage = _open(tmp_path / "curly.usda")
@@ -755,3 +765,81 @@ def test_json_summary_of_real_files(real, tmp_path, name):
     if name != "curly.h5":
         rules = summary["groups"]["contacts"]["by_kind"]["hair_body"]["by_rule"]
         assert rules["layer"] > 0 and rules["distance"] > 0  # the sample groom has a hair layer
+
+
+# --------------------------------------------------------------------------- PNG
+
+
+def _png(path):
+    """(height, width, channels) of the PNG read back by matplotlib, and its text chunks read by Pillow."""
+    import matplotlib.image
+    from PIL import Image  # a dependency of matplotlib
+
+    pixels = matplotlib.image.imread(path, format="png")
+    with Image.open(path) as image:
+        assert image.format == "PNG"
+        text = dict(image.text)
+    return pixels, text
+
+
+def _body_pixels(pixels) -> int:
+    """Pixels of the light grey the body is drawn in (r = g = b between its two shades)."""
+    rgb = pixels[..., :3]
+    grey = (np.ptp(rgb, axis=-1) < 1e-3) & (rgb[..., 0] >= 0.72 - 1e-3) & (rgb[..., 0] <= 0.9 + 1e-3)
+    return int(grey.sum())
+
+
+@pytest.mark.parametrize("color, unit, expected", [
+    ("contact-force", "mN", lambda truth: 1e3 * truth["contact_force"]),
+    ("rest-curvature", "1/m", lambda truth: _expected_rest_curvature(truth, stiffened=True)),
+    ("stiffening", "x material stiffness", lambda truth: np.array([1.0, 2.0])),
+    ("fit-error", "mm", lambda truth: 1e3 * np.array([3e-5, 4e-5])),  # /helices/fit_error[:, 1] of make_stage
+])
+def test_png_colour_range_is_the_quantity_range(tmp_path, color, unit, expected):
+    truth = make_stage(tmp_path / "syn.h5", stiffened=True)
+    report = export(tmp_path / "syn.h5", tmp_path / "out.png", color=color)
+    pixels, text = _png(tmp_path / "out.png")
+    assert pixels.shape[:2] == (1300, 1200)  # two rows of views: the file has /frames
+    values = expected(truth)
+    assert text["hairinv:quantity"] == color and text["hairinv:unit"] == unit
+    assert float(text["hairinv:min"]) == pytest.approx(values.min(), rel=1e-9, abs=1e-15)
+    assert float(text["hairinv:max"]) == pytest.approx(values.max(), rel=1e-9)
+    assert any(line.startswith("colour: ") and unit in line for line in report.lines)
+    assert _body_pixels(pixels) < 0.01 * pixels.shape[0] * pixels.shape[1]  # no body: only the lines' edges
+
+
+def test_png_defaults_and_size(tmp_path):
+    make_stage(tmp_path / "model.h5", frames=False)
+    make_stage(tmp_path / "fit.h5", model=False, frames=False)
+    for name, default in (("model", "contact-force"), ("fit", "fit-error")):
+        export(tmp_path / f"{name}.h5", tmp_path / f"{name}.png")
+        pixels, text = _png(tmp_path / f"{name}.png")
+        assert pixels.shape[:2] == (700, 1200) and text["hairinv:quantity"] == default
+
+
+def test_png_of_a_real_simulation(real, tmp_path):
+    result = hairinv(real, "export", "still.h5", "-o", tmp_path / "still.png", "--color", "fit-error")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == "" and "body: body.obj" in result.stdout
+    pixels, text = _png(tmp_path / "still.png")
+    assert pixels.shape[:2] == (1300, 1200)
+    error = 1e3 * _h5(real / "still.h5")["helices"]["fit_error"][:, 1]
+    assert float(text["hairinv:min"]) == pytest.approx(error.min(), rel=1e-12)
+    assert float(text["hairinv:max"]) == pytest.approx(error.max(), rel=1e-12)
+    assert _body_pixels(pixels) > 0.05 * pixels.shape[0] * pixels.shape[1]  # the bust, drawn behind the hair
+
+
+@pytest.mark.parametrize("args, name, fragment", [
+    (["model.h5", "-o", "out.png", "--color", "curliness"], "out.png", "--color takes contact-force"),
+    (["curly.h5", "-o", "out.png", "--color", "contact-force"], "curly.h5", "no /model group"),
+    (["fit.h5", "-o", "out.png", "--color", "stiffening"], "fit.h5", "no stiffening factors"),
+    (["model.h5", "-o", "notes.png"], "notes.png", "refusing to overwrite"),
+    (["model.h5", "-o", "out.png", "--shape", "rest"], "out.png", "--shape does not apply"),
+], ids=["unknown quantity", "force of a fitted file", "stiffening of a fitted file", "over a text file",
+        "shape of a picture"])
+def test_bad_png_input_exits_2_and_writes_nothing(real, tmp_path, args, name, fragment):
+    _bad(real, tmp_path)
+    shutil.copyfile(real / "curly.h5", tmp_path / "curly.h5")
+    make_stage(tmp_path / "fit.h5", model=False, frames=False)
+    (tmp_path / "notes.png").write_text("precious\n")
+    assert_refused(tmp_path, ["export", *args], name, fragment)
