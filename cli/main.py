@@ -628,25 +628,25 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
 @click.argument("stage_file", type=click.Path(path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), required=True,
               help="Output file; its suffix chooses the format: .usda .usdc .usd (USD), .hair, .data, .obj, "
-                   ".json (summary), .png (picture).")
+                   ".json (summary), .png (picture), .html (report).")
 @click.option("--shape", default=None, metavar="input|rest|frame:N|all",
               help="What to write: the input shape, the rest shape (needs /model), frame N of /frames (from 0), "
                    "or all the file holds (USD only) [default: all for USD, input for the others].")
 @click.option("--color", "color", default=None, metavar="contact-force|rest-curvature|stiffening|fit-error",
-              help="PNG: the quantity the strands are coloured by [default: contact-force for a model, "
+              help="PNG, HTML: the quantity the strands are coloured by [default: contact-force for a model, "
                    "fit-error for a fitted file].")
 @click.pass_obj
 @handle_errors
 def export(obj, stage_file, output, shape, color):
     """Write STAGE_FILE for other tools and for people: its groom as USD, Yuksel .hair, USC .data or OBJ
-    polylines, its summary as JSON, or a picture as PNG.
+    polylines, its summary as JSON, a picture as PNG, or both in one HTML report.
 
     USD holds every shape the file carries: the input curves with their rest shape (a second prim and a
     `rest` primvar), the simulated frames as time samples, Unreal groom primvars and hairinv's per-strand
     and per-vertex quantities, and the body mesh if it is still where it was. The polyline formats hold
     one shape, in metres, with the format's up axis. JSON summarises every stage (what `hairinv info
     --json` prints); PNG shows the groom from the front and the side over the body, coloured by a
-    quantity. docs/export.md says what each file holds.
+    quantity; HTML holds both, readable offline. docs/export.md says what each file holds.
     """
     from hairinv.export import export as run_export
 

@@ -603,7 +603,7 @@ def test_the_readme_export_examples_run_as_written(real, tmp_path):
     readme = (SAMPLES.parent / "README.md").read_text()
     section = readme.split("### Exporting for other tools", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
     commands = [line.split() for line in section.strip().splitlines()]
-    assert len(commands) == 5 and all(c[:2] == ["hairinv", "export"] for c in commands)
+    assert len(commands) == 6 and all(c[:2] == ["hairinv", "export"] for c in commands)
     shutil.copyfile(real / "model.h5", tmp_path / "curly.model.h5")
     shutil.copyfile(real / "still.h5", tmp_path / "curly.frames.h5")
     shutil.copyfile(real / "body.obj", tmp_path / "body.obj")
@@ -619,6 +619,9 @@ def test_the_readme_export_examples_run_as_written(real, tmp_path):
             pixels, text = _png(out)
             assert pixels.shape[:2] == (1300, 1200) and text["hairinv:quantity"] == "contact-force"
             assert _body_pixels(pixels) > 0.05 * pixels.shape[0] * pixels.shape[1]
+        elif out.suffix == ".html":
+            _assert_offline(out)
+            assert _inlined_png(out)[0] == (1200, 1300)
         else:
             assert read_curves(out).n_strands == 40
     stage = _open(tmp_path / "curly.usda")
@@ -815,6 +818,8 @@ def test_png_defaults_and_size(tmp_path):
         export(tmp_path / f"{name}.h5", tmp_path / f"{name}.png")
         pixels, text = _png(tmp_path / f"{name}.png")
         assert pixels.shape[:2] == (700, 1200) and text["hairinv:quantity"] == default
+    export(tmp_path / "model.h5", tmp_path / "model.png", color="rest-curvature")  # a PNG is replaced
+    assert _png(tmp_path / "model.png")[1]["hairinv:quantity"] == "rest-curvature"
 
 
 def test_png_of_a_real_simulation(real, tmp_path):
@@ -843,3 +848,106 @@ def test_bad_png_input_exits_2_and_writes_nothing(real, tmp_path, args, name, fr
     make_stage(tmp_path / "fit.h5", model=False, frames=False)
     (tmp_path / "notes.png").write_text("precious\n")
     assert_refused(tmp_path, ["export", *args], name, fragment)
+
+
+# --------------------------------------------------------------------------- HTML report
+
+
+def _html(path):
+    """Every tag's attributes and the text of an HTML file, parsed by the standard library."""
+    from html.parser import HTMLParser
+
+    class Parser(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.tags, self.text = [], []
+
+        def handle_starttag(self, tag, attrs):
+            self.tags.append((tag, dict(attrs)))
+
+        def handle_data(self, data):
+            self.text.append(data)
+
+    parser = Parser()
+    parser.feed(path.read_text(encoding="utf-8"))
+    parser.close()
+    return parser.tags, " ".join(parser.text)
+
+
+def _assert_offline(path):
+    """No attribute points outside the file (only data: URLs), and nothing names a remote address."""
+    tags, _ = _html(path)
+    for tag, attrs in tags:
+        for name in ("src", "href", "srcset", "action", "data", "poster"):
+            if name in attrs:
+                assert attrs[name].startswith("data:") or attrs[name].startswith("#"), (tag, attrs)
+        assert tag not in ("script", "link", "iframe", "object", "embed"), tag
+    raw = path.read_text(encoding="utf-8")
+    assert "http:" not in raw and "https:" not in raw and "url(" not in raw and "@import" not in raw
+
+
+def _inlined_png(path):
+    import base64
+    import io
+
+    from PIL import Image
+
+    images = [attrs["src"] for tag, attrs in _html(path)[0] if tag == "img"]
+    assert len(images) == 1 and images[0].startswith("data:image/png;base64,")
+    data = base64.b64decode(images[0].split(",", 1)[1], validate=True)
+    with Image.open(io.BytesIO(data)) as image:
+        image.load()  # decodes every pixel
+        return image.size, dict(image.text)
+
+
+def test_html_report_of_a_real_simulation(real, tmp_path):
+    result = hairinv(real, "export", "still.h5", "-o", tmp_path / "still.html", "--color", "rest-curvature")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    out = tmp_path / "still.html"
+    _assert_offline(out)
+    size, text = _inlined_png(out)
+    assert size == (1200, 1300) and text["hairinv:quantity"] == "rest-curvature"
+    # the tables hold the JSON summary: every group, and its figures
+    summary = json.loads(hairinv(real, "info", "--json", "still.h5").stdout)
+    _, words = _html(out)
+    for name in ("curves", "helices", "contacts", "model", "frames"):
+        assert f"/{name}" in words
+    f = _h5(real / "still.h5")
+    assert summary["sha256"] in words and f["attrs"]["producer"] in words
+    assert f"{len(f['contacts']['mu'])}" in words and f"{len(f['frames']['time'])}" in words
+
+
+def test_html_report_of_the_hand_made_file(tmp_path):
+    make_stage(tmp_path / "syn.h5", stiffened=True)
+    report = export(tmp_path / "syn.h5", tmp_path / "syn.html")
+    assert report.lines[0].startswith(f"wrote {tmp_path / 'syn.html'}: HTML report")
+    _assert_offline(tmp_path / "syn.html")
+    size, text = _inlined_png(tmp_path / "syn.html")
+    assert size == (1200, 1300) and text["hairinv:quantity"] == "contact-force"
+    _, words = _html(tmp_path / "syn.html")
+    assert "1 strand was stiffened" in words  # the summary's warning
+    export(tmp_path / "syn.h5", tmp_path / "syn.html", color="fit-error")  # a report it wrote is replaced
+    assert _inlined_png(tmp_path / "syn.html")[1]["hairinv:quantity"] == "fit-error"
+
+
+@pytest.mark.parametrize("args, name, fragment", [
+    (["model.h5", "-o", "notes.html"], "notes.html", "refusing to overwrite"),
+    (["model.h5", "-o", "out.html", "--shape", "input"], "out.html", "--shape does not apply"),
+    (["model.h5", "-o", "out.html", "--color", "heat"], "out.html", "--color takes"),
+], ids=["over another page", "shape of a report", "unknown quantity"])
+def test_bad_html_input_exits_2_and_writes_nothing(real, tmp_path, args, name, fragment):
+    _bad(real, tmp_path)
+    (tmp_path / "notes.html").write_text("<html><body>precious</body></html>\n")
+    assert_refused(tmp_path, ["export", *args], name, fragment)
+
+
+def test_a_changed_body_is_left_out_of_the_picture_with_a_warning(real, tmp_path):
+    shutil.copyfile(real / "model.h5", tmp_path / "model.h5")
+    (tmp_path / "body.obj").write_bytes((real / "body.obj").read_bytes() + b"# changed\n")
+    result = hairinv(tmp_path, "export", "model.h5", "-o", "out.png")
+    assert result.returncode == 0, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "warning" in lines[0] and "SHA-256" in lines[0] and "picture has no body" in lines[0]
+    pixels, _ = _png(tmp_path / "out.png")
+    assert _body_pixels(pixels) < 0.01 * pixels.shape[0] * pixels.shape[1]

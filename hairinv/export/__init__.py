@@ -12,7 +12,7 @@ from pathlib import Path
 from ..errors import InputError
 
 # Each module of an output kind registers its writer when imported.
-from . import data, hair, obj, picture, summary, usd  # noqa: F401
+from . import data, hair, obj, page, picture, summary, usd  # noqa: F401
 from .base import EXPORTERS, ExportReport, check_export_path, exporter_for
 from .source import ExportSource, Shape, parse_shape
 

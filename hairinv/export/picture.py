@@ -20,12 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..atomic import atomic_path
+from ..atomic import write_bytes
 from ..errors import InputError
 from .base import register_exporter
 from .source import ExportSource, OutputAxes
 
-__all__ = ["COLORS", "Coloring", "coloring", "default_color", "draw", "png_size"]
+__all__ = ["COLORS", "Coloring", "Picture", "coloring", "default_color", "draw", "picture", "png_size"]
 
 # Figure layout: inches at DPI, so the PNG is WIDTH_IN * DPI pixels wide and ROW_IN * DPI per row of views
 # (plus the title band); fixed, not cropped to the drawing, so every picture of one kind has one size.
@@ -258,7 +258,7 @@ def _owns(path: Path) -> bool:
         return False
 
 
-def png_bytes_metadata(paint: Coloring | None, source: ExportSource) -> dict:
+def _metadata(paint: Coloring | None, source: ExportSource) -> dict:
     meta = {"Title": f"{source.name}", "Software": f"hairinv {__version__}", "Source": source.name}
     if paint is not None:
         meta.update({"hairinv:quantity": paint.name, "hairinv:unit": paint.quantity.unit,
@@ -266,12 +266,38 @@ def png_bytes_metadata(paint: Coloring | None, source: ExportSource) -> dict:
     return meta
 
 
+@dataclass
+class Picture:
+    """A drawn picture: the PNG's bytes, what it is coloured by, its size and what to tell the user."""
+
+    png: bytes
+    coloring: Coloring | None
+    size: tuple[int, int]
+    lines: list[str]
+    warnings: list[str]
+
+
+def picture(source: ExportSource, color: str | None, output: Path) -> Picture:
+    """Draw the picture of ``source`` (see the module docstring) into PNG bytes."""
+    import io
+
+    fig, paint, rows, lines = draw(source, color, Path(output))
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=DPI, metadata=_metadata(paint, source))
+    warnings = []
+    if lines and lines[0].startswith("no body drawn") and "records no body" not in lines[0]:
+        # the file names a body that is gone or changed: say so as USD does
+        warnings.append(f"warning: {source.name}: {lines.pop(0).removeprefix('no body drawn: ')}; the picture "
+                        "has no body")
+    return Picture(buffer.getvalue(), paint, png_size(rows), lines, warnings)
+
+
 @register_exporter(".png", name="PNG", default_shape=None, options=("color",), owns=_owns)
 def export_png(source, path, shape, report, color: str | None = None) -> None:
-    fig, paint, rows, lines = draw(source, color, Path(path))
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, format="png", dpi=DPI, metadata=png_bytes_metadata(paint, source))
-    width, height = png_size(rows)
+    drawn = picture(source, color, Path(path))
+    write_bytes(path, drawn.png)
+    width, height = drawn.size
     report.lines.append(f"wrote {path}: PNG, {width} x {height} px, front and side views"
-                        + (", before/after" if rows == 2 else ""))
-    report.lines += lines
+                        + (", before/after" if height > png_size(1)[1] else ""))
+    report.lines += drawn.lines
+    report.warnings += drawn.warnings
