@@ -680,5 +680,23 @@ def info(obj, file, as_json):
         say(line)
 
 
+def _late_global(name: str):
+    """``-q`` and ``--no-progress`` after the subcommand too (``hairinv invert ... -q`` is what people type)."""
+    def callback(ctx, _param, value):
+        if value:
+            ctx.ensure_object(dict)
+            ctx.obj["progress"] = False
+            if name == "quiet":
+                ctx.obj["quiet"] = True
+    return callback
+
+
+for _command in main.commands.values():
+    _command.params.append(click.Option(["-q", "--quiet"], is_flag=True, expose_value=False,
+                                        callback=_late_global("quiet"), help="Print only errors."))
+    _command.params.append(click.Option(["--no-progress"], is_flag=True, expose_value=False,
+                                        callback=_late_global("progress"), help="Never draw progress bars."))
+
+
 if __name__ == "__main__":
     main()

@@ -381,3 +381,16 @@ def test_write_stage_replaces_atomically_when_it_succeeds(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["out.h5"]
     stage = stages.read_stage(out)
     assert stage.producer.endswith(" fit") and len(stage["curves"]["points"]) == 4
+
+
+def test_quiet_and_no_progress_after_the_subcommand(tmp_path):
+    """``hairinv export ... -q`` (where people type it) is ``hairinv -q export ...``: nothing on stdout, the
+    same file; without it the command says what it wrote."""
+    loud = hairinv(tmp_path, "export", SAMPLES / "wavy.h5", "-o", "loud.obj")
+    assert loud.returncode == 0 and "wrote loud.obj" in loud.stdout
+    after = hairinv(tmp_path, "export", SAMPLES / "wavy.h5", "-o", "after.obj", "-q", "--no-progress")
+    before = hairinv(tmp_path, "-q", "--no-progress", "export", SAMPLES / "wavy.h5", "-o", "before.obj")
+    for result in (after, before):
+        assert result.returncode == 0 and result.stdout == "" and result.stderr == ""
+    assert (tmp_path / "after.obj").read_bytes() == (tmp_path / "before.obj").read_bytes()
+    assert "--quiet" in hairinv(tmp_path, "invert", "--help").stdout
