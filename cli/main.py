@@ -11,6 +11,7 @@ import functools
 import json
 import os
 import sys
+import time
 from pathlib import Path
 
 import click
@@ -64,19 +65,43 @@ def handle_errors(fn):
     return wrapper
 
 
+#: s between two plain progress lines when stderr is not a terminal (a farm's or CI's log);
+#: ``HAIRINV_PROGRESS_SECONDS`` overrides it (0: a line at every update)
+PLAIN_PROGRESS_SECONDS = 5.0
+
+
 class Progress:
-    """A tqdm bar on stderr when it is a terminal; silent otherwise."""
+    """A tqdm bar on stderr when it is a terminal; otherwise a plain line at most every
+    :data:`PLAIN_PROGRESS_SECONDS`, ``stage: N of M units (P %)``, flushed, for software that parses logs."""
 
     def __init__(self, total: int, desc: str, enabled: bool, unit: str = "strand"):
         self.bar = None
+        self.plain = False
+        self.total, self.desc, self.unit, self.n, self.extra = int(total), desc, unit, 0, ""
         if enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
             self.bar = tqdm(total=total, desc=desc, unit=unit, leave=False, file=sys.stderr)
+        elif enabled:
+            self.plain = True
+            try:
+                self.every = max(0.0, float(os.environ.get("HAIRINV_PROGRESS_SECONDS", PLAIN_PROGRESS_SECONDS)))
+            except ValueError:
+                self.every = PLAIN_PROGRESS_SECONDS
+            self.last = time.monotonic()
 
     def __call__(self, n: int = 1) -> None:
         if self.bar is not None:
             self.bar.update(n)
+        self._advance(self.n + n)
+
+    def _advance(self, n: int) -> None:
+        self.n = n
+        if self.plain and time.monotonic() - self.last >= self.every:
+            self.last = time.monotonic()
+            share = f" ({100.0 * self.n / self.total:.0f} %)" if self.total > 0 else ""
+            print(f"{self.desc}: {self.n} of {self.total} {self.unit}s{share}{self.extra}", file=sys.stderr,
+                  flush=True)
 
     def close(self) -> None:
         if self.bar is not None:
@@ -221,6 +246,8 @@ class SolverProgress(Progress):
         if self.bar is not None:
             self.bar.update(sweeps - self.bar.n)
             self.bar.set_postfix_str(f"residual {relative:.1e}")
+        self.extra = f", residual {relative:.1e}"
+        self._advance(sweeps)
 
 
 def _contact_extra(body_distance, hair_distance, mu, no_hair_hair) -> dict:

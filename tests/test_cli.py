@@ -394,3 +394,24 @@ def test_quiet_and_no_progress_after_the_subcommand(tmp_path):
         assert result.returncode == 0 and result.stdout == "" and result.stderr == ""
     assert (tmp_path / "after.obj").read_bytes() == (tmp_path / "before.obj").read_bytes()
     assert "--quiet" in hairinv(tmp_path, "invert", "--help").stdout
+
+
+def test_plain_progress_lines_when_stderr_is_not_a_terminal(tmp_path):
+    """A farm's log has no terminal: progress comes as plain, parseable lines on stderr
+    (``stage: N of M units (P %)``), at most one per HAIRINV_PROGRESS_SECONDS; -q silences them."""
+    import re
+
+    env = {**ENV, "HAIRINV_PROGRESS_SECONDS": "0"}
+    args = [sys.executable, "-m", "hairinv_cli.main", "invert", str(SAMPLES / "wavy.h5"), str(SAMPLES / "body.obj"),
+            "--guides", "6", "-o"]
+    run = subprocess.run(args + ["every.model.h5"], cwd=tmp_path, capture_output=True, text=True, env=env,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr
+    lines = re.findall(r"^(\w+): (\d+) of (\d+) (\w+)s \((\d+) %\)", run.stderr, flags=re.M)
+    stages_seen = {stage for stage, *_ in lines}
+    assert {"fit", "invert"} <= stages_seen, run.stderr
+    for stage, n, total, _unit, share in lines:
+        assert int(n) <= int(total) and int(share) == round(100 * int(n) / int(total))
+    quiet = subprocess.run(args + ["quiet.model.h5", "-q"], cwd=tmp_path, capture_output=True, text=True, env=env,
+                           timeout=600)
+    assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == ""
