@@ -73,6 +73,48 @@ def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refit
     return None
 
 
+#: m: roots farther than this from the body (median over the strands) are reported, with what it suggests
+ROOTS_FAR = 0.02
+
+
+def root_distance_lines(roots: np.ndarray, mesh, body, scale: float = 1.0) -> list[str]:
+    """A warning when the strands' roots do not lie on or near the body (checked before the fit).
+
+    Roots grow from the scalp: a median root more than :data:`ROOTS_FAR` from the mesh means the two files
+    do not meet, most often because they are in different units (a groom in centimetres on a head in metres
+    reads a hundred times too large), and then no body contact is found. Each usual factor between units
+    is tried on the hair (the roots scaled about the origin, as a change of unit does); one that puts the
+    roots on the body is named (``scale``: the hair's metres per file unit, which the body is read in too)."""
+    if len(roots) == 0 or len(mesh.faces) == 0:
+        return []
+    from .contacts.body import BodyMesh
+
+    body_mesh = BodyMesh.from_mesh(mesh)
+    roots = np.ascontiguousarray(roots, dtype=np.float64)
+
+    def median_distance(points: np.ndarray) -> tuple[float, float]:
+        distance = np.abs(body_mesh.closest(points)[0])  # signed: negative inside the body
+        return float(np.median(distance)), float(distance.min())
+
+    median, nearest = median_distance(roots)
+    if not median > ROOTS_FAR:
+        return []
+    name = getattr(body, "name", str(body))
+    line = (f"warning: the strands' roots lie {1e3 * median:.4g} mm from the body {name} (median over "
+            f"{len(roots)} strands; nearest {1e3 * nearest:.4g} mm), so few or no body contacts will be found")
+    best = None
+    for factor in (1000.0, 100.0, 25.4, 10.0, 2.54, 1 / 2.54, 0.1, 1 / 25.4, 0.01, 0.001):
+        moved, _ = median_distance(roots * factor)
+        if moved <= ROOTS_FAR and (best is None or moved < best[1]):
+            best = (factor, moved)
+    if best is not None:
+        factor, moved = best
+        return [line + f"; the hair {factor:.4g} times larger would put them {1e3 * moved:.3g} mm from it: the two "
+                       f"files are likely in different units (the body is read in the hair's unit, "
+                       f"{scale:.6g} m per file unit; bring both files to one unit)"]
+    return [line + "; check that the groom and the body share their units, up axis and placement"]
+
+
 def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Scene:
     """Read ``style`` (raw curves or a stage file) and ``body`` and bring them to the contact stage.
 
@@ -131,6 +173,10 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         helices = None
         stored_contacts = stored_model = None
     refitted = helices is None
+    mesh = load_body(body, scale, flip, native) if body is not None else None
+    if mesh is not None:
+        roots = groom.points[groom.offsets[:-1]] if helices is None else helices.root
+        lines += root_distance_lines(roots, mesh, body, groom.scale_to_m if groom is not None else scale)
     if helices is None:
         bar = progress("fit", groom.n_strands) if progress else None
         try:
@@ -140,7 +186,6 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
                 bar.close()
         lines += fit_report.lines()
         groups[stages.HELICES] = helices.group(settings.fit, inputs[:1])
-    mesh = load_body(body, scale, flip, native) if body is not None else None
     scene = Scene(groups, helices, up, None, mesh, inputs, lines)
     if not contacts:
         return scene
