@@ -20,6 +20,7 @@ import numpy as np
 from . import formats, stages
 from .config import ImportSettings, Settings
 from .contacts import Contacts, detect_contacts
+from .contacts.body import BodyMesh
 from .errors import InputError
 from .fit import Helices, fit_groom
 from .groom import load_body, load_groom
@@ -77,7 +78,7 @@ def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refit
 ROOTS_FAR = 0.02
 
 
-def root_distance_lines(roots: np.ndarray, mesh, body, scale: float = 1.0) -> list[str]:
+def root_distance_lines(roots: np.ndarray, body_mesh, body, scale: float = 1.0) -> list[str]:
     """A warning when the strands' roots do not lie on or near the body (checked before the fit).
 
     Roots grow from the scalp: a median root more than :data:`ROOTS_FAR` from the mesh means the two files
@@ -85,11 +86,8 @@ def root_distance_lines(roots: np.ndarray, mesh, body, scale: float = 1.0) -> li
     reads a hundred times too large), and then no body contact is found. Each usual factor between units
     is tried on the hair (the roots scaled about the origin, as a change of unit does); one that puts the
     roots on the body is named (``scale``: the hair's metres per file unit, which the body is read in too)."""
-    if len(roots) == 0 or len(mesh.faces) == 0:
+    if len(roots) == 0 or len(body_mesh.face_index) == 0:
         return []
-    from .contacts.body import BodyMesh
-
-    body_mesh = BodyMesh.from_mesh(mesh)
     roots = np.ascontiguousarray(roots, dtype=np.float64)
 
     def median_distance(points: np.ndarray) -> tuple[float, float]:
@@ -174,9 +172,11 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         stored_contacts = stored_model = None
     refitted = helices is None
     mesh = load_body(body, scale, flip, native) if body is not None else None
-    if mesh is not None:
+    # built once: the roots' check here and the body contacts below
+    body_mesh = BodyMesh.from_mesh(mesh) if mesh is not None else None
+    if body_mesh is not None:
         roots = groom.points[groom.offsets[:-1]] if helices is None else helices.root
-        lines += root_distance_lines(roots, mesh, body, groom.scale_to_m if groom is not None else scale)
+        lines += root_distance_lines(roots, body_mesh, body, groom.scale_to_m if groom is not None else scale)
     if helices is None:
         bar = progress("fit", groom.n_strands) if progress else None
         try:
@@ -204,7 +204,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         lines.append(f"the contacts in {style.name} {stale}; detecting them again")
     if mesh is None and settings.contacts.body:
         lines.append("no body given: only hair-hair contacts are declared")
-    found, detect_report = detect_contacts(helices, mesh, settings.contacts, up=up)
+    found, detect_report = detect_contacts(helices, body_mesh, settings.contacts, up=up)
     lines += detect_report.lines()
     scene.contacts = found
     groups[stages.CONTACTS] = found.group(settings.contacts, inputs)
