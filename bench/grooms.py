@@ -353,6 +353,16 @@ def scalp_roots(body, count, rng):
     return farthest_points(cand, count, rng)
 
 
+def _scalp_start(body, n_strands, seed, length):
+    """What the draped and inside grooms start from: the body (the mannequin if None), the seeded
+    generator, roots over the scalp, their comb directions and the strands' lengths (drawn in this order)."""
+    body = body or mannequin()
+    rng = np.random.default_rng(seed)
+    roots = scalp_roots(body, n_strands, rng)
+    _, n0 = body.query(roots)
+    return body, rng, roots, comb_direction(roots, n0), rng.uniform(*length, n_strands)
+
+
 def comb_direction(roots, normal):
     """Away from a centre parting, toward the back (tangent to the scalp)."""
     u = np.stack([roots[:, 0] / 0.079, (roots[:, 1] - HEAD_C) / 0.12, roots[:, 2] / 0.095], axis=1)
@@ -496,12 +506,7 @@ def draped(gap, curl_radius=0.0, spacing=0.004, n_strands=300, seed=1, length=(0
     -------
     points : (P, 3) float64, offsets : (S + 1,) int64
     """
-    body = body or mannequin()
-    rng = np.random.default_rng(seed)
-    roots = scalp_roots(body, n_strands, rng)
-    _, n0 = body.query(roots)
-    comb = comb_direction(roots, n0)
-    lengths = rng.uniform(*length, n_strands)
+    body, rng, roots, comb, lengths = _scalp_start(body, n_strands, seed, length)
     gaps = gap + rng.uniform(-jitter, jitter, n_strands)
     curly = curl_radius > 0
     coil_ramp = 0.02
@@ -835,12 +840,7 @@ def inside(n_strands=1500, points_per_strand=20, inside_fraction=0.20, depth=0.0
     of the points end inside the mesh, 0 to ``depth`` deep. The field fades
     out 4-12 mm from the body, so hanging tips are not moved.
     """
-    body = body or mannequin()
-    rng = np.random.default_rng(seed)
-    roots = scalp_roots(body, n_strands, rng)
-    _, n0 = body.query(roots)
-    comb = comb_direction(roots, n0)
-    lengths = rng.uniform(*length, n_strands)
+    body, rng, roots, comb, lengths = _scalp_start(body, n_strands, seed, length)
     gaps = rng.uniform(*layer, n_strands)
     steps = int(np.ceil((lengths.max() + 0.005) / DS))
     paths = drape_paths(body, roots, comb, lambda k: gaps, steps)
