@@ -159,6 +159,12 @@ class SolverSettings:
     (multiply its bending and twist stiffness by the smallest factor that makes it stable, times
     stiffen_margin, and invert it with that stiffness) or off (keep the material and only report it).
     A strand the contacts cannot hold would otherwise fall away as soon as a simulation starts."""
+    stable_under: str = "forces"
+    """What the stability check (and so stabilize) holds: forces (the contact forces held fixed, every
+    motion allowed: what a simulation at rest needs, since its contact solve answers only past its
+    tolerance) or supports (the loaded contact points held in place, and strands leaning on each other
+    checked together: the weaker condition, fewer strands stiffened, but a still simulation lets some
+    of them grow from round-off; docs/dynamics.md, Stability)."""
     stiffen_margin: float = 1.2
     """The stiffening factor is this times the critical one (at which the strand's equilibrium is
     neutral): the smallest eigenvalue of the scaled Hessian is then 1 - 1/margin = 0.17 of the

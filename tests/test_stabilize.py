@@ -48,7 +48,8 @@ def test_a_standing_column_is_stiffened_to_greenhills_critical_factor(height):
     assert critical > 1.5  # past the critical height: it needs stiffening
     margin = SolverSettings().stiffen_margin
     assert model.stiffening[0] / margin == pytest.approx(critical, rel=DISCRETIZATION)
-    assert report.unstable == 0 and report.stiffened_rounds == 1
+    # held fixed, the forces (none here) are kept: the factor is final without solving again
+    assert report.unstable == 0 and report.stiffened_rounds == 0
     # the column needs nothing else, so the gravity-only figure is the same strand's factor
     assert report.gravity_only_factor == pytest.approx(model.stiffening[0] / margin, rel=1e-9)
 
@@ -85,12 +86,31 @@ def test_a_held_tip_pushed_along_the_strand_buckles_at_eulers_load(ratio, unstab
     force = np.array([[P, 0.0, 0.0]])
     carrying = np.array([True])
     stiff = stiffness(helices, mat)
-    supported, free, held = stability_margins(helices, mat, stiff, rows, contacts, carrying, force)
+    supported, free, held, _ = stability_margins(helices, mat, stiff, rows, contacts, carrying, force)
     assert free[0] > 0  # hanging, it is stable by itself
     assert (supported[0] < 0) == unstable and (held[0] < 0) == unstable
     # without the reaction's share the held tip looks stable whatever the push
-    supported, _, _ = stability_margins(helices, mat, stiff, rows, contacts, carrying)
+    supported, _, _, _ = stability_margins(helices, mat, stiff, rows, contacts, carrying)
     assert supported[0] > 0
+
+
+@pytest.mark.parametrize("ratio, unstable", [(0.9, False), (1.1, True)])
+def test_a_dead_load_on_the_tip_buckles_at_eulers_clamped_free_load(ratio, unstable):
+    """The same strand with its tip pushed by a force held fixed (the point free to move): a column
+    clamped at the root and free at the tip under a dead end load, which buckles at
+    P = pi^2 EI / (4 L^2), eight times below the pinned tip's load. This is the margin of the contact
+    forces held fixed (solver.stable_under = forces)."""
+    mat = material(density=1.0)
+    L = 0.1
+    helices = column(L, up=False)
+    contacts = make_contacts(helices, [(0, L, -1, 0.0, UP, 0.3)])
+    P = ratio * np.pi ** 2 / 4.0 * mat.bending / L ** 2
+    rows = contact_rows(helices, contacts)
+    force = np.array([[P, 0.0, 0.0]])
+    supported, free, _, fixed = stability_margins(helices, mat, stiffness(helices, mat), rows, contacts,
+                                                  np.array([True]), force)
+    assert free[0] > 0 and supported[0] > 0  # pinned, the tip holds far more
+    assert (fixed[0] < 0) == unstable
 
 
 def upright_scene():
