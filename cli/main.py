@@ -324,8 +324,9 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
               help="Rest shape the inversion draws towards [solver.target, default actual: the input shape].")
 @click.option("--gamma", type=float, default=None, help="Weight of the contact forces, N^-2 m^-2 [solver.gamma].")
 @click.option("--stabilize", type=click.Choice(["stiffen", "off"]), default=None,
-              help="Strands whose equilibrium is unstable: stiffen each just enough to hold (the default), or off: "
-                   "keep the material and only report them [solver.stabilize].")
+              help="Strands whose equilibrium is unstable under their contact forces held fixed: stiffen each just "
+                   "enough to hold (the default), or off: keep the material and only report them "
+                   "[solver.stabilize; --set solver.stable_under=supports checks with the contact points held].")
 @import_options
 @contact_options
 @settings_options

@@ -109,6 +109,8 @@ def _model(g: stages.Group) -> dict:
     normal = force[:, 0] if len(force) else np.zeros(0)
     history = g.datasets.get("residual_history")
     stabilize = g.config.get("solver", {}).get("stabilize")
+    # files written before solver.stable_under existed were checked on their supports
+    under = g.config.get("solver", {}).get("stable_under", None if stabilize is None else "supports")
     factor = np.asarray(g["stiffening"], dtype=np.float64) if "stiffening" in g.datasets else None
     stiffened = None if factor is None else np.flatnonzero(factor > 1.0)
     return {
@@ -128,6 +130,7 @@ def _model(g: stages.Group) -> dict:
         "radius_m": float(g.attrs.get("radius", 0.0)),
         "gamma": float(g.attrs.get("gamma", 0.0)),
         "stabilize": None if stabilize is None else str(stabilize),
+        "stable_under": None if under is None else str(under),
         "strands_stiffened": None if factor is None else len(stiffened),
         "stiffening_factor": None if factor is None else _stats(factor),
         "stiffened": None if factor is None else [{"strand": int(k), "factor": float(factor[k])} for k in stiffened],
