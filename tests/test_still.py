@@ -19,6 +19,12 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
+from hairinv import stages
+from hairinv.contacts import Contacts
+from hairinv.fit import Helices
+from hairinv.invert import generalized_gravity, stability_margins
+from hairinv.model import material_from_group, rest_from_group, stiffening_from_group, stiffness
+from hairinv.solver.rows import contact_rows
 from test_cli import hairinv
 
 
@@ -31,17 +37,25 @@ def mohawk(tmp_path_factory):
     return folder
 
 
-def verify(folder, model):
-    result = hairinv(folder, "verify", model, "mannequin.obj", "--seconds", "2", "--json")
-    return result.returncode, json.loads(result.stdout)
-
-
-def test_a_mohawk_inverted_with_the_defaults_stays_still_and_without_stiffening_does_not(mohawk):
+@pytest.fixture(scope="module")
+def inverted(mohawk):
+    """The 60-guide mohawk inverted with the defaults (stiffened.h5) and with --stabilize off (off.h5);
+    their printed reports."""
     reports = {}
     for name, extra in (("stiffened.h5", []), ("off.h5", ["--stabilize", "off"])):
         result = hairinv(mohawk, "invert", "mohawk.h5", "mannequin.obj", "--guides", "60", *extra, "-o", name)
         assert result.returncode == 0, result.stderr
         reports[name] = result.stdout
+    return mohawk, reports
+
+
+def verify(folder, model):
+    result = hairinv(folder, "verify", model, "mannequin.obj", "--seconds", "2", "--json")
+    return result.returncode, json.loads(result.stdout)
+
+
+def test_a_mohawk_inverted_with_the_defaults_stays_still_and_without_stiffening_does_not(inverted):
+    mohawk, reports = inverted
     assert "every strand rests in a stable equilibrium" in reports["stiffened.h5"]
     assert "rest in an unstable equilibrium" in reports["off.h5"]
     with h5py.File(mohawk / "stiffened.h5", "r") as fh:
@@ -56,3 +70,32 @@ def test_a_mohawk_inverted_with_the_defaults_stays_still_and_without_stiffening_
     code, moved = verify(mohawk, "off.h5")
     assert code == 1 and moved["verdict"] == "FAIL"
     assert moved["n_moved"] > 0 and moved["stopped_early"]
+
+
+def test_stiffened_strands_hold_under_their_forces_held_fixed_with_the_forces_kept(inverted):
+    """Read back from the files: stiffening under the forces held fixed keeps the inversion's forces
+    (bit for bit those of --stabilize off), the stiffened model is an exact equilibrium with them,
+    K_a (q - q0_a) = F_g + H^T r, and with its factors every strand's Hessian, gravity's and the
+    forces' own share included, is positive on every motion; with the material's own stiffness the
+    strands where it is not are among those stiffened."""
+    mohawk, _ = inverted
+    groups = {name: stages.read_stage(mohawk / name) for name in ("stiffened.h5", "off.h5")}
+    on, off = groups["stiffened.h5"], groups["off.h5"]
+    force = np.asarray(on[stages.MODEL]["force"], dtype=np.float64)
+    assert np.array_equal(force, np.asarray(off[stages.MODEL]["force"]))
+    helices = Helices.from_group(on[stages.HELICES])
+    contacts = Contacts.from_group(on[stages.CONTACTS])
+    mat = material_from_group(on[stages.MODEL])
+    factor = stiffening_from_group(on[stages.MODEL], helices.n_strands)
+    assert factor is not None and np.any(factor > 1.0)
+    rows = contact_rows(helices, contacts)
+    load = generalized_gravity(helices, mat).ravel() + rows.rmatvec(force)
+    K_a = stiffness(helices, mat, factor)
+    q = helices.omega.ravel()
+    residual = K_a * (q - rest_from_group(on[stages.MODEL]).ravel()) - load
+    assert np.abs(residual).max() <= 1e-9 * np.abs(load).max()
+    carrying = force[:, 0] > 0.0
+    fixed = stability_margins(helices, mat, K_a, rows, contacts, carrying, force)[3]
+    assert fixed.min() > 0.0
+    plain = stability_margins(helices, mat, stiffness(helices, mat), rows, contacts, carrying, force)[3]
+    assert np.any(plain < 0.0) and np.all(factor[plain < 0.0] > 1.0)
