@@ -1,0 +1,166 @@
+"""Benchmark: does stiffening freeze a groom? Stiffened strands against the others, moving.
+
+Run alone with ``python bench/stiffening_motion_bench.py`` (prints the
+markdown section), or through ``bench/run.py stiffening``, which writes the
+section "Stiffened strands in motion" of ``docs/benchmarks.md``.
+
+``hairinv invert`` stiffens the strands whose equilibrium would be unstable
+(``/model/stiffening``). Stiffening must keep the groom still with the body
+still, and must not keep it still once the body moves. For each groom below,
+inverted with the default settings, this runs the ``motion`` scene (a head
+turn and nod) through the command line::
+
+    hairinv invert STYLE BODY -o model.h5
+    hairinv simulate model.h5 BODY --scene motion --seconds S -o frames.h5
+
+and compares, in the body's frame, how far each strand's tip moves from where
+it started (its largest distance over the run): the stiffened strands against
+the strands that needed no stiffening and whose lengths lie within the
+stiffened ones' range (tips of longer strands swing further). It reuses the
+models of ``bench/still_bench.py`` (``out/still_bench/``) when they are
+there and were made from the same style file, and inverts the groom
+otherwise.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from common import ROOT, log, machine, machine_markdown, table  # type: ignore
+else:
+    from .common import ROOT, log, machine, machine_markdown, table
+
+sys.path.insert(0, str(ROOT))
+
+from hairinv.rod.helix import points_at  # noqa: E402
+
+TITLE = "Stiffened strands in motion"
+HAIRINV = ROOT / ".venv" / "bin" / "hairinv"
+PYTHON = ROOT / ".venv" / "bin" / "python"
+WORK = ROOT / "out" / "still_bench"
+OUT = ROOT / "out" / "stiffening_motion"
+# (name, style, seconds of the motion scene): the generated kinds with most stiffened strands
+GROOMS = (("mohawk", 1.0), ("draped_gap6", 0.5), ("updo", 0.5))
+
+
+def _tips(off: np.ndarray, length: np.ndarray, root: np.ndarray, frame0: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    tips = np.empty((len(off) - 1, 3))
+    for k in range(len(off) - 1):
+        a, z = off[k], off[k + 1]
+        out = np.empty((1, 3))
+        points_at(root[k], frame0[k], omega[a:z], length[a:z], np.array([length[a:z].sum()]), out)
+        tips[k] = out[0]
+    return tips
+
+
+def tip_travel(frames_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Per strand: the largest distance of its tip from where it started, in the body's frame (m); the
+    stiffening factors; the strand lengths; the seconds simulated."""
+    with h5py.File(frames_path, "r") as f:
+        off = f["helices/offsets"][()]
+        length = f["helices/length"][()]
+        root = f["helices/root"][()]
+        frame0 = f["helices/frame0"][()]
+        omega = f["frames/omega"][()]
+        t = f["frames/time"][()]
+        factor = f["model/stiffening"][()] if "stiffening" in f["model"] else np.ones(len(off) - 1)
+    # the body frame: the strands' roots and root frames at rest, the frame's shape
+    start = _tips(off, length, root, frame0, omega[0])
+    travel = np.zeros(len(off) - 1)
+    for i in range(1, len(omega)):
+        travel = np.maximum(travel, np.linalg.norm(_tips(off, length, root, frame0, omega[i]) - start, axis=1))
+    lengths = np.add.reduceat(length, off[:-1])
+    return travel, factor, lengths, float(t[-1])
+
+
+def _run(cmd: list[str]) -> float:
+    start = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} exited {done.returncode}: {done.stderr.strip()[-500:]}")
+    return time.perf_counter() - start
+
+
+def measure(name: str, seconds: float) -> dict:
+    OUT.mkdir(parents=True, exist_ok=True)
+    style = WORK / f"{name}.h5"
+    body = WORK / "mannequin.obj"
+    if not style.exists() or not body.exists():
+        subprocess.run([str(PYTHON), str(ROOT / "bench" / "grooms.py"), "-o", str(WORK), name], check=True,
+                       stdout=subprocess.DEVNULL, cwd=ROOT)
+    model = WORK / f"{name}.model.h5"
+    invert_seconds = None
+    if not model.exists() or model.stat().st_mtime < style.stat().st_mtime:
+        model = OUT / f"{name}.model.h5"
+        invert_seconds = _run([str(HAIRINV), "invert", str(style), str(body), "-o", str(model)])
+    frames = OUT / f"{name}.motion.h5"
+    frames.unlink(missing_ok=True)
+    sim_seconds = _run([str(HAIRINV), "simulate", str(model), str(body), "--scene", "motion", "--seconds",
+                        f"{seconds:g}", "-o", str(frames)])
+    travel, factor, lengths, simulated = tip_travel(frames)
+    stiff = factor > 1.0
+    res = {"name": name, "strands": len(factor), "stiffened": int(stiff.sum()), "simulated": simulated,
+           "simulate_seconds": sim_seconds, "invert_seconds": invert_seconds}
+    if stiff.any():
+        lo, hi = lengths[stiff].min(), lengths[stiff].max()
+        peers = ~stiff & (lengths >= lo) & (lengths <= hi)
+        res.update(length_range_mm=(1e3 * lo, 1e3 * hi), peers=int(peers.sum()),
+                   factor_median=float(np.median(factor[stiff])), factor_max=float(factor[stiff].max()),
+                   stiff_tip_mm=np.percentile(1e3 * travel[stiff], [10, 50, 90]).tolist(),
+                   peer_tip_mm=np.percentile(1e3 * travel[peers], [10, 50, 90]).tolist() if peers.any() else None,
+                   all_tip_mm=float(np.median(1e3 * travel)))
+    return res
+
+
+def run() -> str:
+    info = machine()
+    start = time.perf_counter()
+    results = []
+    for name, seconds in GROOMS:
+        log(f"{name}: motion scene, {seconds:g} s")
+        results.append(measure(name, seconds))
+    rows = []
+    for r in results:
+        if r["stiffened"] == 0:
+            rows.append([f"`{r['name']}`", r["strands"], 0, "-", "-", "-", "-", "-", f"{r['simulated']:g}",
+                         f"{r['simulate_seconds']:.0f}"])
+            continue
+        fmt = lambda p: "-" if p is None else " / ".join(f"{x:.1f}" for x in p)  # noqa: E731
+        rows.append([f"`{r['name']}`", r["strands"], r["stiffened"],
+                     f"{r['factor_median']:.2f} / {r['factor_max']:.2f}",
+                     f"{r['length_range_mm'][0]:.0f}-{r['length_range_mm'][1]:.0f}", r["peers"],
+                     fmt(r["stiff_tip_mm"]), fmt(r["peer_tip_mm"]), f"{r['simulated']:g}",
+                     f"{r['simulate_seconds']:.0f}"])
+    lines = [
+        f"## {TITLE}",
+        "",
+        "`bench/stiffening_motion_bench.py`. Stiffening keeps an inverted groom still with the body still "
+        "(\"Still on any groom\"); it must not keep it still once the body moves. Each groom (generated by "
+        "`bench/grooms.py`, inverted with the default settings) runs the `motion` scene through the command line, "
+        "`hairinv simulate model.h5 mannequin.obj --scene motion --seconds S -o frames.h5`, and each strand's tip "
+        "travel is its largest distance from where it started, in the body's frame. The stiffened strands are set "
+        "beside the strands that needed no stiffening and whose lengths lie within the stiffened ones' range "
+        "(peers). Single runs; wall clock of the simulate command.",
+        "",
+        machine_markdown(info),
+        "",
+        table(["groom", "strands", "stiffened", "factor median / max", "their lengths (mm)", "peers",
+               "stiffened tips' travel, mm (10th / median / 90th)", "peers' tips' travel, mm (10th / median / 90th)",
+               "simulated (s)", "simulate (s)"], rows),
+        "",
+        f"The whole benchmark took {(time.perf_counter() - start) / 60:.1f} min.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(run())
