@@ -14,8 +14,9 @@ default settings, each command in its own subprocess::
     hairinv verify model.h5 BODY --seconds 2 --tolerance 0.1mm --json
 
 The grooms: the development and the held-out variants of ``bench/grooms.py``
-(generated into ``out/still_bench/`` with its mannequin), sintel and ruby
-short from the real data (``common.DATA``), and the repository samples
+(generated into ``out/still_bench/`` with its mannequin), sintel, ruby
+short, ruby long and the TressFX ponytail's bangs and tail from the real
+data (``common.DATA``), and the repository samples
 ``samples/settled.h5`` (with ``--target zero``: the paper's controlled
 validation, whose truth is a straight rest shape) and
 ``samples/settled_curly.h5`` on ``samples/body.obj``.
@@ -93,6 +94,12 @@ def real_grooms() -> list[Groom]:
               DATA / "sintel" / "sintel.obj", ["--scale", "0.008"]),
         Groom("ruby short", "real", DATA / "ruby" / "ruby_short_hair_16_guide.tfx", DATA / "ruby" / "ruby_head.obj",
               ["--scale", "0.002"]),
+        Groom("ruby long", "real", DATA / "ruby" / "ruby_long_hair_16_guide.tfx", DATA / "ruby" / "ruby_head.obj",
+              ["--scale", "0.002"]),
+        Groom("ponytail front", "real", DATA / "ponytail" / "hair_front_16_guide.tfx",
+              DATA / "ponytail" / "head_max4.obj", ["--scale", "0.0025"]),
+        Groom("ponytail tail (TressFX 3)", "real", DATA / "ponytail" / "tressfx3" / "tail.tfx",
+              DATA / "ponytail" / "head_max4.obj", ["--scale", "0.0025", "--flip", "z"]),
     ]
 
 
@@ -374,8 +381,10 @@ def render(results: list[dict], meta: dict) -> str:
                  f"inside), the development variants ({', '.join(f'`{n}`' for n in dev)}) and the held-out ones "
                  f"({held_text}), kept out of the tuning"]
         if "real" in kinds:
-            parts.append("the real grooms sintel (`--scale 0.008`) and ruby short (1,867 guides, `--scale 0.002`) "
-                         "on their own meshes")
+            parts.append("the real grooms sintel (`--scale 0.008`), ruby short and ruby long (1,867 and 3,000 "
+                         "guides, `--scale 0.002`) and two parts of the TressFX ponytail groom, its bangs (`hair_front`, "
+                         "93 strands, `--scale 0.0025`) and its tail (the TressFX 3 `tail.tfx`, 255 strands, "
+                         "`--scale 0.0025 --flip z`), on their own meshes")
         if "sample" in kinds:
             parts.append("the samples `settled.h5` (with `--target zero`, the paper's controlled validation: hair "
                          "settled by the simulator from a straight rest shape) and `settled_curly.h5` on "
