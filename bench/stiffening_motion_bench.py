@@ -29,7 +29,6 @@ import sys
 import time
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 if __package__ in (None, ""):
@@ -40,7 +39,10 @@ else:
 
 sys.path.insert(0, str(ROOT))
 
-from hairinv.rod.helix import points_at  # noqa: E402
+from hairinv import stages  # noqa: E402
+from hairinv.dynamics.simulate import points_on  # noqa: E402
+from hairinv.fit import Helices  # noqa: E402
+from hairinv.model import stiffening_from_group  # noqa: E402
 
 TITLE = "Stiffened strands in motion"
 HAIRINV = ROOT / ".venv" / "bin" / "hairinv"
@@ -51,33 +53,22 @@ OUT = ROOT / "out" / "stiffening_motion"
 GROOMS = (("mohawk", 1.0), ("draped_gap6", 0.5), ("updo", 0.5))
 
 
-def _tips(off: np.ndarray, length: np.ndarray, root: np.ndarray, frame0: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    tips = np.empty((len(off) - 1, 3))
-    for k in range(len(off) - 1):
-        a, z = off[k], off[k + 1]
-        out = np.empty((1, 3))
-        points_at(root[k], frame0[k], omega[a:z], length[a:z], np.array([length[a:z].sum()]), out)
-        tips[k] = out[0]
-    return tips
-
-
 def tip_travel(frames_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Per strand: the largest distance of its tip from where it started, in the body's frame (m); the
     stiffening factors; the strand lengths; the seconds simulated."""
-    with h5py.File(frames_path, "r") as f:
-        off = f["helices/offsets"][()]
-        length = f["helices/length"][()]
-        root = f["helices/root"][()]
-        frame0 = f["helices/frame0"][()]
-        omega = f["frames/omega"][()]
-        t = f["frames/time"][()]
-        factor = f["model/stiffening"][()] if "stiffening" in f["model"] else np.ones(len(off) - 1)
-    # the body frame: the strands' roots and root frames at rest, the frame's shape
-    start = _tips(off, length, root, frame0, omega[0])
-    travel = np.zeros(len(off) - 1)
+    stage = stages.read_stage(frames_path)
+    helices = Helices.from_group(stage[stages.HELICES])
+    omega = np.asarray(stage[stages.FRAMES]["omega"], dtype=np.float64)
+    t = np.asarray(stage[stages.FRAMES]["time"])
+    factor = stiffening_from_group(stage[stages.MODEL], helices.n_strands)
+    factor = np.ones(helices.n_strands) if factor is None else factor
+    # the body frame: the strands' roots and root frames at rest, each frame's shape
+    strands = np.arange(helices.n_strands)
+    lengths = np.add.reduceat(helices.length, helices.offsets[:-1])
+    start = points_on(helices, omega[0], strands, lengths)
+    travel = np.zeros(helices.n_strands)
     for i in range(1, len(omega)):
-        travel = np.maximum(travel, np.linalg.norm(_tips(off, length, root, frame0, omega[i]) - start, axis=1))
-    lengths = np.add.reduceat(length, off[:-1])
+        travel = np.maximum(travel, np.linalg.norm(points_on(helices, omega[i], strands, lengths) - start, axis=1))
     return travel, factor, lengths, float(t[-1])
 
 
