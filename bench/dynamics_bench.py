@@ -443,9 +443,11 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               f"The last row is the same groom's centre lines (the `/curves` of `samples/settled.h5`, written by "
               "`samples/make_settled.py`) fitted again at the default 0.2 mm tolerance, as `hairinv invert` does "
               "with curves: "
-              f"{runs['inverted, refitted from settled.h5']['unstable']} strands are then flagged unstable, and "
-              "some slide to a nearby rest. The refitted shape is no longer exactly the simulator's own "
-              "equilibrium, and the inversion makes it one that is not stable for every strand.", "",
+              f"{runs['inverted, refitted from settled.h5']['unstable']} strands are then left unstable after "
+              "stabilisation, and the groom moves by at most "
+              f"{_mm(max(runs['inverted, refitted from settled.h5']['moved']))} mm. The refitted shape is no longer "
+              "exactly the simulator's own equilibrium, but the inversion makes it one, stable strand by strand "
+              "under its contact forces held fixed.", "",
               f"![displacement against time](img/{PLOT_STILL.name})", "",
               f"![the groom after 2 s](img/{PLOT_SHAPES.name})", "",
               "### Body removed", "",
