@@ -419,9 +419,9 @@ class InvertReport:
     unstable_groups: int = 0
     """groups of strands joined by loaded hair-hair contacts that are unstable together"""
     unchecked_together: int = 0
+    """strands in groups too large for the joint check (``GROUP_DOFS``): checked one by one only"""
     stable_under: str = "forces"
     """what the check held (``solver.stable_under``): the contact forces fixed, or the supports"""
-    """strands in groups too large for the joint check (``GROUP_DOFS``): checked one by one only"""
 
     def _under(self) -> str:
         if not self.contacts:
@@ -627,18 +627,18 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     # the margin stabilisation works on: the forces held fixed (default), or the supports held
     by_forces = settings.stable_under == "forces"
 
-    def margins(stiff: np.ndarray) -> tuple:
+    def margins(stiff: np.ndarray, carrying: np.ndarray, force: np.ndarray) -> tuple:
+        """(the margin stabilisation works on, free, always, groups, their margins, strands unchecked)"""
         supported, free, always, fixed = stability_margins(helices, material, stiff, rows, contacts, carrying,
-                                                           result.r)
+                                                           force)
         if by_forces:  # stable on every motion is stable together too: no joint check of the groups
             groups, group_lam, too_large = [], np.zeros(0), 0
         else:
-            groups, group_lam, too_large = group_margins(helices, material, stiff, rows, contacts, carrying,
-                                                         result.r)
+            groups, group_lam, too_large = group_margins(helices, material, stiff, rows, contacts, carrying, force)
         return (fixed if by_forces else supported), free, always, groups, group_lam, too_large
 
     if check_stability:
-        supported, free, always, groups, group_lam, too_large = margins(stiff)
+        margin, free, always, groups, group_lam, too_large = margins(stiff, carrying, result.r)
         base = np.ones(S) if factor is None else factor
         # the gravity-only inversion with the material's own stiffness: stable where base (1 - free) <= 1
         needed_free = base * np.maximum(1.0 - free, 0.0)
@@ -648,12 +648,12 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         unstable_held = int(np.count_nonzero(always < _NEGATIVE))
         if stabilize:
             for _ in range(STABILIZE_ROUNDS):
-                weak = supported < _NEGATIVE
+                weak = margin < _NEGATIVE
                 weak_groups = [(g, lam) for g, lam in zip(groups, group_lam) if lam < _NEGATIVE]
                 if not weak.any() and not weak_groups:
                     break
                 before = factor.copy()
-                factor[weak] *= (1.0 - supported[weak]) * settings.stiffen_margin
+                factor[weak] *= (1.0 - margin[weak]) * settings.stiffen_margin
                 # the groups that fall over together are stiffened uniformly, so that the closed form holds
                 # for the group as for one strand (from the factors the check saw)
                 for g, lam in weak_groups:
@@ -665,18 +665,18 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                     # strand stable. Solving again would move forces onto other strands and stiffen those in
                     # turn (a draped groom: 26 strands, factors up to 41, 8 times the sweeps, against 16 up
                     # to 4.3 this way)
-                    supported, _, always, groups, group_lam, too_large = margins(stiff)
+                    margin, _, always, groups, group_lam, too_large = margins(stiff, carrying, result.r)
                     continue
                 result, carrying, _ = solve(stiff, result.r, False)
                 sweeps += result.sweeps
                 stiffened_rounds += 1
-                supported, _, always, groups, group_lam, too_large = margins(stiff)
+                margin, _, always, groups, group_lam, too_large = margins(stiff, carrying, result.r)
         weak_together = np.zeros(S, dtype=bool)
         for g, lam in zip(groups, group_lam):
             if lam < _NEGATIVE:
                 weak_together[g] = True
         unstable_groups = int(np.count_nonzero(group_lam < _NEGATIVE))
-        unstable = int(np.count_nonzero((supported < _NEGATIVE) | weak_together))
+        unstable = int(np.count_nonzero((margin < _NEGATIVE) | weak_together))
     r = result.r
     # q0 = q - K^-1 (F_g + H^T r), eq. (4), with the stiffness the strands were inverted with
     load = F_g + rows.rmatvec(r)
