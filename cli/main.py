@@ -128,6 +128,31 @@ def import_options(fn):
     return fn
 
 
+def body_options(fn):
+    """--body-units, --body-scale, --body-up and --body-flip: the body file's own unit and axes ([body]),
+    passed on as one ``body_frame`` dict of the options given."""
+    @functools.wraps(fn)
+    def with_body_frame(*args, body_units=None, body_scale=None, body_up=None, body_flip=None, **kwargs):
+        values = {"units": body_units, "scale": body_scale, "up": body_up, "flip": body_flip}
+        return fn(*args, body_frame={k: v for k, v in values.items() if v is not None}, **kwargs)
+
+    options = [
+        click.option("--body-units", type=click.Choice(["hair", "auto", "m", "cm", "mm", "in"]), default=None,
+                     help="Unit of the body file when it is not the hair's: a groom in cm on a head in m "
+                          "[body.units, default hair]."),
+        click.option("--body-scale", type=float, default=None,
+                     help="Metres per body file unit (overrides --body-units) [body.scale]."),
+        click.option("--body-up", type=click.Choice(["hair", "x", "y", "z"]), default=None,
+                     help="Up axis of the body file when it is not the hair's: the body is turned onto the "
+                          "hair's up [body.up, default hair]."),
+        click.option("--body-flip", default=None, metavar="AXES|none",
+                     help="Axes of the body file to negate, or none [body.flip, default: the hair's --flip]."),
+    ]
+    for option in reversed(options):
+        with_body_frame = option(with_body_frame)
+    return with_body_frame
+
+
 def settings_options(fn):
     """--quality, --config and --set."""
     options = [
@@ -286,17 +311,19 @@ def contact_options(fn):
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
               help="Output stage file [default: ./<name>.contacts.h5].")
 @import_options
+@body_options
 @contact_options
 @settings_options
 @click.pass_obj
 @handle_errors
 def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_distance, hair_distance, mu,
-           no_hair_hair, quality, config_file, sets):
+           no_hair_hair, quality, config_file, sets, body_frame):
     """Declare the hair-body and hair-hair contacts of STYLE resting on BODY.
 
     STYLE is a fitted stage file (from `hairinv fit`) or any hairstyle file,
     which is then fitted first. BODY is the body mesh (.obj, .ply, .stl,
-    .off, .glb, .tfxmesh) in the hairstyle's original units. Writes /curves,
+    .off, .glb, .tfxmesh) in the hairstyle's original units, or in its own with --body-units
+    and --body-up. Writes /curves,
     /helices and /contacts.
     """
     from hairinv import config, stages
@@ -304,6 +331,7 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
 
     settings = config.resolve(quality, config_file, sets)
     settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed),
+                                       "body": body_frame,
                                        "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair)},
                             "command line")
     output = output or _default_output(style, "contacts")
@@ -328,12 +356,13 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
                    "enough to hold (the default), or off: keep the material and only report them "
                    "[solver.stabilize; --set solver.stable_under=supports checks with the contact points held].")
 @import_options
+@body_options
 @contact_options
 @settings_options
 @click.pass_obj
 @handle_errors
 def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up, flip, guides, seed, body_distance,
-           hair_distance, mu, no_hair_hair, quality, config_file, sets):
+           hair_distance, mu, no_hair_hair, quality, config_file, sets, body_frame):
     """Invert STYLE resting on BODY: find the rest shape and contact forces
     that make the input shape a static equilibrium.
 
@@ -357,6 +386,7 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
     if stabilize is not None:
         solver_extra["stabilize"] = stabilize
     settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed),
+                                       "body": body_frame,
                                        "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair),
                                        "solver": solver_extra}, "command line")
     output = output or _default_output(style, "model")
@@ -398,25 +428,6 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
     _say(obj, f"wrote {output}")
 
 
-def _body_of(stage, model_path: Path):
-    """The body file a model was inverted against, from its provenance, if it is still where it was."""
-    from hairinv import stages
-    from hairinv.errors import InputError
-
-    records = stage[stages.CONTACTS].inputs if stages.CONTACTS in stage else []
-    if len(records) < 2:
-        return None
-    record = records[-1]
-    path = Path(record.get("path", ""))
-    if not path.is_absolute():
-        path = model_path.parent / path
-    if not path.exists() or stages.sha256_file(path) != record.get("sha256"):
-        raise InputError(f"was inverted against the body {record.get('name')!r}, which is not at "
-                         f"{record.get('path')!r} any more (or has changed); give the body file as the second "
-                         "argument", model_path)
-    return path
-
-
 def _init_option(fn):
     return click.option("--init", "init", type=click.Choice(["inverted", "naive", "gravity-only"]),
                         default="inverted", show_default=True,
@@ -425,7 +436,7 @@ def _init_option(fn):
 
 
 def _load_simulation(say, model: Path, body: Path | None, output: Path | None, scene_name: str, quality,
-                     config_file, sets) -> dict:
+                     config_file, sets, body_frame: dict | None = None) -> dict:
     """What ``simulate`` and ``verify`` share before running: the model's groups, the settings (contacts as the
     model declared them, which --config and --set may still change), the scene and the body mesh.
 
@@ -439,7 +450,7 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
     from hairinv.dynamics.simulate import validate_settings
     from hairinv.errors import InputError
     from hairinv.fit import Helices
-    from hairinv.groom import load_body
+    from hairinv.groom import load_body, simulation_body
 
     if not model.exists():
         raise InputError("no such file", model)
@@ -454,7 +465,7 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
     scene = Scene.load(scene_name)
     if output is not None:
         stages.check_output_path(output, inputs=[model, body])
-    settings = config.resolve(quality, config_file, sets)
+    settings = config.apply(config.resolve(quality, config_file, sets), {"body": body_frame or {}}, "command line")
     # contacts as the model declared them, so the first step meets the inverted contacts again;
     # --config and --set may still change them
     stored = stage[stages.CONTACTS].config.get("contacts", {}) if stages.CONTACTS in stage else {}
@@ -471,17 +482,17 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
     curves = stage[stages.CURVES]
     helices = Helices.from_group(stage[stages.HELICES])
     contacts = Contacts.from_group(stage[stages.CONTACTS]) if stages.CONTACTS in stage else None
-    body = body if body is not None else _body_of(stage, model)
+    body, to_groom, notes = simulation_body(settings.body, body, stage, model, curves)
     mesh = None
     if body is not None:
-        scale = float(curves.attrs.get("scale_to_m", 1.0))
-        flip = str(curves.config.get("import", {}).get("flip", ""))
-        mesh = load_body(body, scale, flip)
+        for line in notes:
+            say(line)
+        mesh = load_body(body, to_groom)
         say(f"body: {body}")
     elif scene.body != "removed":
         say("no body: only hair-hair contacts")
     return {"stage": stage, "helices": helices, "contacts": contacts, "mesh": mesh, "body": body, "scene": scene,
-            "settings": settings}
+            "settings": settings, "to_groom": to_groom}
 
 
 def _run_simulation(obj, run: dict, init: str, seconds: float, fps: float, on_frame):
@@ -507,12 +518,16 @@ def _write_frames(output: Path, model: Path, run: dict, frames, init: str) -> No
     """The model's groups and the run's /frames, written atomically."""
     import dataclasses
 
+    import numpy as np
+
     from hairinv import stages
 
     stage, body, settings = run["stage"], run["body"], run["settings"]
     groups = {name: stage[name] for name in (stages.CURVES, stages.HELICES, stages.CONTACTS, stages.MODEL)
               if name in stage}
-    inputs = [stages.file_record(model)] + ([stages.file_record(body)] if body is not None else [])
+    inputs = [stages.file_record(model)]
+    if body is not None:
+        inputs.append({**stages.file_record(body), "to_groom": np.asarray(run["to_groom"]).tolist()})
     cfg = {"dynamics": dataclasses.asdict(settings.dynamics), "contacts": dataclasses.asdict(settings.contacts),
            "scene": run["scene"].name, "init": init}
     groups[stages.FRAMES] = frames.group(cfg, inputs)
@@ -529,10 +544,11 @@ def _write_frames(output: Path, model: Path, run: dict, frames, init: str) -> No
 @_init_option
 @click.option("--seconds", type=float, default=None, help="Simulated time, s [default: the scene's].")
 @click.option("--fps", type=float, default=None, help="Frames written per second [default: the scene's].")
+@body_options
 @settings_options
 @click.pass_obj
 @handle_errors
-def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, config_file, sets):
+def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, config_file, sets, body_frame):
     """Simulate an inverted MODEL under a scene and write its frames.
 
     MODEL is a stage file written by `hairinv invert`. BODY is the body mesh
@@ -543,7 +559,7 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
     """
     output = output or _default_output(model, "frames")
     run = _load_simulation(functools.partial(_say, obj), model, body, output, scene_name, quality, config_file,
-                           sets)
+                           sets, body_frame)
     scene = run["scene"]
     run_seconds = scene.seconds if seconds is None else seconds
     run_fps = scene.fps if fps is None else fps
@@ -607,11 +623,12 @@ def _verdict_lines(verdict, every_strand: bool, rows: int = VERIFY_ROWS) -> list
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON summary instead of the verdict and table.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
               help="Also write the frames simulated to this stage file, as `simulate` does [default: none].")
+@body_options
 @settings_options
 @click.pass_obj
 @handle_errors
 def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, output, quality, config_file,
-           sets):
+           sets, body_frame):
     """Check that an inverted MODEL stays still: exit 0 if no strand point
     moves more than the tolerance in the still scene, 1 if some do.
 
@@ -626,7 +643,7 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
 
     tolerance = parse_length(tolerance_text, "--tolerance")
     notes = []
-    run = _load_simulation(notes.append, model, body, output, "still", quality, config_file, sets)
+    run = _load_simulation(notes.append, model, body, output, "still", quality, config_file, sets, body_frame)
     scene = run["scene"]
     run_seconds = scene.seconds if seconds is None else seconds
     run_fps = scene.fps if fps is None else fps

@@ -45,6 +45,24 @@ class ImportSettings:
 
 
 @dataclass(frozen=True)
+class BodySettings:
+    """How the body mesh is brought into the hair's frame, when its file is in other units or axes.
+
+    By default the body file is read in the hair's unit, axes and flip (one unit for both files). A groom
+    in centimetres on a head in metres is common: then say the body's own unit here."""
+
+    units: str = "hair"
+    """Body file unit: m, cm, mm, in; auto (guessed from the body's size, reported); or hair (the hair's)."""
+    scale: float = 0.0
+    """Metres per body file unit; overrides ``units`` when > 0."""
+    up: str = "hair"
+    """The body file's up axis: x, y, z, or hair (the same axes as the hair). When it differs from the
+    hair's up axis, the body is turned by the smallest rotation taking its up axis onto the hair's."""
+    flip: str = "hair"
+    """Axes of the body file negated on import, e.g. "z"; none for no flip; hair: the hair's --flip."""
+
+
+@dataclass(frozen=True)
 class FitSettings:
     """Curves to G1 piecewise super-helices."""
 
@@ -220,6 +238,7 @@ class Settings:
     """All settings of a run, one section per stage."""
 
     import_: ImportSettings = field(default_factory=ImportSettings)
+    body: BodySettings = field(default_factory=BodySettings)
     fit: FitSettings = field(default_factory=FitSettings)
     material: MaterialSettings = field(default_factory=MaterialSettings)
     contacts: ContactSettings = field(default_factory=ContactSettings)

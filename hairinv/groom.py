@@ -16,13 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from . import formats, stages
-from .config import UNITS, ImportSettings
+from .config import UNITS, BodySettings, ImportSettings
 from .errors import InputError
 
 AXES = {"x": 0, "y": 1, "z": 2}
 # Typical diagonal of the bounding box, m: a head of hair, and a bust.
 _TYPICAL_HAIR_SIZE = 0.45
 _TYPICAL_BODY_SIZE = 0.6
+# |a . b| above this: two unit vectors are the same axis (a stored up vector is a unit axis to round-off).
+_SAME_AXIS = 1.0 - 1e-9
 
 
 @dataclass
@@ -268,21 +270,163 @@ def load_groom(path, settings: ImportSettings, body_size_native: float | None = 
     return groom, report
 
 
-def load_body(path, scale: float, flip: str = "", mesh=None):
-    """Read a body mesh and bring it to metres with the hair's scale.
+def rotation_onto(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking unit vector ``a`` onto unit vector ``b`` (a half turn about an axis
+    normal to both when they are opposite)."""
+    c = float(a @ b)
+    if c > _SAME_AXIS:
+        return np.eye(3)
+    if c < -_SAME_AXIS:
+        axis = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+        axis /= np.linalg.norm(axis)
+        return 2.0 * np.outer(axis, axis) - np.eye(3)
+    v = np.cross(a, b)
+    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + K + K @ K / (1.0 + c)
 
-    ``mesh``, if given, is the file already read with :func:`formats.read_mesh`.
+
+def _flip_matrix(flip: str, path) -> np.ndarray:
+    return np.diag(_flip(np.ones((1, 3)), flip, path)[0])
+
+
+def body_to_groom(settings: BodySettings, groom_scale: float, groom_up, groom_flip: str, body_path=None,
+                  body_size_native: float | None = None) -> tuple[np.ndarray, list[str]]:
+    """The 4x4 transform from the body file's coordinates to the groom's frame in metres, and what it does.
+
+    By default (every setting ``hair``) the body is read as the hair was: its flip, then its metres per
+    unit. ``units``/``scale`` give the body its own unit, ``flip`` its own negated axes, and ``up`` its up
+    axis, turned onto the groom's up by the smallest rotation (+Y onto +Z is a quarter turn about +X, as
+    Y-up to Z-up exporters do). ``body_size_native``: the body's bounding-box diagonal in its file units,
+    for ``units = auto``.
+    """
+    notes = []
+    flip = groom_flip if settings.flip == "hair" else ("" if settings.flip.lower() == "none" else settings.flip)
+    if settings.scale > 0:
+        scale = float(settings.scale)
+        notes.append(f"body units: {scale:g} m per body file unit (as given)")
+    elif settings.units == "hair":
+        scale = float(groom_scale)
+    elif settings.units == "auto":
+        if body_size_native is None:
+            raise InputError("body.units = auto needs the body file to guess from", body_path)
+        unit = guess_units(body_size_native, _TYPICAL_BODY_SIZE)
+        scale = UNITS[unit]
+        notes.append(f"body units: guessed {unit} from the body's size ({body_size_native:.4g} file units across, "
+                     f"{body_size_native * scale:.3g} m); pass --body-units to set it")
+    elif settings.units in UNITS:
+        scale = UNITS[settings.units]
+        notes.append(f"body units: {settings.units} (as given)")
+    else:
+        raise InputError(f"unknown body unit {settings.units!r}; choose m, cm, mm, in, auto or hair", body_path)
+    F = _flip_matrix(flip, body_path)
+    if flip != groom_flip:
+        notes.append(f"body flipped axes: {flip or 'none'}")
+    R = np.eye(3)
+    if settings.up != "hair":
+        if settings.up not in AXES:
+            raise InputError(f"--body-up takes x, y, z or hair; got {settings.up!r}", body_path)
+        groom_up = _up_vector(groom_up)
+        R = rotation_onto(F @ _up_vector(settings.up), groom_up)
+        if not np.allclose(R, np.eye(3)):
+            notes.append(f"body up: +{settings.up.upper()} turned onto the hair's up {_axis_label(groom_up)}")
+    M = np.eye(4)
+    M[:3, :3] = R @ (scale * F)
+    return M, notes
+
+
+def load_body(path, to_groom: np.ndarray, mesh=None):
+    """Read a body mesh and bring it into the groom's frame, in metres.
+
+    ``to_groom`` is the 4x4 transform of :func:`body_to_groom` (or the one a stage file records); ``mesh``,
+    if given, is the file already read with :func:`formats.read_mesh`.
 
     Returns
     -------
     trimesh.Trimesh
-        Triangles in metres, in the same world frame as the hair.
+        Triangles in metres, in the same world frame as the hair, outward normals kept.
     """
     mesh = formats.read_mesh(path) if mesh is None else mesh
-    vertices = _flip(np.array(mesh.vertices, dtype=np.float64), flip, path) * scale
+    to_groom = np.asarray(to_groom, dtype=np.float64)
+    vertices = np.array(mesh.vertices, dtype=np.float64) @ to_groom[:3, :3].T + to_groom[:3, 3]
     mesh = mesh.copy()
     mesh.vertices = vertices
-    if flip and len(flip.replace(",", "")) % 2 == 1:
+    if np.linalg.det(to_groom[:3, :3]) < 0:  # a mirror turns the winding, so the normals, inside out
         mesh.invert()
     return mesh
 
+
+def recorded_body_transform(record: dict | None, groom_scale: float, groom_flip: str, body_path=None) -> np.ndarray:
+    """The body transform a stage file's body input ``record`` carries (``to_groom``), or, for files written
+    before it was recorded, the hair's own unit and flip (how those files read their body)."""
+    if record is not None and "to_groom" in record:
+        M = np.asarray(record["to_groom"], dtype=np.float64)
+        if M.shape == (4, 4) and np.all(np.isfinite(M)):
+            return M
+        raise InputError("records a body transform that is not a finite 4x4 matrix", body_path)
+    return body_to_groom(BodySettings(), groom_scale, (0.0, 1.0, 0.0), groom_flip, body_path)[0]
+
+
+def find_recorded_body(stage, stage_path, groups=(stages.FRAMES, stages.CONTACTS, stages.MODEL)):
+    """The body mesh file a stage file was made against, found again from its provenance.
+
+    The body is the last input of the first of ``groups`` that records one. Its recorded path is tried as
+    written (relative to the working directory, or absolute) and relative to the stage file's folder, and
+    accepted only where the file's SHA-256 equals the recorded one.
+
+    Returns
+    -------
+    (path or None, record or None, str)
+        The file found and its provenance record; the str says why none was found ("" when one was). A
+        stage file that records no body gives ``(None, None, "")``.
+    """
+    record = None
+    for name in groups:
+        if name in stage and len(stage[name].inputs) >= 2:
+            record = stage[name].inputs[-1]
+            break
+    if record is None:
+        return None, None, ""
+    recorded = str(record.get("path", record.get("name", "")))
+    candidates = [Path(recorded)]
+    if not Path(recorded).is_absolute():
+        candidates.append(Path(stage_path).parent / recorded)
+    found = [p for p in candidates if p.is_file()]
+    if not found:
+        return None, record, f"the body {recorded!r} it was made with is not there any more"
+    for path in found:
+        if stages.sha256_file(path) == record.get("sha256"):
+            return path, record, ""
+    return None, record, f"the body at {str(found[0])!r} has changed since (its SHA-256 differs from the recorded one)"
+
+
+def simulation_body(settings: BodySettings, given, stage, stage_path, curves) -> tuple:
+    """The body a run of a stage file's model uses, and the transform that brings it into the groom's frame.
+
+    ``given``: a body file named on the command line, or None for the recorded one (:func:`find_recorded_body`,
+    which must then be found). The transform is computed from ``settings`` when any is set, else it is the
+    one recorded with that body file (same SHA-256), else the hair's unit and flip.
+
+    Returns
+    -------
+    (path or None, (4, 4) transform or None, list of str): the notes say what was done.
+    """
+    scale = float(curves.attrs.get("scale_to_m", 1.0))
+    flip = str(curves.config.get("import", {}).get("flip", ""))
+    up = np.asarray(curves.attrs.get("up", (0.0, 1.0, 0.0)), dtype=np.float64)
+    path, record, why = find_recorded_body(stage, stage_path, (stages.CONTACTS, stages.MODEL))
+    if given is None:
+        if why:
+            raise InputError(f"was inverted against a body that cannot be found ({why}); give the body file as "
+                             "the second argument", stage_path)
+        if path is None:
+            return None, None, []
+    else:
+        given = Path(given)
+        if record is None or stages.sha256_file(given) != record.get("sha256"):
+            record = None
+        path = given
+    if settings != BodySettings():
+        size = float(np.linalg.norm(np.ptp(np.asarray(formats.read_mesh(path).vertices), axis=0)))
+        transform, notes = body_to_groom(settings, scale, up, flip, path, size)
+        return path, transform, notes
+    return path, recorded_body_transform(record, scale, flip, path), []

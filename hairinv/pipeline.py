@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from . import formats, stages
-from .config import ImportSettings, Settings
+from .config import BodySettings, UNITS, ImportSettings, Settings
 from .contacts import Contacts, detect_contacts
 from .contacts.body import BodyMesh
 from .errors import InputError
 from .fit import Helices, fit_groom
-from .groom import load_body, load_groom
+from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto
 
 __all__ = ["Scene", "prepare"]
 
@@ -54,8 +54,12 @@ class Scene:
     """the style file's /model group, kept only when its contacts are the ones used (its forces match them)"""
 
 
-def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refitted: bool) -> str | None:
-    """Why the stored ``/contacts`` group cannot be used as it is (None: it can)."""
+def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refitted: bool,
+                    hair_unit: tuple[float, str] = (1.0, "")) -> str | None:
+    """Why the stored ``/contacts`` group cannot be used as it is (None: it can).
+
+    ``hair_unit``: the groom's metres per unit and flip, how a file that records no body transform read
+    its body."""
     if stored is None:
         return None
     if refitted:  # contacts name strands and arc lengths of the stored helices
@@ -71,6 +75,9 @@ def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refit
         return "were detected without a body"
     if stored_body != body_record.get("sha256"):
         return "were detected against another body"
+    stored_transform = recorded_body_transform(stored.inputs[1], *hair_unit)
+    if not np.allclose(stored_transform, np.asarray(body_record["to_groom"]), rtol=1e-12, atol=0.0):
+        return "were detected with the body in other units or axes"
     return None
 
 
@@ -78,20 +85,31 @@ def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refit
 ROOTS_FAR = 0.02
 
 
-def root_distance_lines(roots: np.ndarray, body_mesh, body, scale: float = 1.0) -> list[str]:
+#: Roots checked against the body, at most (a seeded, even subset of a large groom's).
+_ROOTS_CHECKED = 512
+#: Usual ratios between two files' units (m, cm, mm, in), tried on the body to find a unit mix-up.
+_UNIT_FACTORS = (1000.0, 100.0, 25.4, 10.0, 2.54, 1 / 2.54, 0.1, 1 / 25.4, 0.01, 0.001)
+
+
+def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: BodySettings,
+                        to_groom: np.ndarray | None = None) -> list[str]:
     """A warning when the strands' roots do not lie on or near the body (checked before the fit).
 
     Roots grow from the scalp: a median root more than :data:`ROOTS_FAR` from the mesh means the two files
     do not meet, most often because they are in different units (a groom in centimetres on a head in metres
-    reads a hundred times too large), and then no body contact is found. Each usual factor between units
-    is tried on the hair (the roots scaled about the origin, as a change of unit does); one that puts the
-    roots on the body is named (``scale``: the hair's metres per file unit, which the body is read in too)."""
+    reads a hundred times too large) or axes (a Z-up body under a Y-up groom), and then no body contact is
+    found. Each usual factor between units, and each other up axis of the body file when none was given,
+    is tried on the body (as the roots moved the other way about the origin); the one that puts the roots
+    on the body is named with the option that does it. ``to_groom``: the body's transform in use, whose
+    scale the suggested unit is computed from."""
     if len(roots) == 0 or len(body_mesh.face_index) == 0:
         return []
     roots = np.ascontiguousarray(roots, dtype=np.float64)
+    if len(roots) > _ROOTS_CHECKED:
+        roots = roots[np.random.default_rng(0).choice(len(roots), _ROOTS_CHECKED, replace=False)]
 
     def median_distance(points: np.ndarray) -> tuple[float, float]:
-        distance = np.abs(body_mesh.closest(points)[0])  # signed: negative inside the body
+        distance = np.abs(body_mesh.closest(np.ascontiguousarray(points))[0])  # signed: negative inside
         return float(np.median(distance)), float(distance.min())
 
     median, nearest = median_distance(roots)
@@ -100,17 +118,38 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, scale: float = 1.0) 
     name = getattr(body, "name", str(body))
     line = (f"warning: the strands' roots lie {1e3 * median:.4g} mm from the body {name} (median over "
             f"{len(roots)} strands; nearest {1e3 * nearest:.4g} mm), so few or no body contacts will be found")
+    up = np.asarray(up, dtype=np.float64)
+    turns = [(None, np.eye(3))]
+    if body_settings.up == "hair":
+        turns += [(axis, rotation_onto(np.eye(3)[i], up)) for axis, i in (("y", 1), ("z", 2), ("x", 0))
+                  if abs(up[i]) < 0.5]
+    body_scale = abs(float(np.linalg.det(to_groom[:3, :3]))) ** (1 / 3) if to_groom is not None else None
     best = None
-    for factor in (1000.0, 100.0, 25.4, 10.0, 2.54, 1 / 2.54, 0.1, 1 / 25.4, 0.01, 0.001):
-        moved, _ = median_distance(roots * factor)
-        if moved <= ROOTS_FAR and (best is None or moved < best[1]):
-            best = (factor, moved)
-    if best is not None:
-        factor, moved = best
-        return [line + f"; the hair {factor:.4g} times larger would put them {1e3 * moved:.3g} mm from it: the two "
-                       f"files are likely in different units (the body is read in the hair's unit, "
-                       f"{scale:.6g} m per file unit; bring both files to one unit)"]
-    return [line + "; check that the groom and the body share their units, up axis and placement"]
+    for axis, R in turns:
+        for factor in (1.0, *_UNIT_FACTORS):
+            if axis is None and factor == 1.0:
+                continue
+            moved, _ = median_distance(roots @ R / factor)  # the body turned by R, scaled by factor
+            if moved <= ROOTS_FAR and (best is None or moved < best[2]):
+                best = (axis, factor, moved)
+    if best is None:
+        return [line + "; check that the groom and the body share their units, up axis and placement "
+                       "(--body-units, --body-scale, --body-up)"]
+    axis, factor, moved = best
+    fixes, what = [], []
+    if factor != 1.0:
+        what.append(f"at {factor:.4g} times its size")
+        unit = None
+        if body_scale is not None:
+            wanted = body_scale * factor
+            unit = next((u for u, m in UNITS.items() if abs(m - wanted) < 1e-9 * m), None)
+            fixes.append(f"--body-units {unit}" if unit else f"--body-scale {wanted:.6g}")
+    if axis is not None:
+        what.append(f"turned as a +{axis.upper()}-up file")
+        fixes.append(f"--body-up {axis}")
+    return [line + f"; the body {' and '.join(what)} would put them {1e3 * moved:.3g} mm from it: the two files "
+                   f"are likely in different {'units' if factor != 1.0 else 'axes'}"
+                   + (f" (try {' '.join(fixes)})" if fixes else "")]
 
 
 def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Scene:
@@ -135,6 +174,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
     lines: list[str] = []
     groups: dict = {}
     native = formats.read_mesh(body) if body is not None else None  # read once: units guess and contacts
+    body_size = float(np.linalg.norm(np.ptp(np.asarray(native.vertices), axis=0))) if native is not None else None
     if stages.is_stage_file(style):
         stage = stages.read_stage(style)
         if stages.CURVES not in stage:
@@ -163,7 +203,8 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
             groom, report = load_groom(style, settings.import_)
             lines += report.lines()
     else:
-        size = float(np.linalg.norm(np.ptp(np.asarray(native.vertices), axis=0))) if native is not None else None
+        # the hair's unit guessed from the body's size when the body is read in the hair's unit
+        size = body_size if settings.body.units == "hair" and settings.body.scale <= 0 else None
         groom, report = load_groom(style, settings.import_, body_size_native=size)
         lines += report.lines()
         groups[stages.CURVES] = groom.curves_group(settings.import_, inputs[:1])
@@ -171,12 +212,17 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         helices = None
         stored_contacts = stored_model = None
     refitted = helices is None
-    mesh = load_body(body, scale, flip, native) if body is not None else None
+    mesh = None
+    if body is not None:
+        to_groom, notes = body_to_groom(settings.body, scale, up, flip, body, body_size)
+        lines += notes
+        inputs[1]["to_groom"] = to_groom.tolist()
+        mesh = load_body(body, to_groom, native)
     # built once: the roots' check here and the body contacts below
     body_mesh = BodyMesh.from_mesh(mesh) if mesh is not None else None
     if body_mesh is not None:
         roots = groom.points[groom.offsets[:-1]] if helices is None else helices.root
-        lines += root_distance_lines(roots, body_mesh, body, groom.scale_to_m if groom is not None else scale)
+        lines += root_distance_lines(roots, body_mesh, body, up, settings.body, to_groom)
     if helices is None:
         bar = progress("fit", groom.n_strands) if progress else None
         try:
@@ -191,7 +237,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         return scene
     wanted = {"contacts": dataclasses.asdict(settings.contacts)}
     stale = _stale_contacts(stored_contacts, stored_model, wanted, inputs[1] if body is not None else None,
-                            refitted=refitted)
+                            refitted=refitted, hair_unit=(scale, flip))
     if stored_contacts is not None and stale is None:
         scene.contacts = Contacts.from_group(stored_contacts)
         groups[stages.CONTACTS] = stored_contacts

@@ -419,8 +419,9 @@ def test_plain_progress_lines_when_stderr_is_not_a_terminal(tmp_path):
 
 def test_roots_away_from_the_body_are_reported_with_the_likely_unit_mix_up(tmp_path):
     """A head in centimetres under a groom in metres: the roots lie a metre and more from it. The run says
-    so among the import's lines (ahead of the fit's), with the factor that would put them back on it (100),
-    and goes on; a body in the hair's unit gets no such line."""
+    so among the import's lines (ahead of the fit's), with the factor that would put them back on it (0.01)
+    and the option that does it (--body-units cm), and goes on; given that option, or a body in the hair's
+    unit, it gets no such line."""
     import trimesh
 
     body = trimesh.load(SAMPLES / "body.obj", process=False)
@@ -429,7 +430,8 @@ def test_roots_away_from_the_body_are_reported_with_the_likely_unit_mix_up(tmp_p
     result = hairinv(tmp_path, "detect", SAMPLES / "wavy.h5", "body_cm.obj", "--guides", "3", "-o", "d.h5")
     assert result.returncode == 0, result.stderr
     warning = [line for line in (result.stdout + result.stderr).splitlines() if "roots lie" in line]
-    assert len(warning) == 1 and "body_cm.obj" in warning[0] and "100 times larger" in warning[0]
+    assert len(warning) == 1 and "body_cm.obj" in warning[0] and "at 0.01 times its size" in warning[0]
+    assert "--body-units cm" in warning[0]
     assert warning[0].index("roots lie") < (result.stdout + result.stderr).find("fit error")
     fine = hairinv(tmp_path, "detect", SAMPLES / "wavy.h5", SAMPLES / "body.obj", "--guides", "3", "-o", "e.h5")
     assert fine.returncode == 0 and "roots lie" not in fine.stdout + fine.stderr

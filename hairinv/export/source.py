@@ -31,6 +31,7 @@ import numpy as np
 from .. import stages
 from ..config import MaterialSettings
 from ..errors import InputError
+from ..groom import rotation_onto
 from ..model import Helices, rest_from_group, stiffening_from_group
 from ..rod.helix import points_at
 
@@ -89,21 +90,6 @@ class Strands:
         return np.diff(self.offsets)
 
 
-def _rotation_onto(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit vector ``a`` onto unit vector ``b`` (a half turn about an axis
-    normal to both when they are opposite)."""
-    c = float(a @ b)
-    if c > _SAME_AXIS:
-        return np.eye(3)
-    if c < -_SAME_AXIS:
-        axis = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
-        axis /= np.linalg.norm(axis)
-        return 2.0 * np.outer(axis, axis) - np.eye(3)
-    v = np.cross(a, b)
-    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.eye(3) + K + K @ K / (1.0 + c)
-
-
 def _axis_name(up: np.ndarray) -> str:
     for name, i in _AXES.items():
         if abs(up[i]) > _SAME_AXIS:
@@ -143,7 +129,7 @@ class OutputAxes:
     def onto(cls, up: np.ndarray, axis: str, meters_per_unit: float = 1.0) -> OutputAxes:
         """Turn the groom's ``up`` onto the file's ``axis`` (a format's fixed convention)."""
         target = np.eye(3)[_AXES[axis]]
-        rotation = _rotation_onto(up, target)
+        rotation = rotation_onto(up, target)
         note = "" if np.allclose(rotation, np.eye(3)) else (
             f"turned the groom's up axis {_axis_name(up)} to +{axis.upper()}, the format's convention")
         return cls(rotation, float(meters_per_unit), axis, note)
@@ -155,7 +141,7 @@ class OutputAxes:
             if up[_AXES[axis]] > _SAME_AXIS:
                 return cls(np.eye(3), float(meters_per_unit), axis)
         axis = allowed[0]
-        rotation = _rotation_onto(up, np.eye(3)[_AXES[axis]])
+        rotation = rotation_onto(up, np.eye(3)[_AXES[axis]])
         names = " or ".join(f"+{a.upper()}" for a in allowed)
         return cls(rotation, float(meters_per_unit), axis,
                    f"turned the groom's up axis {_axis_name(up)} to +{axis.upper()} (the format's up axis is {names})")
@@ -439,23 +425,9 @@ class ExportSource:
         if it is still at its recorded path (as given, or relative to the stage file's folder) with the
         recorded SHA-256.
         """
-        from ..groom import load_body
+        from ..groom import find_recorded_body, load_body, recorded_body_transform
 
-        record = None
-        for name in (stages.FRAMES, stages.CONTACTS, stages.MODEL):
-            if name in self.stage and len(self.stage[name].inputs) >= 2:
-                record = self.stage[name].inputs[-1]
-                break
-        if record is None:
-            return None, "the file records no body mesh"
-        recorded = str(record.get("path", record.get("name", "")))
-        candidates = [Path(recorded)]
-        if not Path(recorded).is_absolute():
-            candidates.append(self.path.parent / recorded)
-        found = [p for p in candidates if p.is_file()]
-        if not found:
-            return None, f"the body {recorded!r} it was made with is not there any more"
-        for path in found:
-            if stages.sha256_file(path) == record.get("sha256"):
-                return load_body(path, self.scale_to_m, self.flip), f"body: {path}"
-        return None, f"the body at {str(found[0])!r} has changed since (its SHA-256 differs from the recorded one)"
+        path, record, why = find_recorded_body(self.stage, self.path)
+        if path is None:
+            return None, why or "the file records no body mesh"
+        return load_body(path, recorded_body_transform(record, self.scale_to_m, self.flip, path)), f"body: {path}"

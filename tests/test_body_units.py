@@ -1,0 +1,152 @@
+"""A body file in other units or axes than the hair's: --body-units, --body-scale, --body-up, --body-flip.
+
+The transform is checked against its closed form (a quarter turn about x takes a Z-up file onto a Y-up
+groom), then end to end: the sample body written in centimetres and Z-up, read back with the options that
+say so, gives the contacts of the sample body itself; read without them, the run says which option would
+put the roots back on the body. The transform is recorded with the body, so a later stage (simulate,
+export, a rerun of invert) reads the body as it was read, and contacts detected with another one are
+detected again.
+
+Runtime: about 20-40 s with a warm numba cache (a few subprocesses fitting 3 guide strands).
+"""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+import trimesh
+
+from conftest import ROUNDOFF, SAMPLES
+from hairinv import stages
+from hairinv.config import BodySettings
+from hairinv.errors import InputError
+from hairinv.groom import body_to_groom, load_body, recorded_body_transform, simulation_body
+from test_cli import hairinv
+
+Y_UP = np.array([0.0, 1.0, 0.0])
+# A Y-up file written as Z-up: the quarter turn about +x that takes +y onto +z, (x, y, z) -> (x, -z, y).
+Y_TO_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+# float64 round-off of a vertex multiplied by 100 and read back at 0.01 m per unit, relative to the body's size
+UNIT_ROUNDTRIP = 1e-13
+
+
+def test_transform_closed_forms():
+    """A Z-up body in centimetres under a Y-up groom in metres: 0.01 times the quarter turn about -x
+    (y -> -z, z -> y); a body in the hair's unit and axes: the hair's scale and flip only; a mirror has a
+    negative determinant."""
+    M, notes = body_to_groom(BodySettings(units="cm", up="z"), 1.0, Y_UP, "")
+    np.testing.assert_allclose(M[:3, :3], 0.01 * Y_TO_Z.T, atol=ROUNDOFF)
+    np.testing.assert_array_equal(M[3], [0.0, 0.0, 0.0, 1.0])
+    assert any("cm" in n for n in notes) and any("+Z" in n for n in notes)
+    same, notes = body_to_groom(BodySettings(), 0.0254, Y_UP, "z")
+    np.testing.assert_array_equal(same[:3, :3], np.diag([0.0254, 0.0254, -0.0254]))
+    assert notes == []
+    np.testing.assert_array_equal(recorded_body_transform({"name": "old.obj"}, 0.0254, "z"), same)
+    scaled, _ = body_to_groom(BodySettings(scale=0.00254, flip="none"), 0.0254, Y_UP, "z")
+    np.testing.assert_array_equal(scaled[:3, :3], 0.00254 * np.eye(3))
+    mirrored, _ = body_to_groom(BodySettings(flip="x"), 1.0, Y_UP, "")
+    assert np.linalg.det(mirrored[:3, :3]) < 0
+    with pytest.raises(InputError, match="body unit"):
+        body_to_groom(BodySettings(units="furlong"), 1.0, Y_UP, "")
+
+
+def test_a_mirrored_body_keeps_its_outward_normals():
+    """Negating an axis turns the winding inside out; the reader turns it back (volume stays positive)."""
+    mirrored, _ = body_to_groom(BodySettings(flip="x"), 1.0, Y_UP, "")
+    mesh = load_body(SAMPLES / "body.obj", mirrored)
+    original = trimesh.load(SAMPLES / "body.obj", process=False)
+    assert mesh.volume > 0 and mesh.volume == pytest.approx(original.volume, rel=1e-12)
+    np.testing.assert_array_equal(mesh.vertices[:, 0], -np.asarray(original.vertices)[:, 0])
+
+
+@pytest.fixture(scope="module")
+def bodies(tmp_path_factory):
+    """The sample body as given (metres, Y-up), in centimetres, and in centimetres Z-up."""
+    folder = tmp_path_factory.mktemp("bodies")
+    mesh = trimesh.load(SAMPLES / "body.obj", process=False)
+    metres = np.asarray(mesh.vertices, dtype=np.float64)
+    for name, vertices in (("body_cm.obj", 100.0 * metres), ("body_cm_zup.obj", 100.0 * metres @ Y_TO_Z.T)):
+        trimesh.Trimesh(vertices, mesh.faces, process=False).export(folder / name)
+    return folder
+
+
+def _contacts(path):
+    with h5py.File(path, "r") as fh:
+        group = fh["contacts"]
+        return {key: group[key][()] for key in ("strand", "s", "gap")}, json.loads(group.attrs["inputs"])
+
+
+@pytest.fixture(scope="module")
+def detected(bodies):
+    """detect on 3 guides of the wavy sample against the sample body, and against its cm and cm Z-up copies
+    read with the options that say so."""
+    runs = {"m": (SAMPLES / "body.obj",), "cm": ("body_cm.obj", "--body-units", "cm"),
+            "cm_zup": ("body_cm_zup.obj", "--body-units", "cm", "--body-up", "z")}
+    out = {}
+    for name, (body, *options) in runs.items():
+        result = hairinv(bodies, "detect", SAMPLES / "wavy.h5", body, "--guides", "3", *options,
+                         "-o", f"{name}.contacts.h5")
+        assert result.returncode == 0, result.stderr
+        assert "roots lie" not in result.stdout + result.stderr
+        out[name] = (bodies / f"{name}.contacts.h5", result.stdout)
+    return out
+
+
+def test_a_body_in_its_own_units_and_axes_gives_the_same_contacts(detected):
+    """The same body given in cm, and in cm Z-up, with the options saying so: the same contacts (strand,
+    arc length, gap) as the body in the hair's unit, up to the round-off of the unit conversion."""
+    reference, record = _contacts(detected["m"][0])
+    assert len(reference["gap"]) > 0 and "to_groom" in record[-1]
+    np.testing.assert_array_equal(np.asarray(record[-1]["to_groom"]), np.eye(4))
+    for name in ("cm", "cm_zup"):
+        found, record = _contacts(detected[name][0])
+        np.testing.assert_array_equal(found["strand"], reference["strand"])
+        np.testing.assert_allclose(found["s"], reference["s"], atol=1e-9)
+        np.testing.assert_allclose(found["gap"], reference["gap"], atol=1e-9)
+        assert "body units: cm (as given)" in detected[name][1]
+    turned = np.asarray(_contacts(detected["cm_zup"][0])[1][-1]["to_groom"])
+    np.testing.assert_allclose(turned[:3, :3], 0.01 * Y_TO_Z.T, atol=ROUNDOFF)
+
+
+def test_the_recorded_transform_reads_the_body_again(detected, bodies):
+    """A later stage finds the body from the provenance and reads it with the recorded transform: the
+    cm Z-up file comes back as the sample body in metres; the same file named again with no option
+    gets the same transform (same SHA-256), an option given wins."""
+    path = detected["cm_zup"][0]
+    stage = stages.read_stage(path)
+    found, transform, _ = simulation_body(BodySettings(), None, stage, path, stage[stages.CURVES])
+    assert found.name == "body_cm_zup.obj"
+    mesh = load_body(found, transform)
+    original = np.asarray(trimesh.load(SAMPLES / "body.obj", process=False).vertices)
+    np.testing.assert_allclose(mesh.vertices, original, atol=UNIT_ROUNDTRIP * np.ptp(original))
+    _, again, _ = simulation_body(BodySettings(), bodies / "body_cm_zup.obj", stage, path, stage[stages.CURVES])
+    np.testing.assert_array_equal(again, transform)
+    _, given, _ = simulation_body(BodySettings(units="mm", up="z"), bodies / "body_cm_zup.obj", stage, path,
+                                  stage[stages.CURVES])
+    np.testing.assert_allclose(given[:3, :3], 0.001 * Y_TO_Z.T, atol=ROUNDOFF)
+
+
+def test_options_that_do_not_match_the_body_are_caught(detected, bodies):
+    """The Z-up cm body read in the hair's unit: the roots lie far from it and the line names both options
+    that put them back; contacts detected with the body read otherwise are detected again."""
+    result = hairinv(bodies, "detect", SAMPLES / "wavy.h5", "body_cm_zup.obj", "--guides", "3", "-o", "x.h5")
+    assert result.returncode == 0, result.stderr
+    warning = [line for line in (result.stdout + result.stderr).splitlines() if "roots lie" in line]
+    assert len(warning) == 1 and "--body-units cm" in warning[0] and "--body-up z" in warning[0], warning
+    rerun = hairinv(bodies, "detect", detected["cm_zup"][0], "body_cm_zup.obj", "--body-units", "mm",
+                    "--body-up", "z", "-o", "y.h5")
+    assert rerun.returncode == 0, rerun.stderr
+    assert "were detected with the body in other units or axes; detecting them again" in rerun.stdout
+    kept = hairinv(bodies, "detect", detected["cm_zup"][0], "body_cm_zup.obj", "--body-units", "cm",
+                   "--body-up", "z", "-o", "z.h5")
+    assert kept.returncode == 0 and "using the" in kept.stdout and "detecting them again" not in kept.stdout
+
+
+def test_a_bad_body_option_is_refused(bodies):
+    result = hairinv(bodies, "detect", SAMPLES / "wavy.h5", "body_cm.obj", "--body-flip", "q", "-o", "q.h5")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "body_cm.obj" in result.stderr and "--flip" in result.stderr
+    assert not (bodies / "q.h5").exists()
