@@ -1,0 +1,245 @@
+"""A consumer other than pxr: Blender (the ``bpy`` module, ``make blender``) imports hairinv's USD export.
+
+Blender runs in its own environment (.venv-blender, or the Python named by ``$HAIRINV_BLENDER_PYTHON``),
+in a subprocess running tests/blender_read_usd.py, which imports each file with ``bpy.ops.wm.usd_import``
+(default options) into an empty scene and writes what came in (JSON, and every point in world space as
+.npz). Without that Python the tests skip, saying how to get it.
+
+The stage files are test_export's hand-made ones (two strands, centimetres, with a model, contacts and
+three frames of a moving body), given the sample bust (written in the groom's unit, as hairinv reads a
+body by default) as their recorded body, exported three ways:
+``z.usda`` (+Z up, stiffened model, frames), ``y.usdc`` (+Y up, frames) and ``model.usd`` (+Y up, metres,
+a model without frames). What Blender holds is compared with what the stage file holds, read with h5py
+and evaluated independently (test_export's closed forms), after the conversion Blender's importer applies:
+the stage's ``metersPerUnit`` as a scale on the root object (scene unit scale 1: metres) and, for a +Y up
+stage, +90 degrees about X, so that the groom is +Z up as Blender is.
+
+Runtime: about 4 s (Blender's start-up and the three imports: about 1 s).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from conftest import ROOT, SAMPLES
+from test_export import FLOAT32_M, FPS, N_FRAMES, RADIUS, _body_motion, _expected_frame, _expected_rest, make_stage
+
+from hairinv import stages
+from hairinv.export import export
+
+SCRIPT = Path(__file__).resolve().parent / "blender_read_usd.py"
+BLENDER_PYTHON = Path(os.environ.get("HAIRINV_BLENDER_PYTHON", ROOT / ".venv-blender" / "bin" / "python"))
+
+# Blender is +Z up: its importer turns a +Y up stage by +90 degrees about X, (x, y, z) -> (x, -z, y).
+TO_BLENDER = {"z": np.eye(3), "y": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])}
+UP = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0)}
+BLENDER_DEFAULT_FPS = 24
+# Blender's matrices are float32: 6e-8 relative, and the quarter turn's cosine is 7.5e-8 instead of 0.
+FLOAT32 = 2e-7
+
+# name: (up, metres per unit, stiffened model, frames)
+FILES = {"z.usda": ("z", 0.01, True, True), "y.usdc": ("y", 0.01, False, True), "model.usd": ("y", 1.0, False, False)}
+
+
+def _body_file(folder: Path, scale: float) -> Path:
+    """The sample bust (metres) written in the groom's unit, as hairinv reads a body by default."""
+    path = folder / f"body_{scale:g}.obj"
+    lines = []
+    for line in (SAMPLES / "body.obj").read_text().splitlines():
+        words = line.split()
+        if words and words[0] == "v":
+            line = "v " + " ".join(repr(float(w) / scale) for w in words[1:4])
+        lines.append(line)
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _stage_file(folder: Path, name: str) -> tuple[Path, dict]:
+    """test_export's hand-made stage file with the sample bust recorded as its body (the last input of the
+    group the export looks in: /frames, else /model)."""
+    up, scale, stiffened, frames = FILES[name]
+    path = folder / (Path(name).stem + ".h5")
+    truth = make_stage(path, up=UP[up], scale_to_m=scale, stiffened=stiffened, frames=frames)
+    with h5py.File(path, "r+") as fh:
+        fh["frames" if frames else "model"].attrs["inputs"] = json.dumps(
+            [{"name": "hand-made"}, stages.file_record(_body_file(folder, scale))])
+    return path, truth
+
+
+def _obj_mesh(path: Path):
+    v, f = [], []
+    for line in path.read_text().splitlines():
+        words = line.split()
+        if words and words[0] == "v":
+            v.append([float(w) for w in words[1:4]])
+        elif words and words[0] == "f":
+            f.append(len(words) - 1)
+    return np.array(v), f
+
+
+@pytest.fixture(scope="module")
+def blender(tmp_path_factory):
+    """The three exports and what Blender read of them: (folder, JSON report, arrays, truths)."""
+    if not BLENDER_PYTHON.exists():
+        pytest.skip(f"Blender's Python not found at {BLENDER_PYTHON}: `make blender` installs Blender as the bpy "
+                    "module in .venv-blender (or set HAIRINV_BLENDER_PYTHON to a Python that has bpy)")
+    folder = tmp_path_factory.mktemp("blender")
+    truths, outputs = {}, []
+    for name in FILES:
+        path, truths[name] = _stage_file(folder, name)
+        report = export(path, folder / name)
+        assert not report.warnings, report.warnings  # the body was found
+        outputs.append(str(folder / name))
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    result = subprocess.run([str(BLENDER_PYTHON), str(SCRIPT), *outputs, "--frames", ",".join(str(k) for k in range(N_FRAMES)),
+                             "--json", str(folder / "blender.json"), "--npz", str(folder / "blender.npz")],
+                            capture_output=True, text=True, env=env, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    report = json.loads((folder / "blender.json").read_text())
+    arrays = dict(np.load(folder / "blender.npz"))
+    return folder, report, arrays, truths
+
+
+def _file(blender, name):
+    folder, report, arrays, truths = blender
+    index = list(FILES).index(name)
+    read = report["files"][index]
+    assert Path(read["file"]).name == name and read["result"] == ["FINISHED"]
+    return read, {k.split("/", 1)[1]: v for k, v in arrays.items() if k.split("/", 1)[0] == str(index)}, truths[name]
+
+
+def _object(read, name):
+    found = [o for o in read["objects"] if o["name"] == name]
+    assert len(found) == 1, [o["name"] for o in read["objects"]]
+    return found[0]
+
+
+def test_blender_version(blender):
+    """Hair curves (the ``Curves`` object type that the importer makes of BasisCurves) need Blender 4 or later."""
+    _, report, _, _ = blender
+    assert int(report["blender"].split(".")[0]) >= 4, report["blender"]
+
+
+@pytest.mark.parametrize("name", list(FILES))
+def test_blender_reads_every_strand_in_metres_z_up(blender, name):
+    read, arrays, truth = _file(blender, name)
+    up, scale, stiffened, frames = FILES[name]
+    to_blender = TO_BLENDER[up]
+    assert {o["name"]: o["type"] for o in read["objects"]} == {"Root": "EMPTY", "Hair": "CURVES",
+                                                               "Rest": "CURVES", "Body": "MESH"}
+    assert read["scene"]["unit_system"] == "METRIC" and read["scene"]["scale_length"] == 1.0
+    # the root object carries metersPerUnit (and, for +Y up, the turn onto +Z); its children are the prims
+    root = np.array(_object(read, "Root")["matrix_world"])
+    assert np.abs(root[:3, :3] - scale * to_blender).max() < FLOAT32 * scale and np.allclose(root[:3, 3], 0)
+    assert all(_object(read, n)["parent"] == "Root" for n in ("Hair", "Rest", "Body"))
+    # /Root/Hair: as many curves as strands, the same points per curve
+    hair = _object(read, "Hair")
+    counts = np.diff(truth["offsets"])
+    assert hair["curves"] == len(counts) and hair["points"] == len(truth["points"])
+    assert arrays["Hair/counts"].tolist() == counts.tolist()
+    with h5py.File(Path(read["file"]).with_suffix(".h5"), "r") as fh:  # the stage file's own points, metres
+        points = fh["curves/points"][()]
+        assert fh["curves"].attrs["scale_to_m"] == scale
+    assert np.allclose(points, truth["points"], atol=0)
+    if frames:
+        # the object's own data is the first time sample (time code 0), not the default value (the input)
+        assert np.abs(arrays["Hair/points"] - _expected_frame(truth, 0) @ to_blender.T).max() < FLOAT32_M
+    else:
+        assert np.abs(arrays["Hair/points"] - points @ to_blender.T).max() < FLOAT32_M
+    # /Root/Rest: the rest shape as curves of their own
+    assert arrays["Rest/counts"].tolist() == counts.tolist()
+    expected_rest = _expected_rest(truth, stiffened) @ to_blender.T
+    assert np.abs(arrays["Rest/points"] - expected_rest).max() < FLOAT32_M
+
+
+@pytest.mark.parametrize("name", list(FILES))
+def test_blender_keeps_the_primvars_as_attributes(blender, name):
+    read, arrays, truth = _file(blender, name)
+    up, scale, stiffened, _ = FILES[name]
+    hair = _object(read, "Hair")
+    attributes = {a["name"]: (a["domain"], a["data_type"]) for a in hair["attributes"]}
+    expected = {"position": ("POINT", "FLOAT_VECTOR"), "curve_type": ("CURVE", "INT8"), "radius": ("POINT", "FLOAT"),
+                "rest": ("POINT", "FLOAT_VECTOR"), "groom_id": ("CURVE", "INT"), "id": ("CURVE", "INT"),
+                "groom_guide": ("CURVE", "INT"), "groom_fit_error_mean": ("CURVE", "FLOAT"),
+                "groom_fit_error_max": ("CURVE", "FLOAT"), "groom_contact_force": ("POINT", "FLOAT"),
+                "groom_rest_curvature": ("POINT", "FLOAT")}
+    if stiffened:
+        expected["groom_stiffening"] = ("CURVE", "FLOAT")
+    assert attributes == expected
+    # linear curves: Blender's poly type (1) on every curve, nonperiodic (no `cyclic` attribute)
+    curve_type = next(a for a in hair["attributes"] if a["name"] == "curve_type")
+    assert curve_type["min"] == curve_type["max"] == 1
+    # widths -> radius: half the rod diameter, in stage units (the root object's scale makes it metres)
+    assert np.allclose(arrays["Hair/attr/radius"] * scale, RADIUS, rtol=1e-6)
+    # rest: stage units in the object's space, so the object's matrix takes it to the rest shape in metres
+    matrix = np.array(hair["matrix_world"])
+    rest = arrays["Hair/attr/rest"] @ matrix[:3, :3].T + matrix[:3, 3]
+    assert np.abs(rest - _expected_rest(truth, stiffened) @ TO_BLENDER[up].T).max() < FLOAT32_M
+    assert arrays["Hair/attr/groom_id"].tolist() == arrays["Hair/attr/id"].tolist() == [0, 1]
+    assert arrays["Hair/attr/groom_guide"].tolist() == [1, 1]
+    assert np.allclose(arrays["Hair/attr/groom_fit_error_max"], [3e-5, 4e-5], rtol=1e-6)  # SI, not rescaled
+    assert np.allclose(arrays["Hair/attr/groom_contact_force"], truth["contact_force"], rtol=1e-6, atol=0)
+    if stiffened:
+        assert arrays["Hair/attr/groom_stiffening"].tolist() == [1.0, 2.0]
+    # the rest prim has the strand ids only
+    rest_attributes = {a["name"] for a in _object(read, "Rest")["attributes"]}
+    assert rest_attributes == {"position", "curve_type", "radius", "groom_id", "id", "groom_guide"}
+
+
+@pytest.mark.parametrize("name", list(FILES))
+def test_blender_reads_the_body_mesh(blender, name):
+    read, arrays, truth = _file(blender, name)
+    to_blender = TO_BLENDER[FILES[name][0]]
+    vertices, faces = _obj_mesh(SAMPLES / "body.obj")  # metres
+    body = _object(read, "Body")
+    assert body["vertices"] == len(vertices) and body["faces"] == len(faces)
+    assert body["face_sizes"] == {"3": len(faces)}  # triangles, as written
+    frames = sorted(int(k) for k in read["frames"])
+    for k in frames:  # the body in metres, placed by the frame's rigid motion (none without frames)
+        T = _body_motion(k) if FILES[name][3] else np.eye(4)
+        expected = (vertices @ T[:3, :3].T + T[:3, 3]) @ to_blender.T
+        assert np.abs(arrays[f"Body/frame{k}"] - expected).max() < FLOAT32_M, k
+
+
+@pytest.mark.parametrize("name", [n for n, spec in FILES.items() if spec[3]])
+def test_blender_plays_the_frames(blender, name):
+    """The time samples: Blender's scene frame N shows time code N (frames 0, 1, 2 here). The importer sets the
+    frame range from the stage but leaves the scene at its own 24 fps (the stage says 25): played in Blender
+    the run is 25/24 times slower than it was simulated."""
+    read, arrays, truth = _file(blender, name)
+    to_blender = TO_BLENDER[FILES[name][0]]
+    scene = read["scene"]
+    assert (scene["frame_start"], scene["frame_end"]) == (0, N_FRAMES - 1)
+    assert scene["fps"] == BLENDER_DEFAULT_FPS != FPS and scene["fps_base"] == 1.0
+    hair, body, rest = (_object(read, n) for n in ("Hair", "Body", "Rest"))
+    # the points come from the file at each frame through a mesh sequence cache modifier, the body's
+    # transform through a transform cache constraint; the rest prim (no time samples) gets neither
+    assert [(m["type"], m["object_path"]) for m in hair["modifiers"]] == [("MESH_SEQUENCE_CACHE", "/Root/Hair")]
+    assert [(c["type"], c["object_path"]) for c in body["constraints"]] == [("TRANSFORM_CACHE", "/Root/Body")]
+    assert not rest["modifiers"] and not rest["constraints"]
+    assert Path(hair["modifiers"][0]["cache_file"]).name == name
+    for k in range(N_FRAMES):
+        frame = read["frames"][str(k)]
+        assert frame["Hair"]["curves"] == len(truth["offsets"]) - 1
+        assert np.abs(arrays[f"Hair/frame{k}"] - _expected_frame(truth, k) @ to_blender.T).max() < FLOAT32_M, k
+        if k:
+            assert frame["Hair"]["moved_since_first"] > 1e-3 and frame["Body"]["moved_since_first"] > 1e-3
+            assert frame["Rest"]["moved_since_first"] == 0.0
+
+
+def test_blender_without_frames_leaves_the_scene_frames_alone(blender):
+    read, _, _ = _file(blender, "model.usd")
+    hair = _object(read, "Hair")
+    assert not hair["modifiers"] and not _object(read, "Body")["constraints"]
+    assert read["cache_files"] == []
+
+
+if __name__ == "__main__":
+    sys.exit(pytest.main([__file__, "-q"]))
