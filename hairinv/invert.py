@@ -30,7 +30,8 @@ from ._jit import jit
 from ._parallel import run_chunks
 from .config import MaterialSettings, SolverSettings
 from .errors import InputError, RunError
-from .model import Contacts, Helices, Material, Model, material_from_group, stiffening_from_group, stiffness
+from .model import (UNSTABLE_MARGIN, Contacts, Helices, Material, Model, material_from_group, stiffening_from_group,
+                    stiffness)
 from .rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from .solver.blocks import _group_newton, strand_blocks
 from .solver.gauss_seidel import (CONVERGED, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
@@ -191,7 +192,7 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
 
 
 # an eigenvalue of the scaled Hessian I + K^-1/2 V'' K^-1/2 below this is a direction of instability
-_NEGATIVE = -1e-6
+_NEGATIVE = UNSTABLE_MARGIN
 # a contact whose friction force is at least this fraction of mu r_N is on the edge of its cone: sliding
 SLIDING = 1.0 - 1e-4
 
@@ -677,6 +678,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                 weak_together[g] = True
         unstable_groups = int(np.count_nonzero(group_lam < _NEGATIVE))
         unstable = int(np.count_nonzero((margin < _NEGATIVE) | weak_together))
+        for g, lam in zip(groups, group_lam):  # a strand of a group unstable together is unstable
+            margin[g] = np.minimum(margin[g], lam)
     r = result.r
     # q0 = q - K^-1 (F_g + H^T r), eq. (4), with the stiffness the strands were inverted with
     load = F_g + rows.rmatvec(r)
@@ -692,7 +695,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         r = np.zeros((declared, 3))
     prior = int(prior_sweeps) if warm else 0
     model = Model(material_rest, target, weight, r, material, float(settings.gamma), settings.target, result, prior,
-                  factor, None if factor is None else omega_rest)
+                  factor, None if factor is None else omega_rest,
+                  stability_margin=margin if check_stability else None, stable_under=settings.stable_under)
     report = InvertReport(
         settings.target, contacts.n_contacts, contacts.n_body, int(carrying.sum()), result, force_scale,
         float(np.sqrt(np.mean(np.sum(drift ** 2, axis=1)))) if len(drift) else 0.0,

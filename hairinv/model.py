@@ -222,6 +222,11 @@ def stiffness(helices: Helices, material: Material, factor: np.ndarray | None = 
     return K.ravel()
 
 
+#: A strand's stability margin (smallest eigenvalue of its scaled Hessian) below this is unstable; above it,
+#: up to the round-off of the eigenvalue solve, stable.
+UNSTABLE_MARGIN = -1e-6
+
+
 @dataclass
 class Model:
     """The inverted model (the ``/model`` group)."""
@@ -242,6 +247,13 @@ class Model:
     omega_rest_stiffened: np.ndarray | None = None
     """(E, 3) float64, the rest shape of the stiffened strands (``omega_rest`` is the one that holds the
     input with the same forces at the material's own stiffness); None when stabilisation was off"""
+    stability_margin: np.ndarray | None = None
+    """(S,) float64, each strand's smallest eigenvalue ``lambda`` of ``I + K^-1/2 V'' K^-1/2`` at the
+    stiffness it rests with (its stiffening included), on the motions ``solver.stable_under`` allows
+    (:func:`hairinv.invert.stability_margins`): > 0 rests stably, < 0 unstable; ``inf`` where no motion is
+    left; below :data:`UNSTABLE_MARGIN` unstable. None when stability was not checked"""
+    stable_under: str = ""
+    """what ``stability_margin`` holds fixed: ``forces`` or ``supports`` (solver.stable_under)"""
 
     @property
     def rest(self) -> np.ndarray:
@@ -260,6 +272,9 @@ class Model:
         if self.stiffening is not None:
             data["stiffening"] = np.asarray(self.stiffening, dtype=np.float64)
             data["omega_rest_stiffened"] = np.asarray(self.omega_rest_stiffened, dtype=np.float64)
+        if self.stability_margin is not None:
+            data["stability_margin"] = np.asarray(self.stability_margin, dtype=np.float64)
+            attrs["stable_under"] = self.stable_under
         return stages.Group(stages.MODEL, data, attrs=attrs, config=settings, inputs=inputs)
 
 
@@ -275,6 +290,18 @@ def rest_from_group(group: stages.Group) -> np.ndarray:
     model stiffened strands (with :func:`stiffening_from_group`), else ``omega_rest``."""
     name = "omega_rest_stiffened" if "omega_rest_stiffened" in group.datasets else "omega_rest"
     return np.ascontiguousarray(group[name], dtype=np.float64)
+
+
+def stability_from_group(group: stages.Group, n_strands: int) -> np.ndarray | None:
+    """Each strand's stability margin of a ``/model`` group (``stability_margin``, (S,), > 0 stable), or None
+    if the file has none (stability not checked, or a version before it was stored)."""
+    if "stability_margin" not in group.datasets:
+        return None
+    margin = np.ascontiguousarray(group["stability_margin"], dtype=np.float64).reshape(-1)
+    if margin.shape != (n_strands,) or np.any(np.isnan(margin)):
+        raise InputError(f"/model/stability_margin must hold one number per strand ({n_strands}), "
+                         f"got shape {margin.shape}")
+    return margin
 
 
 def stiffening_from_group(group: stages.Group, n_strands: int) -> np.ndarray | None:

@@ -12,6 +12,7 @@ import numpy as np
 
 from . import stages
 from .groom import strand_lengths
+from .model import UNSTABLE_MARGIN
 
 __all__ = ["SCHEMA", "summarise", "summary_lines"]
 
@@ -113,6 +114,7 @@ def _model(g: stages.Group) -> dict:
     under = g.config.get("solver", {}).get("stable_under", None if stabilize is None else "supports")
     factor = np.asarray(g["stiffening"], dtype=np.float64) if "stiffening" in g.datasets else None
     stiffened = None if factor is None else np.flatnonzero(factor > 1.0)
+    margin = np.asarray(g["stability_margin"], dtype=np.float64) if "stability_margin" in g.datasets else None
     return {
         "target": str(g.attrs.get("target", "")),
         "status": str(g.attrs.get("status", "")),
@@ -134,8 +136,9 @@ def _model(g: stages.Group) -> dict:
         "strands_stiffened": None if factor is None else len(stiffened),
         "stiffening_factor": None if factor is None else _stats(factor),
         "stiffened": None if factor is None else [{"strand": int(k), "factor": float(factor[k])} for k in stiffened],
-        # invert reports the strands left unstable, but the file does not store them
-        "unstable_strands": None,
+        # null for files that store no margins (stability not checked, or written before they were stored)
+        "unstable_strands": None if margin is None else [int(k) for k in np.flatnonzero(margin < UNSTABLE_MARGIN)],
+        "stability_margin": None if margin is None else _stats(margin[np.isfinite(margin)]),
     }
 
 
@@ -189,6 +192,11 @@ def _warnings(out: dict) -> list[str]:
         found.append(f"{_n(m['strands_stiffened'], 'strand was', 'strands were')} stiffened so that "
                      f"{'it rests' if m['strands_stiffened'] == 1 else 'they rest'} stably (factor up to "
                      f"{m['stiffening_factor']['max']:.3g})")
+    if g["model"] and g["model"]["unstable_strands"]:
+        m = g["model"]
+        found.append(f"{_n(len(m['unstable_strands']), 'strand rests', 'strands rest')} in an unstable equilibrium "
+                     f"(with its contact forces held {'fixed' if m['stable_under'] == 'forces' else 'in place'}): "
+                     "a simulation of the model will move it")
     return found
 
 

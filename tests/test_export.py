@@ -133,8 +133,16 @@ def _body_motion(k: int) -> np.ndarray:
     return T
 
 
-def make_stage(path, *, up=UP_Z, scale_to_m=0.01, model=True, stiffened=False, frames=True, rng=None):
-    """Write the hand-made stage file; returns a dict of what the tests compare with."""
+# /model/stability_margin of the stiffened hand-made model: strand 0 stable, strand 1 not
+STABILITY_MARGIN = np.array([0.3, -0.05])
+
+
+def make_stage(path, *, up=UP_Z, scale_to_m=0.01, model=True, stiffened=False, frames=True, rng=None, growth=0.1,
+               init=None):
+    """Write the hand-made stage file; returns a dict of what the tests compare with.
+
+    Frame k's shape is ``OMEGA * (1 + growth k)``, its roots moved by ``_body_motion(k)``; ``init`` is the
+    ``/frames`` attribute (None: not recorded)."""
     rng = np.random.default_rng(7) if rng is None else rng
     # the input vertices lie on the fitted curve, every 5 mm of arc
     s_in = [np.linspace(0.0, LENGTH[a:z].sum(), round(LENGTH[a:z].sum() / 0.005) + 1)
@@ -177,18 +185,19 @@ def make_stage(path, *, up=UP_Z, scale_to_m=0.01, model=True, stiffened=False, f
         if stiffened:
             data["stiffening"] = np.array([1.0, 2.0])
             data["omega_rest_stiffened"] = OMEGA_REST_STIFFENED
+            data["stability_margin"] = STABILITY_MARGIN
         groups.append(stages.Group(stages.MODEL, data, attrs={
             "youngs_modulus": 4e9, "shear_modulus": 1.5e9, "density": 1300.0, "radius": RADIUS,
             "gravity": -9.81 * np.asarray(up, float), "gamma": 1e-6, "target": "actual", "iterations": 1,
-            "residual": 0.0, "seconds": 0.0}))
+            "residual": 0.0, "seconds": 0.0, "stable_under": "forces"}))
     if frames:
         T = np.stack([_body_motion(k) for k in range(N_FRAMES)])
         groups.append(stages.Group(stages.FRAMES, {
             "time": np.arange(N_FRAMES) / FPS,
-            "omega": np.stack([OMEGA * (1.0 + 0.1 * k) for k in range(N_FRAMES)]),
+            "omega": np.stack([OMEGA * (1.0 + growth * k) for k in range(N_FRAMES)]),
             "root": np.stack([ROOTS @ T[k, :3, :3].T + T[k, :3, 3] for k in range(N_FRAMES)]),
             "frame0": np.stack([frame0 @ T[k, :3, :3].T for k in range(N_FRAMES)]),
-            "body_transform": T}, attrs={"fps": FPS}))
+            "body_transform": T}, attrs={"fps": FPS} if init is None else {"fps": FPS, "init": init}))
     stages.write_stage(path, groups, "test")
     return truth
 
@@ -270,8 +279,13 @@ def test_usd_holds_every_shape_in_the_groom_units(tmp_path, stiffened):
     assert np.allclose(_primvar(hair, "groom_fit_error_max").Get(), [3e-5, 4e-5])
     if stiffened:
         assert list(_primvar(hair, "groom_stiffening").Get()) == [1.0, 2.0]
+        # whether each strand rests stably: the stored margin, and its sign as an int flag
+        assert np.allclose(_primvar(hair, "groom_stability_margin").Get(), STABILITY_MARGIN, rtol=1e-6)
+        stable = _primvar(hair, "groom_stable")
+        assert stable.GetInterpolation() == UsdGeom.Tokens.uniform and list(stable.Get()) == [1, 0]
     else:
-        assert not UsdGeom.PrimvarsAPI(hair.GetPrim()).GetPrimvar("groom_stiffening")
+        for name in ("groom_stiffening", "groom_stability_margin", "groom_stable"):
+            assert not UsdGeom.PrimvarsAPI(hair.GetPrim()).GetPrimvar(name)
     force = _primvar(hair, "groom_contact_force")
     assert force.GetInterpolation() == UsdGeom.Tokens.vertex
     assert np.allclose(force.Get(), truth["contact_force"], rtol=1e-6, atol=0)
@@ -714,7 +728,12 @@ def _assert_summary(summary, path):
             assert m["strands_stiffened"] == int((factor > 1).sum())
         else:
             assert m["stiffened"] is None and m["strands_stiffened"] is None
-        assert m["unstable_strands"] is None  # not stored in stage files
+        if "stability_margin" in g:
+            margin = g["stability_margin"]
+            assert m["unstable_strands"] == np.flatnonzero(margin < -1e-6).tolist()
+            _assert_stats(m["stability_margin"], margin[np.isfinite(margin)])
+        else:  # stability not checked, or a file written before the margins were stored
+            assert m["unstable_strands"] is None and m["stability_margin"] is None
     if "frames" in f:
         r, g = summary["groups"]["frames"], f["frames"]
         assert r["frames"] == len(g["time"]) and r["seconds"] == g["time"][-1]

@@ -161,3 +161,35 @@ def test_a_stiffened_model_is_an_exact_equilibrium_for_old_and_new_readers(tmp_p
     q0s = rest_from_group(group).ravel()
     assert np.abs(Ks * (q - q0s) - F).max() <= ROUNDOFF * np.abs(F).max()
     assert not np.allclose(q0s, q0.ravel())  # the stiffened strand's rest shape is its own
+
+
+def test_the_stored_margin_is_greenhills_and_says_which_strands_rest_stably(tmp_path):
+    """``/model/stability_margin`` read back from the file: a standing column past Greenhill's height
+    inverted without stabilisation has ``1 - lambda`` = Greenhill's critical factor (it is unstable); a
+    hanging one is stable; with stiffening by ``a = m (1 - lambda)``, ``lambda(a) = 1 - 1 / m`` (the
+    closed form above). The summary lists the unstable strand."""
+    from hairinv.model import stability_from_group
+    from hairinv.summary import summarise
+
+    mat = material()
+    height = 0.3
+    helices = strands([(np.zeros(3), UP, np.zeros((ELEMENTS, 3)), np.full(ELEMENTS, height / ELEMENTS)),
+                       (np.array([0.05, 0.0, 0.0]), -UP, np.zeros((ELEMENTS, 3)), np.full(ELEMENTS, height / ELEMENTS))])
+    critical = mat.linear_density * np.linalg.norm(mat.gravity) * height ** 3 / (7.837 * mat.bending)
+    m = SolverSettings().stiffen_margin
+    margins = {}
+    for stabilize in ("off", "stiffen"):
+        model, _ = solve(helices, None, mat, stabilize=stabilize)
+        path = tmp_path / f"{stabilize}.h5"
+        groom = stages.Group(stages.CURVES, {"points": np.zeros((0, 3)), "offsets": np.zeros(1, np.int64)},
+                             attrs={"scale_to_m": 1.0, "up": UP})
+        stages.write_stage(path, [groom, helices.group(FitSettings(), []), model.group({}, [])], "test")
+        stage = stages.read_stage(path)
+        margins[stabilize] = stability_from_group(stage[stages.MODEL], 2)
+        assert stage[stages.MODEL].attrs["stable_under"] == "forces"
+        summary = summarise(stage)["groups"]["model"]
+        assert summary["unstable_strands"] == ([0] if stabilize == "off" else [])
+    off, on = margins["off"], margins["stiffen"]
+    assert 1.0 - off[0] == pytest.approx(critical, rel=DISCRETIZATION) and off[0] < 0
+    assert on[0] == pytest.approx(1.0 - 1.0 / m, abs=1e-9)
+    assert off[1] > 0 and on[1] == off[1]  # the hanging column is stable and left alone

@@ -32,7 +32,7 @@ from .. import stages
 from ..config import MaterialSettings
 from ..errors import InputError
 from ..groom import rotation_onto
-from ..model import Helices, rest_from_group, stiffening_from_group
+from ..model import UNSTABLE_MARGIN, Helices, rest_from_group, stability_from_group, stiffening_from_group
 from ..rod.helix import points_at
 
 __all__ = ["SHAPE_KINDS", "ExportSource", "OutputAxes", "Shape", "Strands", "parse_shape"]
@@ -365,7 +365,20 @@ class ExportSource:
             if factor is not None:
                 out["stiffening"] = (factor, ("factor the strand's bending and twist stiffness was multiplied by "
                                               "so that it rests stably (1: the material's own)"))
+            margin = stability_from_group(self.model, self.n_strands)
+            if margin is not None:
+                under = "held fixed" if self.model.attrs.get("stable_under") == "forces" else "held in place"
+                out["stability_margin"] = (margin, (
+                    "smallest eigenvalue of the strand's stiffness-scaled Hessian at rest, its contact forces "
+                    f"{under}: > 0 rests stably, < {UNSTABLE_MARGIN:g} unstable, inf: no motion left"))
         return out
+
+    def stable(self) -> np.ndarray | None:
+        """(S,) bool, whether each strand rests in a stable equilibrium, or None if the file does not say."""
+        if self.model is None:
+            return None
+        margin = stability_from_group(self.model, self.n_strands)
+        return None if margin is None else ~(margin < UNSTABLE_MARGIN)
 
     def vertex_values(self) -> dict[str, tuple[np.ndarray, str]]:
         """Per-vertex quantities (input topology): name -> ((P,) float64, what it is with its unit)."""

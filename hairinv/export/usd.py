@@ -7,8 +7,9 @@ Layout (``/Root`` is the default prim):
   diameter in stage units, and primvars: ``groom_id``, ``groom_guide`` (1: every strand is a simulated
   guide) and ``id`` (uniform int, Unreal's and Houdini's strand ids); ``rest`` (vertex point3f, the rest
   shape at the same vertices, Houdini's rest attribute); hairinv's quantities with the ``groom_`` prefix
-  Unreal's importer keeps (``groom_fit_error_mean``, ``groom_fit_error_max``, ``groom_stiffening``
-  uniform; ``groom_contact_force``, ``groom_rest_curvature`` vertex; SI units, stated in each primvar's
+  Unreal's importer keeps (``groom_fit_error_mean``, ``groom_fit_error_max``, ``groom_stiffening``,
+  ``groom_stability_margin`` uniform float, ``groom_stable`` uniform int; ``groom_contact_force``,
+  ``groom_rest_curvature`` vertex; SI units, stated in each primvar's
   documentation). With ``all`` and ``/frames``, ``points`` carries one time sample per frame.
 - ``/Root/Rest`` (``all``, with ``/model``): the rest shape as curves of its own.
 - ``/Root/Frames`` (``all``, a trimmed simulation): the frames on the cut strands' own topology.
@@ -162,6 +163,15 @@ class _Writer:
         described = [f"/Root/Hair: {strands.n_strands} strands, {len(strands.points)} points, {strands.label}"]
         for name, (values, doc) in source.strand_values().items():
             self.float_primvar(hair, f"groom_{name}", values, "uniform", doc)
+        stable = source.stable()
+        if stable is not None:
+            from pxr import Sdf, UsdGeom, Vt
+
+            primvar = UsdGeom.PrimvarsAPI(hair.GetPrim()).CreatePrimvar("groom_stable", Sdf.ValueTypeNames.IntArray,
+                                                                        UsdGeom.Tokens.uniform)
+            primvar.Set(Vt.IntArray.FromNumpy(stable.astype(np.int32)))
+            primvar.GetAttr().SetDocumentation("1: the strand rests in a stable equilibrium (a still simulation "
+                                               "keeps it), 0: unstable")
         if same_topology:
             for name, (values, doc) in source.vertex_values().items():
                 self.float_primvar(hair, f"groom_{name}", values, "vertex", doc)
