@@ -47,7 +47,7 @@ sys.path.insert(0, str(ROOT))
 from hairinv.config import apply, resolve  # noqa: E402
 from hairinv.contacts import detect_contacts  # noqa: E402
 from hairinv.fit import fit_groom  # noqa: E402
-from hairinv.groom import Groom, load_body, load_groom  # noqa: E402
+from hairinv.groom import Groom, hair_unit_transform, load_body, load_groom  # noqa: E402
 from hairinv.invert import Material, generalized_gravity, invert, stiffness, target_shape  # noqa: E402
 from hairinv.solver.reference import solve_socqp_clarabel  # noqa: E402
 from hairinv.solver.rows import contact_rows  # noqa: E402
@@ -324,7 +324,7 @@ def _child(fn: str, arg: dict, env: dict | None = None) -> dict:
 def _pipeline_once(settings, files, follow=0, body=None, check_stability=True):
     groom = load_style(files, settings.import_.guides, follow, settings)
     helices, _ = fit_groom(groom, settings.fit)
-    body = body if body is not None else load_body(HEAD, groom.scale_to_m)
+    body = body if body is not None else load_body(HEAD, hair_unit_transform(groom.scale_to_m))
     contacts, _ = detect_contacts(helices, body, settings.contacts)
     material = Material.from_settings(settings.material, groom.up)
     invert(helices, contacts, material, settings.solver, check_stability=check_stability)
@@ -337,7 +337,7 @@ def compile_probe(_arg: dict) -> dict:
     settings = settings_for(WARMUP_GUIDES)
     solver = dataclasses.replace(settings.solver, max_sweeps=50)
     groom = load_style([str(SHORT)], WARMUP_GUIDES, 0, settings)
-    body = load_body(HEAD, groom.scale_to_m)
+    body = load_body(HEAD, hair_unit_transform(groom.scale_to_m))
     material = Material.from_settings(settings.material, groom.up)
     out = {"setup": time.perf_counter() - t0}
     for stage in ("fit", "detect", "invert"):
@@ -393,7 +393,7 @@ def pipeline_point(spec: dict) -> dict:
 
     groom = stage("import", lambda: load_style(spec["files"], spec["guides"], spec["follow"], settings))
     helices, fit_report = stage("fit", lambda: fit_groom(groom, settings.fit))
-    body = stage("body", lambda: load_body(HEAD, groom.scale_to_m))
+    body = stage("body", lambda: load_body(HEAD, hair_unit_transform(groom.scale_to_m)))
     contacts, _ = stage("detect", lambda: detect_contacts(helices, body, settings.contacts))
     material = Material.from_settings(settings.material, groom.up)
     checks = []
@@ -443,7 +443,7 @@ def prepare_groom(guides: int, repeats: int, body=None) -> dict:
     fit = median_time(lambda: fit_groom(groom, settings.fit), repeats)
     helices, fit_report = fit.result
     if body is None:
-        body = median_time(lambda: load_body(HEAD, groom.scale_to_m), 1)
+        body = median_time(lambda: load_body(HEAD, hair_unit_transform(groom.scale_to_m)), 1)
     det = median_time(lambda: detect_contacts(helices, body.result, settings.contacts), repeats)
     contacts, detect_report = det.result
     material = Material.from_settings(settings.material, groom.up)

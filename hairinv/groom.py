@@ -18,6 +18,7 @@ import numpy as np
 from . import formats, stages
 from .config import UNITS, BodySettings, ImportSettings
 from .errors import InputError
+from .formats.mesh import CORNER_UV
 
 AXES = {"x": 0, "y": 1, "z": 2}
 # Typical diagonal of the bounding box, m: a head of hair, and a bust.
@@ -289,6 +290,14 @@ def _flip_matrix(flip: str, path) -> np.ndarray:
     return np.diag(_flip(np.ones((1, 3)), flip, path)[0])
 
 
+def hair_unit_transform(scale: float, flip: str = "", path=None) -> np.ndarray:
+    """The 4x4 transform of a body read in the hair's unit and flip (the default of :func:`body_to_groom`, and
+    how stage files that record no transform read their body): ``diag(flip) * scale``."""
+    M = np.eye(4)
+    M[:3, :3] = float(scale) * _flip_matrix(flip, path)
+    return M
+
+
 def body_to_groom(settings: BodySettings, groom_scale: float, groom_up, groom_flip: str, body_path=None,
                   body_size_native: float | None = None) -> tuple[np.ndarray, list[str]]:
     """The 4x4 transform from the body file's coordinates to the groom's frame in metres, and what it does.
@@ -351,7 +360,9 @@ def load_body(path, to_groom: np.ndarray, mesh=None):
     mesh = mesh.copy()
     mesh.vertices = vertices
     if np.linalg.det(to_groom[:3, :3]) < 0:  # a mirror turns the winding, so the normals, inside out
-        mesh.invert()
+        mesh.invert()  # reverses each triangle's corners: their texture coordinates follow
+        if CORNER_UV in mesh.metadata:
+            mesh.metadata[CORNER_UV] = np.ascontiguousarray(mesh.metadata[CORNER_UV][:, ::-1])
     return mesh
 
 
@@ -363,7 +374,7 @@ def recorded_body_transform(record: dict | None, groom_scale: float, groom_flip:
         if M.shape == (4, 4) and np.all(np.isfinite(M)):
             return M
         raise InputError("records a body transform that is not a finite 4x4 matrix", body_path)
-    return body_to_groom(BodySettings(), groom_scale, (0.0, 1.0, 0.0), groom_flip, body_path)[0]
+    return hair_unit_transform(groom_scale, groom_flip, body_path)
 
 
 def find_recorded_body(stage, stage_path, groups=(stages.FRAMES, stages.CONTACTS, stages.MODEL)):

@@ -202,6 +202,13 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         if helices is None:
             groom, report = load_groom(style, settings.import_)
             lines += report.lines()
+            same = np.array_equal(groom.offsets, curves["offsets"]) and np.array_equal(groom.points, curves["points"])
+            if not same:  # cleaned or a guide subset: /curves holds the strands fitted, in the stored units and axes
+                stored = curves.config.get("import", {})
+                groups[stages.CURVES] = stages.Group(
+                    stages.CURVES, {"points": groom.points, "offsets": groom.offsets}, attrs=dict(curves.attrs),
+                    config={"import": {**stored, "guides": settings.import_.guides, "seed": settings.import_.seed}},
+                    inputs=inputs[:1])
     else:
         # the hair's unit guessed from the body's size when the body is read in the hair's unit
         size = body_size if settings.body.units == "hair" and settings.body.scale <= 0 else None

@@ -18,7 +18,7 @@ import trimesh
 
 from conftest import real_path
 from hairinv.config import ImportSettings
-from hairinv.groom import load_body, load_groom
+from hairinv.groom import hair_unit_transform, load_body, load_groom
 
 MARGIN = 1.5
 MAX_ROOTS = 500
@@ -56,7 +56,7 @@ def body():
     def get(parts, scale, flip=""):
         key = (parts, scale, flip)
         if key not in cache:
-            cache[key] = load_body(real_path(*parts), scale, flip)
+            cache[key] = load_body(real_path(*parts), hair_unit_transform(scale, flip))
         return cache[key]
 
     return get

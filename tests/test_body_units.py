@@ -100,6 +100,8 @@ def test_a_body_in_its_own_units_and_axes_gives_the_same_contacts(detected):
     arc length, gap) as the body in the hair's unit, up to the round-off of the unit conversion."""
     reference, record = _contacts(detected["m"][0])
     assert len(reference["gap"]) > 0 and "to_groom" in record[-1]
+    with h5py.File(detected["m"][0], "r") as fh:  # /curves holds the 3 guide strands fitted, not the 280 read
+        assert len(fh["curves/offsets"]) == len(fh["helices/root"]) + 1 == 4
     np.testing.assert_array_equal(np.asarray(record[-1]["to_groom"]), np.eye(4))
     for name in ("cm", "cm_zup"):
         found, record = _contacts(detected[name][0])

@@ -20,7 +20,7 @@ from hairinv.config import ContactSettings, FitSettings, ImportSettings
 from hairinv.contacts import BODY, BodyMesh, Contacts, DetectReport, detect_contacts
 from hairinv.errors import InputError
 from hairinv.fit import Helices, fit_groom
-from hairinv.groom import load_body, load_groom
+from hairinv.groom import hair_unit_transform, load_body, load_groom
 from hairinv.rod.helix import frames_at, points_at
 
 # Refined contact positions: golden-section / Gauss-Newton on float64 geometry of size ~0.1 m;
@@ -412,7 +412,7 @@ def test_hashed_hair_pairs_agree_with_brute_force(rng):
 def wavy():
     groom, _ = load_groom(SAMPLES / "wavy.h5", ImportSettings(guides=40, seed=3))
     h, _ = fit_groom(groom, FitSettings())
-    return h, load_body(SAMPLES / "body.obj", 1.0)
+    return h, load_body(SAMPLES / "body.obj", hair_unit_transform(1.0))
 
 
 def check_geometry(h: Helices, body, contacts: Contacts, settings: ContactSettings, report: DetectReport):
@@ -509,7 +509,7 @@ def test_real_sintel_with_its_body():
     scale = 0.008  # ≈0.8 cm per unit (shared/data/real/README.md)
     groom, _ = load_groom(hair, ImportSettings(scale=scale))
     h, _ = fit_groom(groom, FitSettings(tolerance=5e-4))
-    body = load_body(real_path("sintel", "sintel.obj"), scale)
+    body = load_body(real_path("sintel", "sintel.obj"), hair_unit_transform(scale))
     contacts, report = detect_contacts(h, body, SETTINGS)
     print("\n".join(report.lines()))
     assert report.n_body > 50 and report.n_hair > 20

@@ -18,7 +18,7 @@ from hairinv import config
 from hairinv.config import UNITS, ImportSettings
 from hairinv.errors import InputError
 from hairinv.formats import write_curves
-from hairinv.groom import guess_units, load_body, load_groom, select_guides
+from hairinv.groom import guess_units, hair_unit_transform, load_body, load_groom, select_guides
 
 # Coordinates of the synthetic strands are small multiples of 1/8, exact in
 # float32 and float64; a float64 product with a scale is then reproduced
@@ -461,7 +461,7 @@ def ball(tmp_path):
 )
 def test_load_body_scales_flips_and_stays_outward(ball, flip, sign):
     path, vertices, faces = ball
-    body = load_body(path, 0.01, flip)
+    body = load_body(path, hair_unit_transform(0.01, flip))
     expected = vertices * 0.01 * np.array(sign, float)
     np.testing.assert_allclose(body.vertices, expected, rtol=1e-15, atol=1e-15)
     assert len(body.faces) == len(faces)
@@ -478,10 +478,10 @@ def test_load_body_flip_without_inversion_would_turn_the_mesh_inside_out(ball):
     path, vertices, faces = ball
     mirrored = vertices * 0.01 * np.array([1.0, 1.0, -1.0])
     assert signed_volume(mirrored, faces) < 0
-    body = load_body(path, 0.01, "z")
+    body = load_body(path, hair_unit_transform(0.01, "z"))
     assert not np.array_equal(np.asarray(body.faces), faces)
 
 
 def test_load_body_bad_flip_names_the_file(ball):
     with pytest.raises(InputError, match=r"ball\.obj: --flip"):
-        load_body(ball[0], 1.0, "w")
+        load_body(ball[0], hair_unit_transform(1.0, "w", ball[0]))

@@ -619,3 +619,38 @@ def element_body_contacts(lo, hi, samples, xs, Fs, omega, length, s0, is_last, t
         has_out[e] = 1
         sigma_out[e] = best_s
         sd_out[e] = sd
+
+
+def texture_coordinates(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The body's texture coordinates at the point of its surface closest to each of ``points`` (for a strand
+    root: its root UV, where it grows from the scalp), and the distance to that point.
+
+    ``mesh`` is a body mesh read by :func:`hairinv.formats.read_mesh`, in the frame of ``points``. Returns None
+    when the file gave it no texture coordinates. The UV is interpolated linearly (barycentric) over the
+    closest triangle from its corners' coordinates.
+
+    Returns
+    -------
+    uv : (n, 2) float64
+    distance : (n,) float64, m, unsigned
+    """
+    from ..formats.mesh import CORNER_UV
+
+    corner_uv = mesh.metadata.get(CORNER_UV)
+    if corner_uv is None:
+        return None
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    distance, closest, _, face = BodyMesh.from_mesh(mesh).closest(points)
+    corners = np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.faces)[face]]
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    e1, e2, d = b - a, c - a, closest - a
+    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    p1, p2 = (d * e1).sum(1), (d * e2).sum(1)
+    det = d11 * d22 - d12 * d12
+    safe = np.where(det > 0, det, 1.0)
+    v = np.where(det > 0, (d22 * p1 - d12 * p2) / safe, 0.0)  # a degenerate triangle: its first corner
+    w = np.where(det > 0, (d11 * p2 - d12 * p1) / safe, 0.0)
+    bary = np.clip(np.stack([1.0 - v - w, v, w], axis=1), 0.0, 1.0)
+    bary /= bary.sum(axis=1, keepdims=True)
+    uv = np.einsum("nk,nkj->nj", bary, corner_uv[face])
+    return uv, np.abs(distance)

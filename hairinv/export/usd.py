@@ -9,8 +9,9 @@ Layout (``/Root`` is the default prim):
   shape at the same vertices, Houdini's rest attribute); hairinv's quantities with the ``groom_`` prefix
   Unreal's importer keeps (``groom_fit_error_mean``, ``groom_fit_error_max``, ``groom_stiffening``,
   ``groom_stability_margin`` uniform float, ``groom_stable`` uniform int; ``groom_contact_force``,
-  ``groom_rest_curvature`` vertex; SI units, stated in each primvar's
-  documentation). With ``all`` and ``/frames``, ``points`` carries one time sample per frame.
+  ``groom_rest_curvature`` vertex; SI units, stated in each primvar's documentation); ``groom_root_uv``
+  (uniform texCoord2f) where the body file has texture coordinates: the body's UV at the surface point
+  closest to each root. With ``all`` and ``/frames``, ``points`` carries one time sample per frame.
 - ``/Root/Rest`` (``all``, with ``/model``): the rest shape as curves of its own.
 - ``/Root/Frames`` (``all``, a trimmed simulation): the frames on the cut strands' own topology.
 - ``/Root/Body``, Mesh: the body the file records, if it is still there unchanged; with frames its
@@ -28,9 +29,12 @@ import numpy as np
 
 from .. import __version__, stages
 from ..formats.usd import GROOM_ROLE, ROLE_KEY, save_stage
+from ..contacts.body import texture_coordinates
 from .base import register_exporter
 from .source import ExportSource, OutputAxes, Shape, Strands
 
+# m: roots farther than this from the body get a root UV with a warning (the nearest surface point's)
+ROOT_UV_FAR = 0.02
 # A frame's time code t * fps this close to an integer is that integer (frames are written at k / fps).
 _WHOLE_CODE = 1e-6
 
@@ -121,10 +125,32 @@ class _Writer:
             points_attr.Set(points, Usd.TimeCode(code))
             extent_attr.Set(UsdGeom.Curves.ComputeExtent(points, widths), Usd.TimeCode(code))
 
-    def body(self, codes: list[float] | None, frame: int | None) -> None:
+    def root_uv(self, curves, strands: Strands, mesh) -> None:
+        """``groom_root_uv`` (uniform texCoord2f, Unreal's): the body's UV where each strand's root meets it."""
+        from pxr import Sdf, UsdGeom, Vt
+
+        found = texture_coordinates(mesh, strands.points[strands.offsets[:-1]]) if mesh is not None else None
+        if found is None:
+            if mesh is not None:
+                self.report.lines.append("no groom_root_uv: the body file has no texture coordinates")
+            return
+        uv, distance = found
+        primvar = UsdGeom.PrimvarsAPI(curves.GetPrim()).CreatePrimvar(
+            "groom_root_uv", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.uniform)
+        primvar.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uv, dtype=np.float32)))
+        primvar.GetAttr().SetDocumentation("the body's texture coordinates at the surface point closest to the "
+                                           "strand's root (Unreal groom attribute)")
+        far = int(np.count_nonzero(distance > ROOT_UV_FAR))
+        self.report.lines.append("groom_root_uv from the body's texture coordinates (roots "
+                                 f"{1e3 * np.median(distance):.3g} mm from the surface, median)")
+        if far:
+            self.report.warnings.append(f"warning: {self.source.name}: {far} of {len(uv)} roots lie more than "
+                                        f"{1e3 * ROOT_UV_FAR:g} mm from the body; their groom_root_uv is the nearest "
+                                        "surface point's")
+
+    def body(self, codes: list[float] | None, frame: int | None, mesh, note: str) -> None:
         from pxr import Gf, Usd, UsdGeom, Vt
 
-        mesh, note = self.source.body()
         if mesh is None:
             self.report.warnings.append(f"warning: {self.source.name}: {note}; the USD file has no body mesh")
             return
@@ -207,8 +233,11 @@ class _Writer:
                 else:
                     self.animate(hair, codes)
                     described.append(f"{source.n_frames} frames as time samples of its points at {source.fps:g} fps")
+        mesh, note = source.body()
+        # the roots at rest on the body as the file records it (a frame's roots moved with the body, rigidly)
+        self.root_uv(hair, source.strands(Shape("input")), mesh)
         report.lines.append("; ".join(described))
-        self.body(codes, shape.frame if shape.kind == "frame" else None)
+        self.body(codes, shape.frame if shape.kind == "frame" else None, mesh, note)
 
 
 @register_exporter(".usda", ".usdc", ".usd", name="USD", default_shape="all", several_shapes=True)

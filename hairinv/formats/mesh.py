@@ -5,7 +5,8 @@ than by trimesh, because trimesh splits OBJ vertices along UV and normal
 seams (ruby_head.obj would grow from 17892 to 23220 vertices); parsing
 ourselves keeps one vertex per ``v`` line, in file order, so vertex indices
 match the file. Every ``f`` of every group/object goes into the one mesh;
-n-gons are fan-triangulated (n - 2 triangles). The other formats go through
+n-gons are fan-triangulated (n - 2 triangles), and their texture coordinates (``vt``) are kept per
+triangle corner (``mesh.metadata[CORNER_UV]``) when every face has them. The other formats go through
 ``trimesh.load(path, force="mesh", process=False)``, which concatenates all
 the geometry of a scene. Nothing is merged or removed in either case.
 """
@@ -21,7 +22,12 @@ from .base import register_mesh_reader
 from .obj import parse_obj
 
 
-def _checked(vertices, faces, path: Path):
+#: ``mesh.metadata`` key of the texture coordinates: (T, 3, 2) float64, u and v at each corner of each
+#: triangle (corners, not vertices: a UV seam gives one vertex several), when the file has them for every face.
+CORNER_UV = "hairinv_corner_uv"
+
+
+def _checked(vertices, faces, path: Path, corner_uv=None):
     import trimesh
 
     vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
@@ -30,7 +36,12 @@ def _checked(vertices, faces, path: Path):
         raise InputError("has no faces; a body mesh needs triangles", path)
     if not np.isfinite(vertices).all():
         raise InputError("has vertex coordinates that are NaN or Inf", path)
-    return trimesh.Trimesh(vertices, faces, process=False)
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    if corner_uv is not None:
+        corner_uv = np.asarray(corner_uv, dtype=np.float64).reshape(len(faces), 3, 2)
+        if np.isfinite(corner_uv).all():
+            mesh.metadata[CORNER_UV] = corner_uv
+    return mesh
 
 
 @register_mesh_reader(".obj")
@@ -44,16 +55,21 @@ def read_obj_mesh(path: Path):
         ``faces`` (T, 3) int64, every ``f`` fan-triangulated.
     """
     path = Path(path)
-    vertices, polygons = parse_obj(path, "f")
-    faces = []
-    for number, idx in polygons:
+    vertices, polygons, uvs, texture = parse_obj(path, "f", texture=True)
+    faces, corners = [], []
+    for (number, idx), tex in zip(polygons, texture):
         if len(idx) < 3:
             raise InputError(f"line {number} has a face with fewer than 3 vertices", path)
         faces.extend((idx[0], idx[k], idx[k + 1]) for k in range(1, len(idx) - 1))
+        if tex is not None and corners is not None:
+            corners.extend((tex[0], tex[k], tex[k + 1]) for k in range(1, len(tex) - 1))
+        else:
+            corners = None  # a face without texture coordinates: the mesh has none
     if not faces:
         hint = "; is it a hairstyle?" if parse_obj(path, "l")[1] else ""
         raise InputError(f"has no faces{hint}", path)
-    return _checked(vertices, faces, path)
+    corner_uv = uvs[np.asarray(corners, dtype=np.int64)] if corners and len(uvs) else None
+    return _checked(vertices, faces, path, corner_uv)
 
 
 @register_mesh_reader(".ply", ".stl", ".off", ".glb")
@@ -76,4 +92,6 @@ def read_trimesh(path: Path):
         raise InputError(f"could not be read as a {path.suffix.lower()} mesh ({reason})", path) from None
     if not isinstance(mesh, trimesh.Trimesh):
         raise InputError(f"holds no triangle mesh (trimesh read a {type(mesh).__name__})", path)
-    return _checked(mesh.vertices, mesh.faces, path)
+    uv = getattr(mesh.visual, "uv", None)  # per vertex, for the formats trimesh reads them from
+    corner_uv = np.asarray(uv)[np.asarray(mesh.faces)] if uv is not None and len(uv) == len(mesh.vertices) else None
+    return _checked(mesh.vertices, mesh.faces, path, corner_uv)

@@ -19,7 +19,7 @@ from ..errors import InputError
 from .base import check_strands, register_curves_reader, register_curves_writer, write_atomic
 
 
-def parse_obj(path: Path, element: str) -> tuple[np.ndarray, list[tuple[int, list[int]]]]:
+def parse_obj(path: Path, element: str, texture: bool = False):
     """Read the ``v`` lines and the ``element`` lines (``"l"`` or ``"f"``) of an OBJ file.
 
     Returns
@@ -28,11 +28,18 @@ def parse_obj(path: Path, element: str) -> tuple[np.ndarray, list[tuple[int, lis
         Positions of every ``v`` line, in file order.
     elements : list of (line number, 0-based vertex indices)
         One entry per ``element`` line; indices are checked to be in range.
+    uvs : (N, 2) float64, only with ``texture``
+        Every ``vt`` line's u and v, in file order.
+    texture_indices : list of (0-based ``vt`` indices or None), only with ``texture``
+        Per element, the texture index of each of its vertices (``f 1/4 2/5 3/6``), or None where the
+        element names none for some vertex. Checked to be in range.
     """
     path = Path(path)
     text = path.read_bytes().decode("utf-8", errors="replace").replace("\\\r\n", " ").replace("\\\n", " ")
     coords: list[list[str]] = []
+    uv_coords: list[list[str]] = []
     elements: list[tuple[int, list[int]]] = []
+    texture_indices: list[list[int] | None] = []
     for number, line in enumerate(text.splitlines(), start=1):
         words = line.split()
         if not words:
@@ -41,11 +48,15 @@ def parse_obj(path: Path, element: str) -> tuple[np.ndarray, list[tuple[int, lis
             if len(words) < 4:
                 raise InputError(f"line {number} has a 'v' with fewer than three coordinates", path)
             coords.append(words[1:4])
+        elif words[0] == "vt" and texture:
+            if len(words) < 3:
+                raise InputError(f"line {number} has a 'vt' with fewer than two coordinates", path)
+            uv_coords.append(words[1:3])
         elif words[0] == element:
             n_defined = len(coords)
-            indices = []
+            indices, tex = [], []
             for token in words[1:]:
-                head = token.split("/", 1)[0]
+                head, _, rest = token.partition("/")
                 try:
                     k = int(head)
                 except ValueError:
@@ -54,13 +65,33 @@ def parse_obj(path: Path, element: str) -> tuple[np.ndarray, list[tuple[int, lis
                 if not 0 <= k < n_defined:
                     raise InputError(f"line {number} refers to vertex {head}, which is not defined before it", path)
                 indices.append(k)
+                if texture and tex is not None:
+                    t_head = rest.partition("/")[0]
+                    try:
+                        t = int(t_head)
+                    except ValueError:
+                        tex = None  # no texture index on this vertex (f 1 2 3 or f 1//1 ...)
+                        continue
+                    t = t - 1 if t > 0 else len(uv_coords) + t
+                    if not 0 <= t < len(uv_coords):
+                        raise InputError(f"line {number} refers to texture vertex {t_head}, which is not defined "
+                                         "before it", path)
+                    tex.append(t)
             elements.append((number, indices))
+            texture_indices.append(tex)
     try:
         vertices = np.array(coords, dtype=np.float64).reshape(-1, 3)
     except ValueError:
         bad = next(i for i, xyz in enumerate(coords) if not _numeric(xyz))
         raise InputError(f"vertex {bad + 1} has coordinates that are not numbers", path) from None
-    return vertices, elements
+    if not texture:
+        return vertices, elements
+    try:
+        uvs = np.array(uv_coords, dtype=np.float64).reshape(-1, 2)
+    except ValueError:
+        bad = next(i for i, uv in enumerate(uv_coords) if not _numeric(uv))
+        raise InputError(f"texture vertex {bad + 1} has coordinates that are not numbers", path) from None
+    return vertices, elements, uvs, texture_indices
 
 
 def _numeric(words) -> bool:
