@@ -1,10 +1,11 @@
-"""USD (usd-core): the groom as linear BasisCurves with its rest shape, simulation and body (docs/export.md).
+"""USD (usd-core): the groom as BasisCurves with its rest shape, simulation and body (docs/export.md).
 
 Layout (``/Root`` is the default prim):
 
 - ``/Root/Hair``, BasisCurves, ``type = linear`` (the vertices joined by straight segments; no basis),
-  ``wrap = nonperiodic``: the shape asked for (``all``: the input shape), ``widths`` per vertex = the rod
-  diameter in stage units, and primvars: ``groom_id``, ``groom_guide`` (1: every strand is a simulated
+  ``wrap = nonperiodic``; or with ``--basis catmull-rom`` ``type = cubic``, ``basis = catmullRom``,
+  ``wrap = pinned`` (a C1 curve through every vertex, the root and tip included): the shape asked for
+  (``all``: the input shape), ``widths`` per vertex = the rod diameter in stage units, and primvars: ``groom_id``, ``groom_guide`` (1: every strand is a simulated
   guide) and ``id`` (uniform int, Unreal's and Houdini's strand ids); ``rest`` (vertex point3f, the rest
   shape at the same vertices, Houdini's rest attribute); hairinv's quantities with the ``groom_`` prefix
   Unreal's importer keeps (``groom_fit_error_mean``, ``groom_fit_error_max``, ``groom_stiffening``,
@@ -30,6 +31,7 @@ import numpy as np
 from .. import __version__, stages
 from ..formats.usd import GROOM_ROLE, ROLE_KEY, save_stage
 from ..contacts.body import texture_coordinates
+from ..errors import InputError
 from .base import register_exporter
 from .source import ExportSource, OutputAxes, Shape, Strands
 
@@ -47,10 +49,10 @@ def _codes(source: ExportSource) -> list[float]:
 class _Writer:
     """Builds the stage in memory; :func:`export_usd` saves it atomically."""
 
-    def __init__(self, source: ExportSource, shape: Shape, report):
+    def __init__(self, source: ExportSource, shape: Shape, report, basis: str = "linear"):
         from pxr import Usd, UsdGeom
 
-        self.source, self.shape, self.report = source, shape, report
+        self.source, self.shape, self.report, self.basis = source, shape, report, basis
         self.axes = OutputAxes.keeping(source.up, ("y", "z"), source.scale_to_m)
         if self.axes.note:
             report.lines.append(self.axes.note)
@@ -83,8 +85,13 @@ class _Writer:
         curves = UsdGeom.BasisCurves.Define(self.stage, path)
         prim = curves.GetPrim()
         prim.SetCustomDataByKey(ROLE_KEY, role)
-        curves.CreateTypeAttr(UsdGeom.Tokens.linear)
-        curves.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)
+        if self.basis == "linear":
+            curves.CreateTypeAttr(UsdGeom.Tokens.linear)
+            curves.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)
+        else:  # through every vertex, the ends included (pinned)
+            curves.CreateTypeAttr(UsdGeom.Tokens.cubic)
+            curves.CreateBasisAttr(UsdGeom.Tokens.catmullRom)
+            curves.CreateWrapAttr(UsdGeom.Tokens.pinned)
         curves.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy(strands.counts.astype(np.int32)))
         points = self._vec3(strands.points)
         curves.CreatePointsAttr(points)
@@ -92,7 +99,8 @@ class _Writer:
         curves.CreateWidthsAttr(widths)
         curves.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
         curves.CreateExtentAttr(UsdGeom.Curves.ComputeExtent(points, widths))
-        prim.SetDocumentation(f"{strands.label} of {self.source.name}: linear curves through the strand vertices, "
+        kind = "linear curves" if self.basis == "linear" else "pinned Catmull-Rom cubic curves"
+        prim.SetDocumentation(f"{strands.label} of {self.source.name}: {kind} through the strand vertices, "
                               "root first; widths are the rod diameter in stage units")
         ids = Vt.IntArray.FromNumpy(np.arange(strands.n_strands, dtype=np.int32))
         api = UsdGeom.PrimvarsAPI(prim)
@@ -240,10 +248,18 @@ class _Writer:
         self.body(codes, shape.frame if shape.kind == "frame" else None, mesh, note)
 
 
-@register_exporter(".usda", ".usdc", ".usd", name="USD", default_shape="all", several_shapes=True)
-def export_usd(source, path, shape, report) -> None:
-    writer = _Writer(source, shape, report)
+#: ``--basis`` values: the curves' type in USD.
+BASES = ("linear", "catmull-rom")
+
+
+@register_exporter(".usda", ".usdc", ".usd", name="USD", default_shape="all", several_shapes=True,
+                   options=("basis",))
+def export_usd(source, path, shape, report, basis: str = "linear") -> None:
+    if basis not in BASES:
+        raise InputError(f"--basis takes {' or '.join(BASES)}, not {basis!r}", path)
+    writer = _Writer(source, shape, report, basis)
     writer.build()
     save_stage(writer.stage, path)
-    report.lines.insert(0, f"wrote {path}: USD, linear BasisCurves, metersPerUnit {writer.axes.meters_per_unit:g}, "
+    kind = "linear" if basis == "linear" else "cubic pinned Catmull-Rom"
+    report.lines.insert(0, f"wrote {path}: USD, {kind} BasisCurves, metersPerUnit {writer.axes.meters_per_unit:g}, "
                            f"upAxis {writer.axes.up.upper()}")
