@@ -248,7 +248,8 @@ def fit(obj, curves, output, units, scale, up, flip, guides, seed, tolerance, el
     inputs = [stages.file_record(curves)]
     stages.write_stage(
         output,
-        [groom.curves_group(settings.import_, inputs), helices.group(settings.fit, inputs)],
+        [groom.curves_group(settings.import_, inputs),
+         helices.group(settings.fit, inputs, {"seconds": fit_report.seconds})],
         "fit",
     )
     _say(obj, f"wrote {output}")

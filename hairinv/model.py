@@ -127,13 +127,15 @@ class Contacts:
     def n_hair(self) -> int:
         return self.n_contacts - self.n_body
 
-    def group(self, settings: ContactSettings, inputs: list[dict]) -> stages.Group:
+    def group(self, settings: ContactSettings, inputs: list[dict], seconds: float | None = None) -> stages.Group:
+        """``seconds``: how long the detection took (the group's ``seconds`` attribute), if known."""
         data = {"strand": self.strand, "s": self.s, "point": self.point, "frame": self.frame, "mu": self.mu}
         if self.gap is not None:
             data["gap"] = self.gap
         return stages.Group(
             stages.CONTACTS,
             data,
+            attrs={} if seconds is None else {"seconds": float(seconds)},
             config={"contacts": dataclasses.asdict(settings)},
             inputs=inputs,
         )

@@ -238,7 +238,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
             if bar is not None:
                 bar.close()
         lines += fit_report.lines()
-        groups[stages.HELICES] = helices.group(settings.fit, inputs[:1])
+        groups[stages.HELICES] = helices.group(settings.fit, inputs[:1], {"seconds": fit_report.seconds})
     scene = Scene(groups, helices, up, None, mesh, inputs, lines)
     if not contacts:
         return scene
@@ -260,5 +260,5 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
     found, detect_report = detect_contacts(helices, body_mesh, settings.contacts, up=up)
     lines += detect_report.lines()
     scene.contacts = found
-    groups[stages.CONTACTS] = found.group(settings.contacts, inputs)
+    groups[stages.CONTACTS] = found.group(settings.contacts, inputs, seconds=detect_report.seconds)
     return scene

@@ -221,8 +221,11 @@ def summarise(stage: stages.StageFile) -> dict:
     }
     # seconds each stage took, where the file records it (only the contact solve of invert does)
     model = out["groups"]["model"]
-    out["timings_s"] = {"fit": None, "detect": None, "invert": model["solve_seconds"] if model else None,
-                        "simulate": None}
+    def seconds(name):  # the stage's own computing time, None where the file does not record it
+        return float(groups[name].attrs["seconds"]) if name in groups and "seconds" in groups[name].attrs else None
+
+    out["timings_s"] = {"fit": seconds(stages.HELICES), "detect": seconds(stages.CONTACTS),
+                        "invert": model["solve_seconds"] if model else None, "simulate": seconds(stages.FRAMES)}
     out["warnings"] = _warnings(out)
     return out
 

@@ -729,6 +729,12 @@ def _assert_summary(summary, path):
         else:
             assert m["stiffened"] is None and m["strands_stiffened"] is None
         if "stability_margin" in g:
+    # each stage's own computing time where the file records it (files from before: null)
+    for stage, group in (("fit", "helices"), ("detect", "contacts"), ("simulate", "frames")):
+        recorded = f[group]["attrs"].get("seconds") if group in f else None
+        assert summary["timings_s"][stage] == recorded
+    if "frames" in f and "frame_seconds" in f["frames"]:
+        assert f["frames"]["attrs"]["seconds"] == pytest.approx(f["frames"]["frame_seconds"].sum(), rel=1e-12)
             margin = g["stability_margin"]
             assert m["unstable_strands"] == np.flatnonzero(margin < -1e-6).tolist()
             _assert_stats(m["stability_margin"], margin[np.isfinite(margin)])
@@ -799,6 +805,9 @@ def _png(path):
 
     pixels = matplotlib.image.imread(path, format="png")
     with Image.open(path) as image:
+        # the sample's /helices were fitted elsewhere (copied, no time); detect and simulate ran here
+        assert summary["timings_s"]["fit"] is None and summary["timings_s"]["detect"] > 0
+        assert (summary["timings_s"]["simulate"] is None) == (name == "model.h5")
         assert image.format == "PNG"
         text = dict(image.text)
     return pixels, text

@@ -87,12 +87,14 @@ class Frames:
                 "kinetic_energy": np.array([f.kinetic for f in self.log]),
                 "elastic_energy": np.array([f.elastic for f in self.log]),
                 "contact_count": np.array([f.contacts for f in self.log], dtype=np.int64),
-                "solver_residual": np.array([f.relative_residual for f in self.log])}
+                "solver_residual": np.array([f.relative_residual for f in self.log]),
+                "frame_seconds": np.array([f.seconds for f in self.log])}
         if self.trimmed:
             data["offsets"] = self.helices.offsets
             data["length"] = self.helices.length
         attrs = dict(self.attrs)
-        attrs.update(body_removed=self.body_removed, trimmed=self.trimmed)
+        attrs.update(body_removed=self.body_removed, trimmed=self.trimmed,
+                     seconds=float(sum(f.seconds for f in self.log)))
         return stages.Group(stages.FRAMES, data, attrs=attrs, config=config, inputs=inputs)
 
 
