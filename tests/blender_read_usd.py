@@ -123,7 +123,8 @@ def _object(obj, sample: list[int] | None, arrays: dict, prefix: str) -> dict:
            "constraints": [{"type": c.type, "object_path": getattr(c, "object_path", None),
                             "cache_file": c.cache_file.filepath if getattr(c, "cache_file", None) else None}
                            for c in obj.constraints],
-           "hidden": {"viewport": obj.hide_viewport, "render": obj.hide_render}}
+           "hidden": {"viewport": obj.hide_viewport, "render": obj.hide_render},
+           "custom_properties": sorted(obj.keys()) + sorted(obj.data.keys() if obj.data else [])}
     data = obj.data
     if obj.type == "CURVES":
         offsets = _offsets(data)

@@ -8,8 +8,9 @@ in a subprocess running tests/blender_read_usd.py, which imports each file with 
 The stage files are test_export's hand-made ones (two strands, centimetres, with a model, contacts and
 three frames of a moving body), given the sample bust (written in the groom's unit, as hairinv reads a
 body by default) as their recorded body, exported three ways:
-``z.usda`` (+Z up, stiffened model, frames), ``y.usdc`` (+Y up, frames) and ``model.usd`` (+Y up, metres,
-a model without frames). What Blender holds is compared with what the stage file holds, read with h5py
+``z.usda`` (+Z up, stiffened model, frames), ``y.usdc`` (+Y up, frames), ``model.usd`` (+Y up, metres,
+a model without frames) and ``removed.usda`` (the body hidden during the frames, as the remove-body scene
+does). What Blender holds is compared with what the stage file holds, read with h5py
 and evaluated independently (test_export's closed forms), after the conversion Blender's importer applies:
 the stage's ``metersPerUnit`` as a scale on the root object (scene unit scale 1: metres) and, for a +Y up
 stage, +90 degrees about X, so that the groom is +Z up as Blender is.
@@ -44,8 +45,9 @@ BLENDER_DEFAULT_FPS = 24
 # Blender's matrices are float32: 6e-8 relative, and the quarter turn's cosine is 7.5e-8 instead of 0.
 FLOAT32 = 2e-7
 
-# name: (up, metres per unit, stiffened model, frames)
-FILES = {"z.usda": ("z", 0.01, True, True), "y.usdc": ("y", 0.01, False, True), "model.usd": ("y", 1.0, False, False)}
+# name: (up, metres per unit, stiffened model, frames, the scene removed the body)
+FILES = {"z.usda": ("z", 0.01, True, True, False), "y.usdc": ("y", 0.01, False, True, False),
+         "model.usd": ("y", 1.0, False, False, False), "removed.usda": ("z", 0.01, False, True, True)}
 
 
 def _body_file(folder: Path, scale: float) -> Path:
@@ -64,12 +66,14 @@ def _body_file(folder: Path, scale: float) -> Path:
 def _stage_file(folder: Path, name: str) -> tuple[Path, dict]:
     """test_export's hand-made stage file with the sample bust recorded as its body (the last input of the
     group the export looks in: /frames, else /model)."""
-    up, scale, stiffened, frames = FILES[name]
+    up, scale, stiffened, frames, removed = FILES[name]
     path = folder / (Path(name).stem + ".h5")
     truth = make_stage(path, up=UP[up], scale_to_m=scale, stiffened=stiffened, frames=frames)
     with h5py.File(path, "r+") as fh:
         fh["frames" if frames else "model"].attrs["inputs"] = json.dumps(
             [{"name": "hand-made"}, stages.file_record(_body_file(folder, scale))])
+        if removed:
+            fh["frames"].attrs["body_removed"] = True
     return path, truth
 
 
@@ -115,6 +119,20 @@ def _file(blender, name):
     return read, {k.split("/", 1)[1]: v for k, v in arrays.items() if k.split("/", 1)[0] == str(index)}, truths[name]
 
 
+# USD primvar interpolation and type -> Blender attribute domain and type
+DOMAIN = {"uniform": "CURVE", "vertex": "POINT"}
+DATA_TYPE = {"float[]": "FLOAT", "int[]": "INT", "point3f[]": "FLOAT_VECTOR"}
+
+
+def _primvars(path, prim) -> dict[str, tuple[str, str]]:
+    """The primvars of ``prim`` as pxr reads the file: name -> (interpolation, value type)."""
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(path))
+    return {p.GetPrimvarName(): (p.GetInterpolation(), str(p.GetTypeName()))
+            for p in UsdGeom.PrimvarsAPI(stage.GetPrimAtPath(prim)).GetAuthoredPrimvars()}
+
+
 def _object(read, name):
     found = [o for o in read["objects"] if o["name"] == name]
     assert len(found) == 1, [o["name"] for o in read["objects"]]
@@ -130,7 +148,7 @@ def test_blender_version(blender):
 @pytest.mark.parametrize("name", list(FILES))
 def test_blender_reads_every_strand_in_metres_z_up(blender, name):
     read, arrays, truth = _file(blender, name)
-    up, scale, stiffened, frames = FILES[name]
+    up, scale, stiffened, frames, _ = FILES[name]
     to_blender = TO_BLENDER[up]
     assert {o["name"]: o["type"] for o in read["objects"]} == {"Root": "EMPTY", "Hair": "CURVES",
                                                                "Rest": "CURVES", "Body": "MESH"}
@@ -162,16 +180,17 @@ def test_blender_reads_every_strand_in_metres_z_up(blender, name):
 @pytest.mark.parametrize("name", list(FILES))
 def test_blender_keeps_the_primvars_as_attributes(blender, name):
     read, arrays, truth = _file(blender, name)
-    up, scale, stiffened, _ = FILES[name]
+    up, scale, stiffened, _, _ = FILES[name]
     hair = _object(read, "Hair")
     attributes = {a["name"]: (a["domain"], a["data_type"]) for a in hair["attributes"]}
-    expected = {"position": ("POINT", "FLOAT_VECTOR"), "curve_type": ("CURVE", "INT8"), "radius": ("POINT", "FLOAT"),
-                "rest": ("POINT", "FLOAT_VECTOR"), "groom_id": ("CURVE", "INT"), "id": ("CURVE", "INT"),
-                "groom_guide": ("CURVE", "INT"), "groom_fit_error_mean": ("CURVE", "FLOAT"),
-                "groom_fit_error_max": ("CURVE", "FLOAT"), "groom_contact_force": ("POINT", "FLOAT"),
-                "groom_rest_curvature": ("POINT", "FLOAT")}
-    if stiffened:
-        expected["groom_stiffening"] = ("CURVE", "FLOAT")
+    # every primvar of /Root/Hair (as pxr reads the file) is an attribute: uniform on the curves, vertex on
+    # the points; besides them Blender's position, curve type and radius (from widths)
+    primvars = _primvars(read["file"], "/Root/Hair")
+    assert {"rest", "groom_id", "id", "groom_guide", "groom_fit_error_mean", "groom_fit_error_max",
+            "groom_contact_force", "groom_rest_curvature"} <= set(primvars)
+    assert ("groom_stiffening" in primvars) == stiffened
+    expected = {name: (DOMAIN[interpolation], DATA_TYPE[kind]) for name, (interpolation, kind) in primvars.items()}
+    expected.update(position=("POINT", "FLOAT_VECTOR"), curve_type=("CURVE", "INT8"), radius=("POINT", "FLOAT"))
     assert attributes == expected
     # linear curves: Blender's poly type (1) on every curve, nonperiodic (no `cyclic` attribute)
     curve_type = next(a for a in hair["attributes"] if a["name"] == "curve_type")
@@ -190,7 +209,8 @@ def test_blender_keeps_the_primvars_as_attributes(blender, name):
         assert arrays["Hair/attr/groom_stiffening"].tolist() == [1.0, 2.0]
     # the rest prim has the strand ids only
     rest_attributes = {a["name"] for a in _object(read, "Rest")["attributes"]}
-    assert rest_attributes == {"position", "curve_type", "radius", "groom_id", "id", "groom_guide"}
+    assert rest_attributes == {"position", "curve_type", "radius"} | set(_primvars(read["file"], "/Root/Rest"))
+    assert set(_primvars(read["file"], "/Root/Rest")) == {"groom_id", "id", "groom_guide"}
 
 
 @pytest.mark.parametrize("name", list(FILES))
@@ -232,6 +252,19 @@ def test_blender_plays_the_frames(blender, name):
         if k:
             assert frame["Hair"]["moved_since_first"] > 1e-3 and frame["Body"]["moved_since_first"] > 1e-3
             assert frame["Rest"]["moved_since_first"] == 0.0
+
+
+def test_blender_keeps_a_removed_body_visible(blender):
+    """The remove-body scene hides /Root/Body from the first frame on (a `visibility` time sample, checked here
+    with pxr); Blender's importer does not read animated visibility: the body stays visible at every frame."""
+    from pxr import Usd, UsdGeom
+
+    read, _, _ = _file(blender, "removed.usda")
+    stage = Usd.Stage.Open(read["file"])
+    body = UsdGeom.Imageable(stage.GetPrimAtPath("/Root/Body"))
+    assert body.ComputeVisibility(Usd.TimeCode(0)) == UsdGeom.Tokens.invisible
+    assert _object(read, "Body")["hidden"] == {"viewport": False, "render": False}
+    assert all(read["frames"][str(k)]["Body"]["visible"] for k in range(N_FRAMES))
 
 
 def test_blender_without_frames_leaves_the_scene_frames_alone(blender):
