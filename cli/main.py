@@ -34,6 +34,25 @@ def _say(ctx_obj, line: str) -> None:
         os.dup2(devnull, sys.stdout.fileno())
 
 
+def _say_settings(ctx_obj, settings, *sections: str) -> None:
+    """With -v: the settings in effect, one line per section the command uses."""
+    if not ctx_obj.get("verbose") or ctx_obj.get("quiet"):
+        return
+    values = settings.to_dict()
+    _say(ctx_obj, "settings in effect (defaults, preset, --config, --set and options applied):")
+    for section in sections:
+        _say(ctx_obj, f"  [{section}] " + ", ".join(f"{key} = {value!r}" for key, value in values[section].items()))
+
+
+def _say_timings(ctx_obj, timings: dict) -> None:
+    """With -v: the seconds of each stage run, and of the whole command (reading, checks, writing included)."""
+    if not ctx_obj.get("verbose") or ctx_obj.get("quiet"):
+        return
+    parts = [f"{stage} {seconds:.3g} s" for stage, seconds in timings.items()]
+    parts.append(f"whole command {time.perf_counter() - ctx_obj.get('started', time.perf_counter()):.3g} s")
+    _say(ctx_obj, "timings: " + ", ".join(parts))
+
+
 def handle_errors(fn):
     """Turn library errors into one sentence on stderr and an exit code."""
 
@@ -186,9 +205,10 @@ def _default_output(source: Path, suffix: str) -> Path:
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="hairinv")
 @click.option("-q", "--quiet", is_flag=True, help="Print only errors.")
+@click.option("-v", "--verbose", is_flag=True, help="Also print the settings in effect and each stage's time.")
 @click.option("--no-progress", is_flag=True, help="Never draw progress bars.")
 @click.pass_context
-def main(ctx, quiet, no_progress):
+def main(ctx, quiet, verbose, no_progress):
     """Inverse dynamic hair modeling with frictional contact.
 
     Stages read and write HDF5 stage files: fit (curves to super-helices),
@@ -199,7 +219,9 @@ def main(ctx, quiet, no_progress):
     """
     ctx.ensure_object(dict)
     ctx.obj["quiet"] = quiet
+    ctx.obj["verbose"] = verbose
     ctx.obj["progress"] = not no_progress and not quiet
+    ctx.obj["started"] = time.perf_counter()
 
 
 @main.command()
@@ -233,6 +255,7 @@ def fit(obj, curves, output, units, scale, up, flip, guides, seed, tolerance, el
     if elements is not None:
         fit_extra["elements"] = elements
     settings = config.apply(settings, {"fit": fit_extra}, "command line")
+    _say_settings(obj, settings, "import", "fit")
     output = output or _default_output(curves, "fit")
     stages.check_output_path(output, inputs=[curves])
     groom, report = load_groom(curves, settings.import_)
@@ -253,6 +276,7 @@ def fit(obj, curves, output, units, scale, up, flip, guides, seed, tolerance, el
         "fit",
     )
     _say(obj, f"wrote {output}")
+    _say_timings(obj, {"fit": fit_report.seconds})
 
 
 def _stage_progress(enabled: bool):
@@ -335,6 +359,7 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
                                        "body": body_frame,
                                        "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair)},
                             "command line")
+    _say_settings(obj, settings, "import", "body", "fit", "contacts")
     output = output or _default_output(style, "contacts")
     stages.check_output_path(output, inputs=[style, body])
     scene = prepare(style, body, settings, contacts=True, progress=_stage_progress(obj["progress"]))
@@ -342,6 +367,7 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
         _say(obj, line)
     stages.write_stage(output, list(scene.groups.values()), "detect")
     _say(obj, f"wrote {output}")
+    _say_timings(obj, scene.timings)
 
 
 @main.command()
@@ -390,6 +416,7 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
                                        "body": body_frame,
                                        "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair),
                                        "solver": solver_extra}, "command line")
+    _say_settings(obj, settings, "import", "body", "fit", "contacts", "material", "solver")
     output = output or _default_output(style, "model")
     stages.check_output_path(output, inputs=[style, body])
     # bad material or solver settings fail here, before any fitting
@@ -427,6 +454,7 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
     groups[stages.MODEL] = model.group(settings_dict(settings.material, settings.solver), scene.inputs)
     stages.write_stage(output, list(groups.values()), "invert")
     _say(obj, f"wrote {output}")
+    _say_timings(obj, {**scene.timings, "invert": report.seconds})
 
 
 def _init_option(fn):
@@ -572,6 +600,7 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
               f"{1e3 * max(f.displacement for f in frames.log):.3f} mm")
     _write_frames(output, model, run, frames, init)
     _say(obj, f"wrote {output}")
+    _say_timings(obj, {"simulate": sum(f.seconds for f in frames.log)})
 
 
 # Rows of the table of moved strands that `verify` prints.
@@ -666,6 +695,7 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
             notes.append(f"wrote {output}")
         for line in notes:
             _say(obj, line)
+        _say_timings(obj, {"simulate": sum(f.seconds for f in frames.log)})
     if not verdict.passed:
         sys.exit(FAILED)
 
@@ -727,7 +757,8 @@ def info(obj, file, as_json):
 
 
 def _late_global(name: str):
-    """``-q`` and ``--no-progress`` after the subcommand too (``hairinv invert ... -q`` is what people type)."""
+    """``-q``, ``-v`` and ``--no-progress`` after the subcommand too (``hairinv invert ... -q`` is what people
+    type)."""
     def callback(ctx, _param, value):
         if value:
             ctx.ensure_object(dict)
@@ -736,6 +767,9 @@ def _late_global(name: str):
                 ctx.obj["quiet"] = True
     return callback
 
+            if name == "verbose":
+                ctx.obj["verbose"] = True
+                return
 
 for _command in main.commands.values():
     _command.params.append(click.Option(["-q", "--quiet"], is_flag=True, expose_value=False,
@@ -745,4 +779,7 @@ for _command in main.commands.values():
 
 
 if __name__ == "__main__":
+    _command.params.append(click.Option(["-v", "--verbose"], is_flag=True, expose_value=False,
+                                        callback=_late_global("verbose"),
+                                        help="Also print the settings in effect and each stage's time."))
     main()

@@ -52,6 +52,8 @@ class Scene:
     lines: list = field(default_factory=list)
     model: object = None
     """the style file's /model group, kept only when its contacts are the ones used (its forces match them)"""
+    timings: dict = field(default_factory=dict)
+    """seconds of the stages run here (``fit``, ``detect``); stages reused from the style file are absent"""
 
 
 def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refitted: bool,
@@ -240,6 +242,8 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         lines += fit_report.lines()
         groups[stages.HELICES] = helices.group(settings.fit, inputs[:1], {"seconds": fit_report.seconds})
     scene = Scene(groups, helices, up, None, mesh, inputs, lines)
+    if refitted:
+        scene.timings["fit"] = fit_report.seconds
     if not contacts:
         return scene
     wanted = {"contacts": dataclasses.asdict(settings.contacts)}
@@ -259,6 +263,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         lines.append("no body given: only hair-hair contacts are declared")
     found, detect_report = detect_contacts(helices, body_mesh, settings.contacts, up=up)
     lines += detect_report.lines()
+    scene.timings["detect"] = detect_report.seconds
     scene.contacts = found
     groups[stages.CONTACTS] = found.group(settings.contacts, inputs, seconds=detect_report.seconds)
     return scene

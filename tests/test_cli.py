@@ -435,3 +435,25 @@ def test_roots_away_from_the_body_are_reported_with_the_likely_unit_mix_up(tmp_p
     assert warning[0].index("roots lie") < (result.stdout + result.stderr).find("fit error")
     fine = hairinv(tmp_path, "detect", SAMPLES / "wavy.h5", SAMPLES / "body.obj", "--guides", "3", "-o", "e.h5")
     assert fine.returncode == 0 and "roots lie" not in fine.stdout + fine.stderr
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_verbose_prints_the_settings_in_effect_and_the_stage_times(tmp_path, where):
+    """-v, before the subcommand or after it: every setting of the sections the command uses, with the
+    values the options, --set and the preset gave; then each stage's time, the fit's as /helices records it."""
+    args = ["fit", SAMPLES / "wavy.h5", "--guides", "3", "--tolerance", "3e-4", "--set", "fit.max_elements=12",
+            "--quality", "draft", "-o", "v.h5"]
+    result = hairinv(tmp_path, *(["-v", *args] if where == "before" else [*args, "-v"]))
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    fit_line = next(line for line in lines if line.startswith("  [fit] "))
+    assert "tolerance = 0.0003" in fit_line and "max_elements = 12" in fit_line
+    draft = config.resolve("draft")
+    assert f"max_iterations = {draft.fit.max_iterations}" in fit_line
+    assert any(line.startswith("  [import] ") and "guides = 3" in line for line in lines)
+    timing = next(line for line in lines if line.startswith("timings: "))
+    with h5py.File(tmp_path / "v.h5", "r") as fh:
+        seconds = float(fh["helices"].attrs["seconds"])
+    assert f"fit {seconds:.3g} s" in timing and "whole command" in timing
+    quiet = hairinv(tmp_path, *args[:-1], "w.h5", "-v", "-q")
+    assert quiet.returncode == 0 and quiet.stdout == ""
