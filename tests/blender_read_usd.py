@@ -3,7 +3,7 @@
 Runs inside Blender's Python (the ``bpy`` module of ``make blender``'s .venv-blender), not hairinv's::
 
     .venv-blender/bin/python tests/blender_read_usd.py OUT.usda [OUT2.usdc ...] [--json FILE] [--npz FILE]
-        [--frames start,end|all|N,M,...] [--sample N] [--repeat N]
+        [--frames start,end|all|N,M,...] [--sample N] [--repeat N] [--tessellate]
 
 For each file: an empty scene (``read_factory_settings(use_empty=True)``), ``bpy.ops.wm.usd_import`` with
 its default options (as File > Import > USD), then
@@ -17,11 +17,13 @@ its default options (as File > Import > USD), then
 - ``frames``: for each frame asked for (``--frames``, by default the scene's first and last), the
   evaluated objects (cache modifiers and constraints applied): world-space sample points, world matrix,
   and the largest distance any point moved since the first frame asked for;
+- ``tessellated`` (with ``--tessellate``, after the frames): each curves object converted to a mesh, i.e.
+  its curves evaluated as Blender draws them (curve type, resolution), vertex count;
 - ``import_seconds``: the operator's wall time, one per ``--repeat`` (each on a fresh empty scene).
 
 ``--npz FILE`` also writes every point in world space: ``<file index>/<object>/points`` (as imported),
 ``/counts`` (points per curve), ``/frame<N>`` (evaluated at frame N), ``/attr/<name>`` (each other attribute
-as stored: vectors in the object's local space); meshes' vertices likewise.
+as stored: vectors in the object's local space), ``/tessellated``; meshes' vertices likewise.
 World space is Blender's: metres (the importer's unit scale on the root object), +Z up.
 """
 
@@ -36,10 +38,12 @@ import numpy as np
 
 
 def _args(argv):
-    files, opts = [], {"json": None, "npz": None, "frames": "start,end", "sample": 4, "repeat": 1}
+    files, opts = [], {"json": None, "npz": None, "frames": "start,end", "sample": 4, "repeat": 1, "tessellate": False}
     it = iter(argv)
     for arg in it:
-        if arg.startswith("--"):
+        if arg == "--tessellate":
+            opts["tessellate"] = True
+        elif arg.startswith("--"):
             key = arg[2:]
             if key not in opts:
                 raise SystemExit(f"unknown option {arg}")
@@ -198,7 +202,29 @@ def read(path: str, opts: dict, index: int, arrays: dict) -> dict:
                       if o.type in ("CURVES", "MESH")}
     out["frames"] = frames
     out["frames_seconds"] = time.perf_counter() - start
+    if opts["tessellate"]:
+        out["tessellated"] = {name: _tessellate(bpy.data.objects[name], arrays, prefix) for name in samples}
     return out
+
+
+def _tessellate(obj, arrays: dict, prefix: str) -> dict:
+    """The curves as Blender draws them: the object converted to a mesh (Object > Convert > Mesh) at the current
+    frame, each curve evaluated at its type and resolution; its vertices in world space as ``<name>/tessellated``."""
+    types = obj.data.attributes.get("curve_type")
+    kinds = sorted({d.value for d in types.data}) if types else [0]  # absent: every curve Catmull-Rom (0)
+    resolution = obj.data.attributes.get("resolution")
+    resolutions = sorted({d.value for d in resolution.data}) if resolution else [12]  # absent: 12
+    for other in bpy.context.view_layer.objects:
+        other.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    name = obj.name
+    bpy.ops.object.convert(target="MESH")
+    mesh = bpy.data.objects[name]
+    points = _world(_positions(mesh.data, "MESH"), _matrix(mesh))
+    arrays[f"{prefix}/{name}/tessellated"] = points
+    return {"curve_types": [{0: "CATMULL_ROM", 1: "POLY", 2: "BEZIER", 3: "NURBS"}.get(k, str(k)) for k in kinds],
+            "resolution": resolutions, "points": len(points), "edges": len(mesh.data.edges)}
 
 
 def main(argv) -> int:

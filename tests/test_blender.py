@@ -7,15 +7,15 @@ in a subprocess running tests/blender_read_usd.py, which imports each file with 
 
 The stage files are test_export's hand-made ones (two strands, centimetres, with a model, contacts and
 three frames of a moving body), given the sample bust (written in the groom's unit, as hairinv reads a
-body by default) as their recorded body, exported three ways:
-``z.usda`` (+Z up, stiffened model, frames), ``y.usdc`` (+Y up, frames), ``model.usd`` (+Y up, metres,
-a model without frames) and ``removed.usda`` (the body hidden during the frames, as the remove-body scene
-does). What Blender holds is compared with what the stage file holds, read with h5py
+body by default) as their recorded body, exported five ways: ``z.usda`` (+Z up, stiffened model, frames),
+``y.usdc`` (+Y up, frames), ``model.usd`` (+Y up, metres, a model without frames), ``removed.usda`` (the
+body hidden during the frames, as the remove-body scene does) and ``catmull.usdc`` (``basis="catmull-rom"``:
+pinned Catmull-Rom cubics). What Blender holds is compared with what the stage file holds, read with h5py
 and evaluated independently (test_export's closed forms), after the conversion Blender's importer applies:
 the stage's ``metersPerUnit`` as a scale on the root object (scene unit scale 1: metres) and, for a +Y up
 stage, +90 degrees about X, so that the groom is +Z up as Blender is.
 
-Runtime: about 4 s (Blender's start-up and the three imports: about 1 s).
+Runtime: about 4 s (Blender's start-up and the five imports: about 1 s).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import json
 import os
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
@@ -45,9 +46,23 @@ BLENDER_DEFAULT_FPS = 24
 # Blender's matrices are float32: 6e-8 relative, and the quarter turn's cosine is 7.5e-8 instead of 0.
 FLOAT32 = 2e-7
 
-# name: (up, metres per unit, stiffened model, frames, the scene removed the body)
-FILES = {"z.usda": ("z", 0.01, True, True, False), "y.usdc": ("y", 0.01, False, True, False),
-         "model.usd": ("y", 1.0, False, False, False), "removed.usda": ("z", 0.01, False, True, True)}
+
+
+@dataclass(frozen=True)
+class Spec:
+    up: str
+    scale: float
+    """metres per unit"""
+    stiffened: bool = False
+    frames: bool = True
+    removed: bool = False
+    """the scene removed the body"""
+    basis: str = "linear"
+
+
+FILES = {"z.usda": Spec("z", 0.01, stiffened=True), "y.usdc": Spec("y", 0.01),
+         "model.usd": Spec("y", 1.0, frames=False), "removed.usda": Spec("z", 0.01, removed=True),
+         "catmull.usdc": Spec("y", 0.01, frames=False, basis="catmull-rom")}
 
 
 def _body_file(folder: Path, scale: float) -> Path:
@@ -66,13 +81,13 @@ def _body_file(folder: Path, scale: float) -> Path:
 def _stage_file(folder: Path, name: str) -> tuple[Path, dict]:
     """test_export's hand-made stage file with the sample bust recorded as its body (the last input of the
     group the export looks in: /frames, else /model)."""
-    up, scale, stiffened, frames, removed = FILES[name]
+    spec = FILES[name]
     path = folder / (Path(name).stem + ".h5")
-    truth = make_stage(path, up=UP[up], scale_to_m=scale, stiffened=stiffened, frames=frames)
+    truth = make_stage(path, up=UP[spec.up], scale_to_m=spec.scale, stiffened=spec.stiffened, frames=spec.frames)
     with h5py.File(path, "r+") as fh:
-        fh["frames" if frames else "model"].attrs["inputs"] = json.dumps(
-            [{"name": "hand-made"}, stages.file_record(_body_file(folder, scale))])
-        if removed:
+        fh["frames" if spec.frames else "model"].attrs["inputs"] = json.dumps(
+            [{"name": "hand-made"}, stages.file_record(_body_file(folder, spec.scale))])
+        if spec.removed:
             fh["frames"].attrs["body_removed"] = True
     return path, truth
 
@@ -90,7 +105,7 @@ def _obj_mesh(path: Path):
 
 @pytest.fixture(scope="module")
 def blender(tmp_path_factory):
-    """The three exports and what Blender read of them: (folder, JSON report, arrays, truths)."""
+    """The exports and what Blender read of them: (folder, JSON report, arrays, truths)."""
     if not BLENDER_PYTHON.exists():
         pytest.skip(f"Blender's Python not found at {BLENDER_PYTHON}: `make blender` installs Blender as the bpy "
                     "module in .venv-blender (or set HAIRINV_BLENDER_PYTHON to a Python that has bpy)")
@@ -98,11 +113,13 @@ def blender(tmp_path_factory):
     truths, outputs = {}, []
     for name in FILES:
         path, truths[name] = _stage_file(folder, name)
-        report = export(path, folder / name)
+        options = {"basis": FILES[name].basis} if FILES[name].basis != "linear" else {}
+        report = export(path, folder / name, **options)
         assert not report.warnings, report.warnings  # the body was found
         outputs.append(str(folder / name))
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    result = subprocess.run([str(BLENDER_PYTHON), str(SCRIPT), *outputs, "--frames", ",".join(str(k) for k in range(N_FRAMES)),
+    frames = ",".join(str(k) for k in range(N_FRAMES))
+    result = subprocess.run([str(BLENDER_PYTHON), str(SCRIPT), *outputs, "--frames", frames, "--tessellate",
                              "--json", str(folder / "blender.json"), "--npz", str(folder / "blender.npz")],
                             capture_output=True, text=True, env=env, timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
@@ -122,6 +139,15 @@ def _file(blender, name):
 # USD primvar interpolation and type -> Blender attribute domain and type
 DOMAIN = {"uniform": "CURVE", "vertex": "POINT"}
 DATA_TYPE = {"float[]": "FLOAT", "int[]": "INT", "point3f[]": "FLOAT_VECTOR"}
+
+
+def _builtin(spec: Spec) -> dict[str, tuple[str, str]]:
+    """Blender's own attributes of the imported curves: positions, radius (from widths) and, for linear curves,
+    the curve type (poly); without it every curve is Catmull-Rom, Blender's default type."""
+    out = {"position": ("POINT", "FLOAT_VECTOR"), "radius": ("POINT", "FLOAT")}
+    if spec.basis == "linear":
+        out["curve_type"] = ("CURVE", "INT8")
+    return out
 
 
 def _primvars(path, prim) -> dict[str, tuple[str, str]]:
@@ -148,8 +174,9 @@ def test_blender_version(blender):
 @pytest.mark.parametrize("name", list(FILES))
 def test_blender_reads_every_strand_in_metres_z_up(blender, name):
     read, arrays, truth = _file(blender, name)
-    up, scale, stiffened, frames, _ = FILES[name]
-    to_blender = TO_BLENDER[up]
+    spec = FILES[name]
+    scale, frames = spec.scale, spec.frames
+    to_blender = TO_BLENDER[spec.up]
     assert {o["name"]: o["type"] for o in read["objects"]} == {"Root": "EMPTY", "Hair": "CURVES",
                                                                "Rest": "CURVES", "Body": "MESH"}
     assert read["scene"]["unit_system"] == "METRIC" and read["scene"]["scale_length"] == 1.0
@@ -173,14 +200,15 @@ def test_blender_reads_every_strand_in_metres_z_up(blender, name):
         assert np.abs(arrays["Hair/points"] - points @ to_blender.T).max() < FLOAT32_M
     # /Root/Rest: the rest shape as curves of their own
     assert arrays["Rest/counts"].tolist() == counts.tolist()
-    expected_rest = _expected_rest(truth, stiffened) @ to_blender.T
+    expected_rest = _expected_rest(truth, spec.stiffened) @ to_blender.T
     assert np.abs(arrays["Rest/points"] - expected_rest).max() < FLOAT32_M
 
 
 @pytest.mark.parametrize("name", list(FILES))
 def test_blender_keeps_the_primvars_as_attributes(blender, name):
     read, arrays, truth = _file(blender, name)
-    up, scale, stiffened, _, _ = FILES[name]
+    spec = FILES[name]
+    up, scale, stiffened = spec.up, spec.scale, spec.stiffened
     hair = _object(read, "Hair")
     attributes = {a["name"]: (a["domain"], a["data_type"]) for a in hair["attributes"]}
     # every primvar of /Root/Hair (as pxr reads the file) is an attribute: uniform on the curves, vertex on
@@ -190,11 +218,8 @@ def test_blender_keeps_the_primvars_as_attributes(blender, name):
             "groom_contact_force", "groom_rest_curvature"} <= set(primvars)
     assert ("groom_stiffening" in primvars) == stiffened
     expected = {name: (DOMAIN[interpolation], DATA_TYPE[kind]) for name, (interpolation, kind) in primvars.items()}
-    expected.update(position=("POINT", "FLOAT_VECTOR"), curve_type=("CURVE", "INT8"), radius=("POINT", "FLOAT"))
+    expected.update(_builtin(spec))
     assert attributes == expected
-    # linear curves: Blender's poly type (1) on every curve, nonperiodic (no `cyclic` attribute)
-    curve_type = next(a for a in hair["attributes"] if a["name"] == "curve_type")
-    assert curve_type["min"] == curve_type["max"] == 1
     # widths -> radius: half the rod diameter, in stage units (the root object's scale makes it metres)
     assert np.allclose(arrays["Hair/attr/radius"] * scale, RADIUS, rtol=1e-6)
     # rest: stage units in the object's space, so the object's matrix takes it to the rest shape in metres
@@ -209,32 +234,32 @@ def test_blender_keeps_the_primvars_as_attributes(blender, name):
         assert arrays["Hair/attr/groom_stiffening"].tolist() == [1.0, 2.0]
     # the rest prim has the strand ids only
     rest_attributes = {a["name"] for a in _object(read, "Rest")["attributes"]}
-    assert rest_attributes == {"position", "curve_type", "radius"} | set(_primvars(read["file"], "/Root/Rest"))
+    assert rest_attributes == set(_builtin(spec)) | set(_primvars(read["file"], "/Root/Rest"))
     assert set(_primvars(read["file"], "/Root/Rest")) == {"groom_id", "id", "groom_guide"}
 
 
 @pytest.mark.parametrize("name", list(FILES))
 def test_blender_reads_the_body_mesh(blender, name):
     read, arrays, truth = _file(blender, name)
-    to_blender = TO_BLENDER[FILES[name][0]]
+    to_blender = TO_BLENDER[FILES[name].up]
     vertices, faces = _obj_mesh(SAMPLES / "body.obj")  # metres
     body = _object(read, "Body")
     assert body["vertices"] == len(vertices) and body["faces"] == len(faces)
     assert body["face_sizes"] == {"3": len(faces)}  # triangles, as written
     frames = sorted(int(k) for k in read["frames"])
     for k in frames:  # the body in metres, placed by the frame's rigid motion (none without frames)
-        T = _body_motion(k) if FILES[name][3] else np.eye(4)
+        T = _body_motion(k) if FILES[name].frames else np.eye(4)
         expected = (vertices @ T[:3, :3].T + T[:3, 3]) @ to_blender.T
         assert np.abs(arrays[f"Body/frame{k}"] - expected).max() < FLOAT32_M, k
 
 
-@pytest.mark.parametrize("name", [n for n, spec in FILES.items() if spec[3]])
+@pytest.mark.parametrize("name", [n for n, spec in FILES.items() if spec.frames])
 def test_blender_plays_the_frames(blender, name):
     """The time samples: Blender's scene frame N shows time code N (frames 0, 1, 2 here). The importer sets the
     frame range from the stage but leaves the scene at its own 24 fps (the stage says 25): played in Blender
     the run is 25/24 times slower than it was simulated."""
     read, arrays, truth = _file(blender, name)
-    to_blender = TO_BLENDER[FILES[name][0]]
+    to_blender = TO_BLENDER[FILES[name].up]
     scene = read["scene"]
     assert (scene["frame_start"], scene["frame_end"]) == (0, N_FRAMES - 1)
     assert scene["fps"] == BLENDER_DEFAULT_FPS != FPS and scene["fps_base"] == 1.0
@@ -252,6 +277,52 @@ def test_blender_plays_the_frames(blender, name):
         if k:
             assert frame["Hair"]["moved_since_first"] > 1e-3 and frame["Body"]["moved_since_first"] > 1e-3
             assert frame["Rest"]["moved_since_first"] == 0.0
+
+
+def _catmull_rom(p0, p1, p2, p3, t):
+    """USD's (and Blender's) uniform Catmull-Rom segment from p1 (t = 0) to p2 (t = 1)."""
+    t = np.asarray(t, dtype=np.float64)[:, None]
+    return 0.5 * (2 * p1 + (p2 - p0) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t ** 2
+                  + (3 * p1 - p0 - 3 * p2 + p3) * t ** 3)
+
+
+@pytest.mark.parametrize("name", list(FILES))
+def test_blender_draws_the_curves_the_file_describes(blender, name):
+    """The rest prim's curves as Blender draws them (converted to a mesh): linear ones are the straight segments
+    through the vertices; pinned Catmull-Rom ones are Blender's Catmull-Rom curves, which agree with USD's
+    between the second and the second-last vertex. On the end segments Blender repeats the end vertex where
+    USD's pinned wrap takes the phantom point 2 P0 - P1: the same end points, the shape within 3 um here (see
+    docs/export.md), the parameter along them otherwise spaced."""
+    read, arrays, truth = _file(blender, name)
+    spec = FILES[name]
+    tessellated = read["tessellated"]["Rest"]
+    points, counts = arrays["Rest/points"], arrays["Rest/counts"]
+    drawn = arrays["Rest/tessellated"]
+    if spec.basis == "linear":
+        assert tessellated["curve_types"] == ["POLY"]
+        assert np.abs(drawn - points).max() < FLOAT32_M
+        return
+    assert tessellated["curve_types"] == ["CATMULL_ROM"]
+    (resolution,) = tessellated["resolution"]
+    assert len(drawn) == tessellated["points"] == int(((counts - 1) * resolution + 1).sum())
+    t = np.arange(resolution + 1) / resolution
+    dense = np.linspace(0.0, 1.0, 20001)
+    start, at, worst_end = 0, 0, 0.0
+    for n in counts:
+        P = points[start:start + n]
+        ext = np.vstack([2 * P[0] - P[1], P, 2 * P[-1] - P[-2]])  # USD's pinned wrap: the phantom points
+        for i in range(n - 1):
+            blender_segment = drawn[at + i * resolution:at + (i + 1) * resolution + 1]
+            if 0 < i < n - 2:
+                usd = _catmull_rom(*ext[i:i + 4], t)
+                assert np.abs(blender_segment - usd).max() < FLOAT32_M
+            else:  # end segments: the same end points, and every drawn point near the pinned curve
+                usd = _catmull_rom(*ext[i:i + 4], dense)
+                assert np.abs(blender_segment[[0, -1]] - usd[[0, -1]]).max() < FLOAT32_M
+                worst_end = max(worst_end, np.linalg.norm(blender_segment[:, None] - usd[None], axis=2).min(1).max())
+        start += n
+        at += (n - 1) * resolution + 1
+    assert worst_end < 5e-6, worst_end  # 3.0e-6 m with Blender 5.0.1
 
 
 def test_blender_keeps_a_removed_body_visible(blender):
