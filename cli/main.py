@@ -701,7 +701,7 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
 
 
 @main.command()
-@click.argument("stage_file", type=click.Path(path_type=Path))
+@click.argument("stage_files", metavar="STAGE_FILE...", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), required=True,
               help="Output file; its suffix chooses the format: .usda .usdc .usd (USD), .hair, .data, .obj, "
                    ".json (summary), .png (picture), .html (report).")
@@ -711,9 +711,12 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
 @click.option("--color", "color", default=None, metavar="contact-force|rest-curvature|stiffening|fit-error",
               help="PNG, HTML: the quantity the strands are coloured by [default: contact-force for a model, "
                    "fit-error for a fitted file].")
+@click.option("--plot", default=None, metavar="groom|convergence",
+              help="PNG: the groom from the front and the side, or the contact solver's residual against its "
+                   "sweeps (needs /model) [default: groom].")
 @click.pass_obj
 @handle_errors
-def export(obj, stage_file, output, shape, color):
+def export(obj, stage_files, output, shape, color, plot):
     """Write STAGE_FILE for other tools and for people: its groom as USD, Yuksel .hair, USC .data or OBJ
     polylines, its summary as JSON, a picture as PNG, or both in one HTML report.
 
@@ -722,11 +725,13 @@ def export(obj, stage_file, output, shape, color):
     and per-vertex quantities, and the body mesh if it is still where it was. The polyline formats hold
     one shape, in metres, with the format's up axis. JSON summarises every stage (what `hairinv info
     --json` prints); PNG shows the groom from the front and the side over the body, coloured by a
-    quantity; HTML holds both, readable offline. docs/export.md says what each file holds.
+    quantity, or with --plot convergence the contact solver's residual against its sweeps; HTML holds them
+    all, readable offline. Several simulations of one groom (stage files with /frames) go side by side in
+    one PNG or HTML, a before/after column each. docs/export.md says what each file holds.
     """
     from hairinv.export import export as run_export
 
-    report = run_export(stage_file, output, shape, color=color)
+    report = run_export(list(stage_files), output, shape, color=color, plot=plot)
     if not obj.get("quiet"):
         for line in report.warnings:
             click.echo(f"hairinv: {line}", err=True)

@@ -5,10 +5,11 @@ Two kinds of stage files:
 - a hand-made one (two strands in centimetres, +Z up, with a model, contacts and frames) whose every
   shape has a closed form: each element is a helix whose frame turns about its constant world Darboux
   vector, evaluated here with Rodrigues' formula, independently of hairinv.rod;
-- a real one: ``hairinv invert`` on samples/settled_curly.h5 and body.obj, then short still, motion and
-  trim simulations (about 20 s warm in all).
+- a real one: ``hairinv invert`` on samples/settled_curly.h5 and body.obj (and its gravity-only
+  inversion), then short still simulations from the inverted, naive and gravity-only rest shapes, and
+  motion and trim simulations (about 15 s warm in all).
 
-Runtime: about 40 s warm.
+Runtime: about 95 s warm.
 """
 
 from __future__ import annotations
@@ -421,12 +422,17 @@ def test_a_shape_the_file_lacks_is_refused(tmp_path, shape, fragment):
 
 @pytest.fixture(scope="module")
 def real(tmp_path_factory):
-    """settled_curly inverted on the sample bust, and 0.1-0.2 s of the still, motion and trim scenes."""
+    """settled_curly inverted on the sample bust (and its gravity-only inversion), and 0.1-0.2 s of the still
+    scene from the model's rest shape, the naive and the gravity-only one, and of the motion and trim scenes."""
     folder = tmp_path_factory.mktemp("export")
     shutil.copyfile(SAMPLES / "settled_curly.h5", folder / "curly.h5")
     shutil.copyfile(SAMPLES / "body.obj", folder / "body.obj")
     for args in (["invert", "curly.h5", "body.obj", "-o", "model.h5"],
+                 ["invert", "curly.h5", "body.obj", "--target", "gravity-only", "-o", "gravity.h5"],
                  ["simulate", "model.h5", "--seconds", "0.1", "--fps", "20", "-o", "still.h5"],
+                 ["simulate", "model.h5", "--seconds", "0.1", "--fps", "20", "--init", "naive", "-o", "naive.h5"],
+                 ["simulate", "model.h5", "--seconds", "0.1", "--fps", "20", "--init", "gravity-only", "-o",
+                  "init_gravity.h5"],
                  ["simulate", "model.h5", "--scene", "motion", "--seconds", "0.2", "--fps", "10", "-o", "motion.h5"],
                  ["simulate", "model.h5", "--scene", "trim", "--seconds", "0.1", "--fps", "10", "-o", "trim.h5"]):
         result = hairinv(folder, "-q", *args)
@@ -617,9 +623,10 @@ def test_the_readme_export_examples_run_as_written(real, tmp_path):
     readme = (SAMPLES.parent / "README.md").read_text()
     section = readme.split("### Exporting for other tools", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
     commands = [line.split() for line in section.strip().splitlines()]
-    assert len(commands) == 6 and all(c[:2] == ["hairinv", "export"] for c in commands)
+    assert len(commands) == 7 and all(c[:2] == ["hairinv", "export"] for c in commands)
     shutil.copyfile(real / "model.h5", tmp_path / "curly.model.h5")
     shutil.copyfile(real / "still.h5", tmp_path / "curly.frames.h5")
+    shutil.copyfile(real / "naive.h5", tmp_path / "curly.naive.frames.h5")
     shutil.copyfile(real / "body.obj", tmp_path / "body.obj")
     for command in commands:
         result = hairinv(tmp_path, *command[1:])
@@ -629,13 +636,18 @@ def test_the_readme_export_examples_run_as_written(real, tmp_path):
         if out.suffix == ".json":
             summary = json.loads(out.read_text())
             assert summary["groups"]["curves"]["strands"] == 40 and summary["groups"]["frames"]["frames"] == 3
+        elif out.suffix == ".png" and command.index("-o") > 3:  # several stage files: side by side
+            pixels, text = _png(out)
+            inits = [column["init"] for column in json.loads(text["hairinv:columns"])]
+            assert inits == [_h5(tmp_path / name)["frames"]["attrs"]["init"] for name in command[2:-2]]
+            assert _body_pixels(pixels) > 0.05 * pixels.shape[0] * pixels.shape[1]
         elif out.suffix == ".png":
             pixels, text = _png(out)
             assert pixels.shape[:2] == (1300, 1200) and text["hairinv:quantity"] == "contact-force"
             assert _body_pixels(pixels) > 0.05 * pixels.shape[0] * pixels.shape[1]
         elif out.suffix == ".html":
             _assert_offline(out)
-            assert _inlined_png(out)[0] == (1200, 1300)
+            assert _inlined_pngs(out)[0][0] == (1200, 1300)
         else:
             assert read_curves(out).n_strands == 40
     stage = _open(tmp_path / "curly.usda")
@@ -729,17 +741,17 @@ def _assert_summary(summary, path):
         else:
             assert m["stiffened"] is None and m["strands_stiffened"] is None
         if "stability_margin" in g:
+            margin = g["stability_margin"]
+            assert m["unstable_strands"] == np.flatnonzero(margin < -1e-6).tolist()
+            _assert_stats(m["stability_margin"], margin[np.isfinite(margin)])
+        else:  # stability not checked, or a file written before the margins were stored
+            assert m["unstable_strands"] is None and m["stability_margin"] is None
     # each stage's own computing time where the file records it (files from before: null)
     for stage, group in (("fit", "helices"), ("detect", "contacts"), ("simulate", "frames")):
         recorded = f[group]["attrs"].get("seconds") if group in f else None
         assert summary["timings_s"][stage] == recorded
     if "frames" in f and "frame_seconds" in f["frames"]:
         assert f["frames"]["attrs"]["seconds"] == pytest.approx(f["frames"]["frame_seconds"].sum(), rel=1e-12)
-            margin = g["stability_margin"]
-            assert m["unstable_strands"] == np.flatnonzero(margin < -1e-6).tolist()
-            _assert_stats(m["stability_margin"], margin[np.isfinite(margin)])
-        else:  # stability not checked, or a file written before the margins were stored
-            assert m["unstable_strands"] is None and m["stability_margin"] is None
     if "frames" in f:
         r, g = summary["groups"]["frames"], f["frames"]
         assert r["frames"] == len(g["time"]) and r["seconds"] == g["time"][-1]
@@ -793,6 +805,9 @@ def test_json_summary_of_real_files(real, tmp_path, name):
     if name != "curly.h5":
         rules = summary["groups"]["contacts"]["by_kind"]["hair_body"]["by_rule"]
         assert rules["layer"] > 0 and rules["distance"] > 0  # the sample groom has a hair layer
+        # the sample's /helices were fitted elsewhere (copied, no time); detect and simulate ran here
+        assert summary["timings_s"]["fit"] is None and summary["timings_s"]["detect"] > 0
+        assert (summary["timings_s"]["simulate"] is None) == (name == "model.h5")
 
 
 # --------------------------------------------------------------------------- PNG
@@ -805,9 +820,6 @@ def _png(path):
 
     pixels = matplotlib.image.imread(path, format="png")
     with Image.open(path) as image:
-        # the sample's /helices were fitted elsewhere (copied, no time); detect and simulate ran here
-        assert summary["timings_s"]["fit"] is None and summary["timings_s"]["detect"] > 0
-        assert (summary["timings_s"]["simulate"] is None) == (name == "model.h5")
         assert image.format == "PNG"
         text = dict(image.text)
     return pixels, text
@@ -914,18 +926,23 @@ def _assert_offline(path):
     assert "http:" not in raw and "https:" not in raw and "url(" not in raw and "@import" not in raw
 
 
-def _inlined_png(path):
+def _inlined_pngs(path):
+    """(size, text chunks) of every image of an HTML file, each a PNG inlined as a data: URL, in page order."""
     import base64
     import io
 
     from PIL import Image
 
-    images = [attrs["src"] for tag, attrs in _html(path)[0] if tag == "img"]
-    assert len(images) == 1 and images[0].startswith("data:image/png;base64,")
-    data = base64.b64decode(images[0].split(",", 1)[1], validate=True)
-    with Image.open(io.BytesIO(data)) as image:
-        image.load()  # decodes every pixel
-        return image.size, dict(image.text)
+    out = []
+    for tag, attrs in _html(path)[0]:
+        if tag == "img":
+            assert attrs["src"].startswith("data:image/png;base64,")
+            data = base64.b64decode(attrs["src"].split(",", 1)[1], validate=True)
+            with Image.open(io.BytesIO(data)) as image:
+                image.load()  # decodes every pixel
+                assert (int(attrs["width"]), int(attrs["height"])) == image.size
+                out.append((image.size, dict(image.text)))
+    return out
 
 
 def test_html_report_of_a_real_simulation(real, tmp_path):
@@ -934,8 +951,11 @@ def test_html_report_of_a_real_simulation(real, tmp_path):
     assert result.stderr == ""
     out = tmp_path / "still.html"
     _assert_offline(out)
-    size, text = _inlined_png(out)
+    (size, text), (plot_size, plot_text) = _inlined_pngs(out)  # the groom, then the solver's convergence
     assert size == (1200, 1300) and text["hairinv:quantity"] == "rest-curvature"
+    assert plot_size == (1000, 600) and plot_text["hairinv:plot"] == "convergence"
+    history = _h5(real / "still.h5")["model"]["residual_history"]
+    assert json.loads(plot_text["hairinv:sweeps"]) == history[:, 0].tolist()
     # the tables hold the JSON summary: every group, and its figures
     summary = json.loads(hairinv(real, "info", "--json", "still.h5").stdout)
     _, words = _html(out)
@@ -951,12 +971,14 @@ def test_html_report_of_the_hand_made_file(tmp_path):
     report = export(tmp_path / "syn.h5", tmp_path / "syn.html")
     assert report.lines[0].startswith(f"wrote {tmp_path / 'syn.html'}: HTML report")
     _assert_offline(tmp_path / "syn.html")
-    size, text = _inlined_png(tmp_path / "syn.html")
+    [(size, text)] = _inlined_pngs(tmp_path / "syn.html")
     assert size == (1200, 1300) and text["hairinv:quantity"] == "contact-force"
     _, words = _html(tmp_path / "syn.html")
     assert "1 strand was stiffened" in words  # the summary's warning
+    # the hand-made model stores no residual history: said, and no plot
+    assert "No convergence plot: syn.h5 records no residual history" in words
     export(tmp_path / "syn.h5", tmp_path / "syn.html", color="fit-error")  # a report it wrote is replaced
-    assert _inlined_png(tmp_path / "syn.html")[1]["hairinv:quantity"] == "fit-error"
+    assert _inlined_pngs(tmp_path / "syn.html")[0][1]["hairinv:quantity"] == "fit-error"
 
 
 @pytest.mark.parametrize("args, name, fragment", [
@@ -979,3 +1001,204 @@ def test_a_changed_body_is_left_out_of_the_picture_with_a_warning(real, tmp_path
     assert len(lines) == 1 and "warning" in lines[0] and "SHA-256" in lines[0] and "picture has no body" in lines[0]
     pixels, _ = _png(tmp_path / "out.png")
     assert _body_pixels(pixels) < 0.01 * pixels.shape[0] * pixels.shape[1]
+
+
+# --------------------------------------------------------------------------- several simulations side by side
+
+# hairinv.rod against the closed forms here, along a real strand of up to a hundred elements: round-off
+# chained over the elements' rotations, well below a nanometre.
+CHAINED_MM = 1e-6
+
+
+def _columns(text) -> list[dict]:
+    return json.loads(text["hairinv:columns"])
+
+
+def _moved_hand_made(truth, growth) -> np.ndarray:
+    """mm per vertex: the hand-made file's last frame against frame 0 in the body's frame, where the roots and
+    root frames stay put and only the shape grows (``OMEGA * (1 + growth k)``)."""
+    frames = np.stack([FRAME0, FRAME0])
+    at = [evaluate(truth["points"], truth["offsets"], ELEMENT_OFFSETS, LENGTH, ROOTS, frames,
+                   OMEGA * (1.0 + growth * k)) for k in (0, N_FRAMES - 1)]
+    return 1e3 * np.linalg.norm(at[1] - at[0], axis=1)
+
+
+def _moved_real(path) -> np.ndarray:
+    """mm per vertex: a real run's last frame against its frame 0, in the body's frame (each frame undone by the
+    inverse of its /frames/body_transform), evaluated independently of hairinv."""
+    f = _h5(path)["frames"]
+
+    def in_body(k):
+        world = np.concatenate(_frames_expected(path, k))
+        return (np.c_[world, np.ones(len(world))] @ np.linalg.inv(f["body_transform"][k]).T)[:, :3]
+
+    return 1e3 * np.linalg.norm(in_body(len(f["time"]) - 1) - in_body(0), axis=1)
+
+
+def test_comparison_colours_by_displacement_in_the_body_frame(tmp_path):
+    """Two hand-made runs of one groom whose body moves and turns: each column's displacement is the shape's
+    change alone (the body's motion undone), and the colour scale is the larger run's."""
+    a = make_stage(tmp_path / "a.h5", growth=0.05, init="inverted")
+    b = make_stage(tmp_path / "b.h5", growth=0.3, init="naive")
+    moved = [_moved_hand_made(a, 0.05), _moved_hand_made(b, 0.3)]
+    report = export([tmp_path / "a.h5", tmp_path / "b.h5"], tmp_path / "ab.png")
+    assert report.lines[0].startswith(f"wrote {tmp_path / 'ab.png'}: PNG") and "2 simulations" in report.lines[0]
+    pixels, text = _png(tmp_path / "ab.png")
+    columns = _columns(text)
+    assert [c["file"] for c in columns] == ["a.h5", "b.h5"] and [c["init"] for c in columns] == ["inverted", "naive"]
+    assert [c["target"] for c in columns] == ["actual", "actual"]
+    for column, expected in zip(columns, moved):
+        assert column["largest_displacement_mm"] == pytest.approx(expected.max(), rel=1e-9)
+        assert column["time_s"] == pytest.approx((N_FRAMES - 1) / FPS, rel=1e-12)
+    assert text["hairinv:quantity"] == "displacement" and text["hairinv:unit"] == "mm"
+    assert float(text["hairinv:min"]) == 0.0
+    assert float(text["hairinv:max"]) == pytest.approx(max(m.max() for m in moved), rel=1e-9)
+    # the distance in the world frame, which adds the body's motion (a turn and 4.5 mm), is not what is shown
+    T = _body_motion(N_FRAMES - 1)
+    world = evaluate(b["points"], b["offsets"], ELEMENT_OFFSETS, LENGTH, ROOTS @ T[:3, :3].T + T[:3, 3],
+                     np.stack([FRAME0 @ T[:3, :3].T] * 2), OMEGA * (1.0 + 0.3 * (N_FRAMES - 1)))
+    start = evaluate(b["points"], b["offsets"], ELEMENT_OFFSETS, LENGTH, ROOTS, np.stack([FRAME0] * 2), OMEGA)
+    assert abs(1e3 * np.linalg.norm(world - start, axis=1).max() - float(text["hairinv:max"])) > 1.0
+
+
+def test_comparison_grows_by_one_column_per_file(tmp_path):
+    for name, growth in (("a", 0.05), ("b", 0.2), ("c", 0.3)):
+        make_stage(tmp_path / f"{name}.h5", growth=growth)
+    sizes = []
+    for names in (["a", "b"], ["a", "b", "c"], ["a", "b", "c", "a"]):
+        export([tmp_path / f"{n}.h5" for n in names], tmp_path / "out.png")
+        pixels, text = _png(tmp_path / "out.png")
+        sizes.append(pixels.shape[:2])
+        assert [c["file"] for c in _columns(text)] == [f"{n}.h5" for n in names]
+    (h2, w2), (h3, w3), (h4, w4) = sizes
+    assert h2 == h3 == h4 and w3 - w2 == w4 - w3 > 300  # the same views, one column wider each time
+
+
+def test_comparison_of_real_runs(real, tmp_path):
+    """The inverted, gravity-only and naive initialisations of the curly model, 0.1 s of the still scene."""
+    names = ["still.h5", "init_gravity.h5", "naive.h5"]
+    result = hairinv(real, "export", *names, "-o", tmp_path / "compare.png")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""  # the body was found for every column
+    pixels, text = _png(tmp_path / "compare.png")
+    columns = _columns(text)
+    files = [_h5(real / name) for name in names]
+    assert [c["init"] for c in columns] == [f["frames"]["attrs"]["init"] for f in files] == ["inverted",
+                                                                                              "gravity-only", "naive"]
+    assert [c["target"] for c in columns] == [f["model"]["attrs"]["target"] for f in files]
+    moved = [_moved_real(real / name) for name in names]
+    for column, expected in zip(columns, moved):
+        assert column["largest_displacement_mm"] == pytest.approx(expected.max(), rel=1e-9, abs=CHAINED_MM)
+    # one colour scale: 0 to the largest displacement of any run, which is the naive one's
+    assert float(text["hairinv:min"]) == 0.0
+    assert float(text["hairinv:max"]) == pytest.approx(max(m.max() for m in moved), rel=1e-9)
+    assert moved[2].max() > 1.0 and moved[0].max() < CHAINED_MM  # the naive hair sags, the inverted stays
+    for column, f in zip(columns, files):  # and the run's own measure, at its sample points, agrees
+        assert column["largest_displacement_mm"] == pytest.approx(1e3 * f["frames"]["displacement"][-1],
+                                                                  rel=0.05, abs=CHAINED_MM)
+    assert _body_pixels(pixels) > 0.05 * pixels.shape[0] * pixels.shape[1]
+    for name, column in zip(names, columns):
+        assert f"{name}: init {column['init']}, model target actual" in result.stdout
+
+    result = hairinv(real, "export", *names, "-o", tmp_path / "compare.html")
+    assert result.returncode == 0, result.stderr
+    _assert_offline(tmp_path / "compare.html")
+    [(size, page_text)] = _inlined_pngs(tmp_path / "compare.html")
+    assert size == tuple(pixels.shape[1::-1]) and _columns(page_text) == columns
+    _, words = _html(tmp_path / "compare.html")
+    for name, f in zip(names, files):
+        assert name in words and f["frames"]["attrs"]["init"] in words
+
+
+@pytest.mark.parametrize("args, name, fragment", [
+    (["still.h5", "naive.h5", "-o", "out.obj"], "out.obj", "holds one stage file"),
+    (["still.h5", "naive.h5", "-o", "out.json"], "out.json", "compared only in HTML report or PNG output"),
+    (["still.h5", "model.h5", "-o", "out.png"], "model.h5", "no /frames group"),
+    (["still.h5", "syn.h5", "-o", "out.html"], "syn.h5", "another groom than still.h5"),
+    (["still.h5", "naive.h5", "-o", "out.png", "--color", "fit-error"], "out.png", "--color does not apply"),
+    (["still.h5", "naive.h5", "-o", "out.png", "--plot", "convergence"], "out.png", "--plot does not apply"),
+    (["still.h5", "missing.h5", "-o", "out.png"], "missing.h5", "no such file"),
+], ids=["polylines", "summary", "no frames", "another groom", "colour", "plot", "missing file"])
+def test_bad_comparison_exits_2_and_writes_nothing(real, tmp_path, args, name, fragment):
+    for copied in ("still.h5", "naive.h5", "model.h5", "body.obj"):
+        shutil.copyfile(real / copied, tmp_path / copied)
+    make_stage(tmp_path / "syn.h5")
+    assert_refused(tmp_path, ["export", *args], name, fragment)
+
+
+# --------------------------------------------------------------------------- the solver's convergence
+
+
+def _force_scale(f) -> float:
+    """N, the heaviest strand's weight: linear density (rho pi r^2) times |g| times the longest fitted strand."""
+    a, h = f["model"]["attrs"], f["helices"]
+    longest = max(h["length"][i:j].sum() for i, j in itertools.pairwise(h["offsets"]))
+    return a["density"] * np.pi * a["radius"] ** 2 * np.linalg.norm(a["gravity"]) * longest
+
+
+def test_convergence_plot_is_the_residual_history(real, tmp_path):
+    result = hairinv(real, "export", "model.h5", "-o", tmp_path / "conv.png", "--plot", "convergence")
+    assert result.returncode == 0, result.stderr
+    f = _h5(real / "model.h5")
+    history, a = f["model"]["residual_history"], f["model"]["attrs"]
+    scale = _force_scale(f)
+    # the relative residual the model reports is its last residual over the heaviest strand's weight
+    assert history[-1, 1] / scale == pytest.approx(a["relative_residual"], rel=1e-12)
+    pixels, text = _png(tmp_path / "conv.png")
+    assert pixels.shape[:2] == (600, 1000) and text["hairinv:plot"] == "convergence"
+    assert json.loads(text["hairinv:sweeps"]) == history[:, 0].tolist()
+    np.testing.assert_allclose(json.loads(text["hairinv:relative_residual"]), history[:, 1] / scale, rtol=1e-12)
+    assert float(text["hairinv:tolerance"]) == f["model"]["attrs"]["config"]["solver"]["tolerance"]
+    assert text["hairinv:status"] == a["status"] == "CONVERGED"
+    assert f"CONVERGED after {a['iterations']} sweeps" in result.stdout
+
+
+def test_convergence_figure_draws_the_history_on_a_log_scale(real):
+    """The figure itself: the line's points, the y scale and the tolerance line, read back from matplotlib."""
+    from hairinv.export.convergence import convergence_figure, convergence_of
+    from hairinv.export.source import ExportSource
+
+    f = _h5(real / "model.h5")
+    history, tolerance = f["model"]["residual_history"], f["model"]["attrs"]["config"]["solver"]["tolerance"]
+    c, why = convergence_of(ExportSource(real / "model.h5"))
+    assert why == ""
+    fig, _ = convergence_figure(c, "model.h5")
+    ax = fig.axes[0]
+    assert ax.get_yscale() == "log"
+    residual, line = ax.get_lines()
+    np.testing.assert_array_equal(residual.get_xdata(), history[:, 0])
+    np.testing.assert_allclose(residual.get_ydata(), history[:, 1] / _force_scale(f), rtol=1e-12)
+    assert np.all(np.asarray(line.get_ydata()) == tolerance)
+    assert "CONVERGED" in ax.get_title()
+    # the right-hand axis reads the same points in newtons
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig).draw()
+    [right] = ax.child_axes
+    assert right.get_yscale() == "functionlog"  # log, through the conversion to newtons
+    assert right.get_ylim() == pytest.approx(tuple(np.array(ax.get_ylim()) * _force_scale(f)), rel=1e-9)
+
+
+def test_a_gravity_only_model_has_no_convergence_plot(real, tmp_path):
+    assert _h5(real / "gravity.h5")["model"]["attrs"]["target"] == "gravity-only"
+    shutil.copyfile(real / "gravity.h5", tmp_path / "gravity.h5")
+    assert_refused(tmp_path, ["export", "gravity.h5", "-o", "conv.png", "--plot", "convergence"], "gravity.h5",
+                   "is a gravity-only model: its inversion solves for no contact force")
+    result = hairinv(tmp_path, "export", "gravity.h5", "-o", "gravity.html")
+    assert result.returncode == 0, result.stderr
+    [(size, _)] = _inlined_pngs(tmp_path / "gravity.html")  # the groom only: no empty axes
+    assert size == (1200, 700)
+    assert "No convergence plot: gravity.h5 is a gravity-only model" in _html(tmp_path / "gravity.html")[1]
+
+
+@pytest.mark.parametrize("args, name, fragment", [
+    (["curly.h5", "-o", "conv.png", "--plot", "convergence"], "curly.h5", "no /model group"),
+    (["model.h5", "-o", "conv.png", "--plot", "residuals"], "conv.png", "--plot takes groom or convergence"),
+    (["model.h5", "-o", "conv.png", "--plot", "convergence", "--color", "fit-error"], "conv.png",
+     "--color applies to the picture of the groom"),
+    (["model.h5", "-o", "conv.html", "--plot", "convergence"], "conv.html", "--plot applies to PNG"),
+], ids=["fitted file", "unknown plot", "colour of a plot", "plot of a report"])
+def test_bad_convergence_input_exits_2_and_writes_nothing(real, tmp_path, args, name, fragment):
+    for copied in ("curly.h5", "model.h5", "body.obj"):
+        shutil.copyfile(real / copied, tmp_path / copied)
+    assert_refused(tmp_path, ["export", *args], name, fragment)

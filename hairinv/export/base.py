@@ -5,6 +5,9 @@ A module registers its writer with :func:`register_exporter`; adding a format to
 :class:`~hairinv.export.source.ExportSource`, the output path and the shape asked for, writes through the
 atomic writer (:mod:`hairinv.atomic`, through the format's own writer in :mod:`hairinv.formats` or
 :func:`hairinv.formats.usd.save_stage`) and says what it wrote in the :class:`ExportReport`.
+
+A kind that can also compare several stage files (runs of one groom side by side) registers that writer
+with :func:`register_comparison`, under the same suffixes.
 """
 
 from __future__ import annotations
@@ -15,7 +18,8 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["EXPORTERS", "ExportReport", "Exporter", "check_export_path", "exporter_for", "register_exporter"]
+__all__ = ["COMPARISONS", "EXPORTERS", "ExportReport", "Exporter", "check_export_path", "exporter_for",
+           "register_comparison", "register_exporter"]
 
 
 @dataclass
@@ -65,6 +69,23 @@ def register_exporter(*suffixes: str, name: str, default_shape: str | None = "in
                             owns)
         for suffix in exporter.suffixes:
             EXPORTERS[suffix] = exporter
+        return fn
+
+    return decorate
+
+
+# Suffix -> writer ``fn(sources, path, report)`` of several stage files compared side by side.
+COMPARISONS: dict[str, Callable] = {}
+
+
+def register_comparison(*suffixes: str):
+    """Register ``fn(sources, path, report)`` as the writer of a comparison of several stage files (a list of
+    :class:`~hairinv.export.source.ExportSource`, checked to be runs of one groom) to files with these
+    suffixes."""
+
+    def decorate(fn):
+        for suffix in suffixes:
+            COMPARISONS[suffix.lower()] = fn
         return fn
 
     return decorate

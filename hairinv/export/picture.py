@@ -10,6 +10,10 @@ With ``/frames`` a second row shows the input shape against the last frame.
 The PNG's text chunks record what the colours mean: ``hairinv:quantity``, ``hairinv:unit``,
 ``hairinv:min`` and ``hairinv:max`` (the colour bar's range, in that unit: the quantity's smallest and
 largest value over the vertices or strands it is defined on).
+
+``--plot convergence`` draws the model's contact solver history instead
+(:mod:`hairinv.export.convergence`); several stage files are drawn side by side by
+:mod:`hairinv.export.compare`.
 """
 
 from __future__ import annotations
@@ -23,9 +27,10 @@ from .. import __version__
 from ..atomic import write_bytes
 from ..errors import InputError
 from .base import register_exporter
+from .convergence import convergence_of, convergence_png, convergence_size
 from .source import ExportSource, OutputAxes
 
-__all__ = ["COLORS", "Coloring", "Picture", "coloring", "default_color", "draw", "picture", "png_size"]
+__all__ = ["COLORS", "PLOTS", "Coloring", "Picture", "coloring", "default_color", "draw", "picture", "png_size"]
 
 # Figure layout: inches at DPI, so the PNG is WIDTH_IN * DPI pixels wide and ROW_IN * DPI per row of views
 # (plus the title band); fixed, not cropped to the drawing, so every picture of one kind has one size.
@@ -292,8 +297,31 @@ def picture(source: ExportSource, color: str | None, output: Path) -> Picture:
     return Picture(buffer.getvalue(), paint, png_size(rows), lines, warnings)
 
 
-@register_exporter(".png", name="PNG", default_shape=None, options=("color",), owns=_owns)
-def export_png(source, path, shape, report, color: str | None = None) -> None:
+# ``--plot``: what the PNG of one stage file shows (docs/export.md).
+PLOTS = ("groom", "convergence")
+
+
+def _export_convergence(source, path: Path, report) -> None:
+    history, why = convergence_of(source)
+    if history is None:
+        raise InputError(why, source.path)
+    png, lines = convergence_png(history, source)
+    write_bytes(path, png)
+    width, height = convergence_size()
+    report.lines.append(f"wrote {path}: PNG, {width} x {height} px, the contact solver's relative residual against "
+                        "the sweeps")
+    report.lines += lines
+
+
+@register_exporter(".png", name="PNG", default_shape=None, options=("color", "plot"), owns=_owns)
+def export_png(source, path, shape, report, color: str | None = None, plot: str | None = None) -> None:
+    if plot is not None and plot not in PLOTS:
+        raise InputError(f"--plot takes {' or '.join(PLOTS)}, not {plot!r}", path)
+    if plot == "convergence":
+        if color is not None:
+            raise InputError("--color applies to the picture of the groom, not to --plot convergence", path)
+        _export_convergence(source, Path(path), report)
+        return
     drawn = picture(source, color, Path(path))
     write_bytes(path, drawn.png)
     width, height = drawn.size
