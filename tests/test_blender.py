@@ -138,7 +138,7 @@ def _file(blender, name):
 
 # USD primvar interpolation and type -> Blender attribute domain and type
 DOMAIN = {"uniform": "CURVE", "vertex": "POINT"}
-DATA_TYPE = {"float[]": "FLOAT", "int[]": "INT", "point3f[]": "FLOAT_VECTOR"}
+DATA_TYPE = {"float[]": "FLOAT", "int[]": "INT", "point3f[]": "FLOAT_VECTOR", "texCoord2f[]": "FLOAT2"}  # groom_root_uv: FLOAT2
 
 
 def _builtin(spec: Spec) -> dict[str, tuple[str, str]]:
