@@ -767,24 +767,24 @@ def _late_global(name: str):
     def callback(ctx, _param, value):
         if value:
             ctx.ensure_object(dict)
+            if name == "verbose":
+                ctx.obj["verbose"] = True
+                return
             ctx.obj["progress"] = False
             if name == "quiet":
                 ctx.obj["quiet"] = True
     return callback
 
-            if name == "verbose":
-                ctx.obj["verbose"] = True
-                return
 
 for _command in main.commands.values():
     _command.params.append(click.Option(["-q", "--quiet"], is_flag=True, expose_value=False,
                                         callback=_late_global("quiet"), help="Print only errors."))
+    _command.params.append(click.Option(["-v", "--verbose"], is_flag=True, expose_value=False,
+                                        callback=_late_global("verbose"),
+                                        help="Also print the settings in effect and each stage's time."))
     _command.params.append(click.Option(["--no-progress"], is_flag=True, expose_value=False,
                                         callback=_late_global("progress"), help="Never draw progress bars."))
 
 
 if __name__ == "__main__":
-    _command.params.append(click.Option(["-v", "--verbose"], is_flag=True, expose_value=False,
-                                        callback=_late_global("verbose"),
-                                        help="Also print the settings in effect and each stage's time."))
     main()
