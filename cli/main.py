@@ -711,12 +711,15 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
 @click.option("--color", "color", default=None, metavar="contact-force|rest-curvature|stiffening|fit-error",
               help="PNG, HTML: the quantity the strands are coloured by [default: contact-force for a model, "
                    "fit-error for a fitted file].")
+@click.option("--basis", default=None, type=click.Choice(["linear", "catmull-rom"]),
+              help="USD: the curves' type, linear segments or pinned Catmull-Rom cubics through the same vertices "
+                   "[default: linear].")
 @click.option("--plot", default=None, metavar="groom|convergence",
               help="PNG: the groom from the front and the side, or the contact solver's residual against its "
                    "sweeps (needs /model) [default: groom].")
 @click.pass_obj
 @handle_errors
-def export(obj, stage_files, output, shape, color, plot):
+def export(obj, stage_files, output, shape, color, plot, basis):
     """Write STAGE_FILE for other tools and for people: its groom as USD, Yuksel .hair, USC .data or OBJ
     polylines, its summary as JSON, a picture as PNG, or both in one HTML report.
 
@@ -731,7 +734,7 @@ def export(obj, stage_files, output, shape, color, plot):
     """
     from hairinv.export import export as run_export
 
-    report = run_export(list(stage_files), output, shape, color=color, plot=plot)
+    report = run_export(list(stage_files), output, shape, color=color, plot=plot, basis=basis)
     if not obj.get("quiet"):
         for line in report.warnings:
             click.echo(f"hairinv: {line}", err=True)

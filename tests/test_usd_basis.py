@@ -90,3 +90,16 @@ def test_linear_stays_the_default_and_a_bad_basis_is_refused(tmp_path):
     assert not (tmp_path / "bad.usda").exists()
     with pytest.raises(InputError, match="--basis applies to USD"):
         export(tmp_path / "syn.h5", tmp_path / "bad.obj", basis="catmull-rom")
+
+
+def test_the_command_line_takes_the_basis(tmp_path):
+    from test_cli import hairinv
+
+    make_stage(tmp_path / "syn.h5", frames=False)
+    result = hairinv(tmp_path, "export", "syn.h5", "-o", "cubic.usdc", "--basis", "catmull-rom")
+    assert result.returncode == 0, result.stderr
+    stage = Usd.Stage.Open(str(tmp_path / "cubic.usdc"))
+    assert UsdGeom.BasisCurves(stage.GetPrimAtPath("/Root/Hair")).GetBasisAttr().Get() == UsdGeom.Tokens.catmullRom
+    refused = hairinv(tmp_path, "export", "syn.h5", "-o", "lines.obj", "--basis", "catmull-rom")
+    assert refused.returncode == 2 and "--basis applies to USD" in refused.stderr
+    assert not (tmp_path / "lines.obj").exists()
