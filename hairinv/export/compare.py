@@ -122,8 +122,8 @@ def draw_comparison(sources: list[ExportSource]):
     grid = fig.add_gridspec(2, len(runs) + 1, width_ratios=[1.0] * len(runs) + [0.06],
                             left=0.8 / (width / DPI), right=1.0 - 0.75 / (width / DPI), wspace=0.3, hspace=0.15,
                             top=1.0 - TITLE_IN / (height / DPI), bottom=BOTTOM_IN / (height / DPI))
-    fig.suptitle("before/after: the input (grey) against the last frame of each simulation, coloured by how far it "
-                 "moved", fontsize=13, y=1.0 - 0.12 / (height / DPI), va="top")
+    fig.suptitle("before/after: the input (grey) against each run's last frame,\ncoloured by how far it moved",
+                 fontsize=13, y=1.0 - 0.12 / (height / DPI), va="top")
     bodies, collection = [], None
     for row, (side, label, horizontal) in enumerate(_VIEWS):
         screen_before, _ = _view(before, side)
