@@ -172,6 +172,30 @@ def body_options(fn):
     return with_body_frame
 
 
+def if_stale_option(fn):
+    """--if-stale: do nothing when the output is current (hairinv.staleness)."""
+    return click.option("--if-stale", "if_stale", is_flag=True,
+                        help="Do nothing (exit 0) when the output is current: made by this command from inputs "
+                             "with the same contents, with the same settings and options.")(fn)
+
+
+def _up_to_date(obj, if_stale: bool, output: Path, record: dict) -> bool:
+    """With --if-stale: True (and the output's time set to now, for make) when ``output`` is current for
+    ``record``; else say why it is made again."""
+    from hairinv.staleness import check_current, mark_current
+
+    if not if_stale:
+        return False
+    current, reasons = check_current(output, record)
+    if current:
+        mark_current(output)
+        _say(obj, f"{output} is current (the same inputs, settings and options): nothing to do")
+        return True
+    if Path(output).exists():
+        _say(obj, f"{output} is stale: " + "; ".join(reasons))
+    return False
+
+
 def settings_options(fn):
     """--quality, --config and --set."""
     options = [
@@ -190,6 +214,17 @@ def settings_options(fn):
 def _import_extra(units, scale, up, flip, guides, seed) -> dict:
     values = {"units": units, "scale": scale, "up": up, "flip": flip, "guides": guides, "seed": seed}
     return {k: v for k, v in values.items() if v is not None}
+
+
+def _pipeline_record(subcommand: str, style: Path, body: Path | None, settings, sections) -> dict:
+    """The command record (hairinv.staleness) of a run on STYLE and BODY; missing files are refused first."""
+    from hairinv.errors import InputError
+    from hairinv.staleness import command_record
+
+    for path in (style, body):
+        if path is not None and not Path(path).exists():
+            raise InputError("no such file", path)
+    return command_record(subcommand, [style, body], settings, sections)
 
 
 def _default_output(source: Path, suffix: str) -> Path:
@@ -234,9 +269,11 @@ def main(ctx, quiet, verbose, no_progress):
 @click.option("--elements", type=click.IntRange(min=1), default=None,
               help="Fixed number of elements per strand (default: adaptive from the tolerance).")
 @settings_options
+@if_stale_option
 @click.pass_obj
 @handle_errors
-def fit(obj, curves, output, units, scale, up, flip, guides, seed, tolerance, elements, quality, config_file, sets):
+def fit(obj, curves, output, units, scale, up, flip, guides, seed, tolerance, elements, quality, config_file, sets,
+        if_stale):
     """Fit every strand of CURVES with a G1 chain of super-helices.
 
     CURVES is any supported hairstyle file: Yuksel .hair, USC .data,
@@ -258,6 +295,9 @@ def fit(obj, curves, output, units, scale, up, flip, guides, seed, tolerance, el
     _say_settings(obj, settings, "import", "fit")
     output = output or _default_output(curves, "fit")
     stages.check_output_path(output, inputs=[curves])
+    record = _pipeline_record("fit", curves, None, settings, ("import", "fit"))
+    if _up_to_date(obj, if_stale, output, record):
+        return
     groom, report = load_groom(curves, settings.import_)
     for line in report.lines():
         _say(obj, line)
@@ -274,6 +314,7 @@ def fit(obj, curves, output, units, scale, up, flip, guides, seed, tolerance, el
         [groom.curves_group(settings.import_, inputs),
          helices.group(settings.fit, inputs, {"seconds": fit_report.seconds})],
         "fit",
+        record,
     )
     _say(obj, f"wrote {output}")
     _say_timings(obj, {"fit": fit_report.seconds})
@@ -339,10 +380,11 @@ def contact_options(fn):
 @body_options
 @contact_options
 @settings_options
+@if_stale_option
 @click.pass_obj
 @handle_errors
 def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_distance, hair_distance, mu,
-           no_hair_hair, quality, config_file, sets, body_frame):
+           no_hair_hair, quality, config_file, sets, if_stale, body_frame):
     """Declare the hair-body and hair-hair contacts of STYLE resting on BODY.
 
     STYLE is a fitted stage file (from `hairinv fit`) or any hairstyle file,
@@ -362,10 +404,13 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
     _say_settings(obj, settings, "import", "body", "fit", "contacts")
     output = output or _default_output(style, "contacts")
     stages.check_output_path(output, inputs=[style, body])
+    record = _pipeline_record("detect", style, body, settings, ("import", "body", "fit", "contacts"))
+    if _up_to_date(obj, if_stale, output, record):
+        return
     scene = prepare(style, body, settings, contacts=True, progress=_stage_progress(obj["progress"]))
     for line in scene.lines:
         _say(obj, line)
-    stages.write_stage(output, list(scene.groups.values()), "detect")
+    stages.write_stage(output, list(scene.groups.values()), "detect", record)
     _say(obj, f"wrote {output}")
     _say_timings(obj, scene.timings)
 
@@ -386,10 +431,11 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
 @body_options
 @contact_options
 @settings_options
+@if_stale_option
 @click.pass_obj
 @handle_errors
 def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up, flip, guides, seed, body_distance,
-           hair_distance, mu, no_hair_hair, quality, config_file, sets, body_frame):
+           hair_distance, mu, no_hair_hair, quality, config_file, sets, if_stale, body_frame):
     """Invert STYLE resting on BODY: find the rest shape and contact forces
     that make the input shape a static equilibrium.
 
@@ -419,6 +465,10 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
     _say_settings(obj, settings, "import", "body", "fit", "contacts", "material", "solver")
     output = output or _default_output(style, "model")
     stages.check_output_path(output, inputs=[style, body])
+    record = _pipeline_record("invert", style, body, settings,
+                              ("import", "body", "fit", "contacts", "material", "solver"))
+    if _up_to_date(obj, if_stale, output, record):
+        return
     # bad material or solver settings fail here, before any fitting
     Material.from_settings(settings.material, (0.0, 1.0, 0.0))
     validate_settings(settings.solver)
@@ -452,7 +502,7 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
     groups.pop(stages.MODEL, None)
     groups.pop(stages.FRAMES, None)
     groups[stages.MODEL] = model.group(settings_dict(settings.material, settings.solver), scene.inputs)
-    stages.write_stage(output, list(groups.values()), "invert")
+    stages.write_stage(output, list(groups.values()), "invert", record)
     _say(obj, f"wrote {output}")
     _say_timings(obj, {**scene.timings, "invert": report.seconds})
 
@@ -560,7 +610,7 @@ def _write_frames(output: Path, model: Path, run: dict, frames, init: str) -> No
     cfg = {"dynamics": dataclasses.asdict(settings.dynamics), "contacts": dataclasses.asdict(settings.contacts),
            "scene": run["scene"].name, "init": init}
     groups[stages.FRAMES] = frames.group(cfg, inputs)
-    stages.write_stage(output, list(groups.values()), "simulate")
+    stages.write_stage(output, list(groups.values()), "simulate", run.get("record"))
 
 
 @main.command()
@@ -575,9 +625,11 @@ def _write_frames(output: Path, model: Path, run: dict, frames, init: str) -> No
 @click.option("--fps", type=float, default=None, help="Frames written per second [default: the scene's].")
 @body_options
 @settings_options
+@if_stale_option
 @click.pass_obj
 @handle_errors
-def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, config_file, sets, body_frame):
+def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, config_file, sets, if_stale,
+             body_frame):
     """Simulate an inverted MODEL under a scene and write its frames.
 
     MODEL is a stage file written by `hairinv invert`. BODY is the body mesh
@@ -586,12 +638,20 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
     groups and /frames; each frame's contacts, solver residual, energies and
     largest displacement are printed as it is done.
     """
+    from hairinv.staleness import command_record
+
     output = output or _default_output(model, "frames")
     run = _load_simulation(functools.partial(_say, obj), model, body, output, scene_name, quality, config_file,
                            sets, body_frame)
     scene = run["scene"]
     run_seconds = scene.seconds if seconds is None else seconds
     run_fps = scene.fps if fps is None else fps
+    scene_file = Path(scene_name) if Path(scene_name).suffix == ".toml" else None  # its contents count
+    run["record"] = command_record("simulate", [model, run["body"], scene_file], run["settings"],
+                                   ("body", "contacts", "dynamics"),
+                                   {"scene": scene_name, "init": init, "seconds": run_seconds, "fps": run_fps})
+    if _up_to_date(obj, if_stale, output, run["record"]):
+        return
     _say(obj, f"scene {scene.name}, {run_seconds:g} s at {run_fps:g} frames per second"
          + (f": {scene.description}" if scene.description else ""))
     frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=lambda log: _say(obj, log.line()))
@@ -762,6 +822,39 @@ def info(obj, file, as_json):
         return
     for line in summary_lines(summary, str(file)):
         say(line)
+
+
+@main.command()
+@click.argument("stage_file", type=click.Path(path_type=Path))
+@click.argument("inputs", nargs=-1, type=click.Path(path_type=Path))
+@click.option("--quality", type=click.Choice(["draft", "default", "final"]), default=None,
+              help="Also compare the settings of this preset (with --config and --set) with the recorded ones.")
+@click.option("--config", "config_file", type=click.Path(dir_okay=False), default=None,
+              help="Also compare the settings of this TOML file with the recorded ones.")
+@click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE", help="Also compare this setting.")
+@click.pass_obj
+@handle_errors
+def status(obj, stage_file, inputs, quality, config_file, sets):
+    """Say whether STAGE_FILE is current: exit 0 if its inputs still have the contents it was made from
+    (and, with --quality/--config/--set, the same settings), 1 if stale (naming what changed), 2 if it
+    cannot be read or records nothing to compare.
+
+    The inputs are found where the file recorded them (as written, then next to STAGE_FILE), or given as
+    INPUTS in the order the command took them (e.g. the hairstyle, then the body).
+    """
+    from hairinv import config
+    from hairinv.staleness import status as file_status
+
+    settings = None
+    if quality is not None or config_file is not None or sets:
+        settings = config.resolve(quality or "default", config_file, sets)
+    current, reasons = file_status(stage_file, inputs, settings)
+    if current:
+        _say(obj, f"{stage_file}: current")
+        return
+    for reason in reasons:
+        _say(obj, f"{stage_file}: stale: {reason}")
+    sys.exit(FAILED)
 
 
 def _late_global(name: str):

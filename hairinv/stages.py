@@ -147,7 +147,7 @@ def check_output_path(out, inputs=()) -> Path:
     return out
 
 
-def write_stage(path, groups: list[Group], command: str) -> Path:
+def write_stage(path, groups: list[Group], command: str, record: dict | None = None) -> Path:
     """Write ``groups`` to ``path`` atomically.
 
     Parameters
@@ -158,6 +158,9 @@ def write_stage(path, groups: list[Group], command: str) -> Path:
         Written in pipeline order whatever the order given.
     command : str
         The subcommand that produced the file, recorded in ``producer``.
+    record : dict, optional
+        What made the file (:func:`hairinv.staleness.command_record`), stored as JSON in the root
+        attribute ``command``.
     """
     path = Path(path)
     order = {name: i for i, name in enumerate(PIPELINE)}
@@ -167,6 +170,8 @@ def write_stage(path, groups: list[Group], command: str) -> Path:
         fh.attrs["schema_version"] = SCHEMA_VERSION
         fh.attrs["producer"] = f"hairinv {__version__} {command}"
         fh.attrs["stages"] = ",".join(g.name for g in groups)
+        if record is not None:
+            fh.attrs["command"] = json.dumps(record, sort_keys=True, default=str)
         for group in groups:
             h5 = fh.create_group(group.name)
             for key, value in group.datasets.items():

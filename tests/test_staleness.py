@@ -1,0 +1,147 @@
+"""Make-style staleness: the command record, --if-stale, hairinv status and the sample Makefile.
+
+A stage file records what made it (subcommand, each input's SHA-256, settings, options). Whether a file was
+made again or left as it was is told by its inode: hairinv writes a new file and renames it into place, so
+a file made again has a new inode; a current one is only touched (same inode, newer modification time).
+
+Runtime: about 40-70 s with a warm numba cache (make builds two grooms of 3 guide strands, several times).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import time
+
+import h5py
+import pytest
+
+from conftest import ROOT, SAMPLES
+from hairinv import config, stages
+from hairinv.staleness import command_record, differences, status
+from test_cli import ENV, hairinv
+
+PYTHON_HAIRINV = f"{os.sys.executable} -m hairinv_cli.main"
+
+
+def inode(path):
+    return os.stat(path).st_ino
+
+
+def test_differences_name_what_changed(tmp_path):
+    a, b = tmp_path / "a.h5", tmp_path / "b.obj"
+    shutil.copyfile(SAMPLES / "wavy.h5", a)
+    shutil.copyfile(SAMPLES / "body.obj", b)
+    settings = config.resolve("default")
+    old = command_record("invert", [a, b], settings, ("fit", "solver"), {"x": 1})
+    assert differences(old, command_record("invert", [a, b], settings, ("fit", "solver"), {"x": 1})) == []
+    changed = config.apply(settings, {"fit": {"tolerance": 1e-4}})
+    assert differences(old, command_record("invert", [a, b], changed, ("fit", "solver"), {"x": 1})) == [
+        "setting fit.tolerance was 0.0002, now 0.0001"]
+    b.write_text(b.read_text() + "\n# edited\n")
+    assert differences(old, command_record("invert", [a, b], settings, ("fit", "solver"), {"x": 2})) == [
+        "input b.obj changed", "option x was 1, now 2"]
+    assert differences(old, command_record("invert", [a, None], settings, ("fit", "solver"), {"x": 1})) == [
+        "input b.obj was given then"]
+    assert differences(old, command_record("detect", [a, b], settings, ("fit",)))[0].startswith("it was written by")
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("stale")
+    shutil.copyfile(SAMPLES / "wavy.h5", folder / "wavy.h5")
+    shutil.copyfile(SAMPLES / "body.obj", folder / "body.obj")
+    result = hairinv(folder, "invert", "wavy.h5", "body.obj", "--guides", "3", "-o", "m.h5")
+    assert result.returncode == 0, result.stderr
+    return folder
+
+
+def test_the_record_is_in_the_file(model):
+    with h5py.File(model / "m.h5", "r") as fh:
+        record = json.loads(fh.attrs["command"])
+    assert record["subcommand"] == "invert"
+    assert [r["sha256"] for r in record["inputs"]] == [stages.sha256_file(model / n) for n in ("wavy.h5", "body.obj")]
+    assert record["settings"]["import"]["guides"] == 3
+    assert set(record["settings"]) == {"import", "body", "fit", "contacts", "material", "solver"}
+
+
+def test_if_stale_leaves_a_current_output_and_remakes_a_stale_one(model):
+    before = inode(model / "m.h5")
+    old_time = time.time() - 3600
+    os.utime(model / "m.h5", (old_time, old_time))
+    again = hairinv(model, "invert", "wavy.h5", "body.obj", "--guides", "3", "-o", "m.h5", "--if-stale")
+    assert again.returncode == 0 and "is current" in again.stdout and "read" not in again.stdout
+    assert inode(model / "m.h5") == before and os.stat(model / "m.h5").st_mtime > old_time + 3000
+    other = hairinv(model, "invert", "wavy.h5", "body.obj", "--guides", "3", "--mu", "0.5", "-o", "m2.h5")
+    assert other.returncode == 0
+    shutil.copyfile(model / "m.h5", model / "m3.h5")
+    stale = hairinv(model, "invert", "wavy.h5", "body.obj", "--guides", "3", "--mu", "0.5", "-o", "m3.h5",
+                    "--if-stale")
+    assert stale.returncode == 0, stale.stderr
+    assert "m3.h5 is stale: setting contacts.mu_body was 0.3, now 0.5; setting contacts.mu_hair" in stale.stdout
+    with h5py.File(model / "m3.h5", "r") as new, h5py.File(model / "m2.h5", "r") as reference:
+        assert (new["model/force"][()] == reference["model/force"][()]).all()
+
+
+def test_status_of_a_current_a_stale_and_an_unreadable_file(model, tmp_path):
+    ok = hairinv(model, "status", "m.h5")
+    assert ok.returncode == 0 and ok.stdout.strip() == "m.h5: current"
+    # moved to another folder: the inputs are found where they were recorded (relative to the working folder)
+    shutil.copyfile(model / "m.h5", tmp_path / "m.h5")
+    assert hairinv(model, "status", tmp_path / "m.h5").returncode == 0
+    # named explicitly, an edited copy of the body is stale, and named
+    shutil.copyfile(model / "body.obj", tmp_path / "body.obj")
+    with open(tmp_path / "body.obj", "a") as fh:
+        fh.write("# edited\n")
+    stale = hairinv(model, "status", "m.h5", "wavy.h5", tmp_path / "body.obj")
+    assert stale.returncode == 1 and "body.obj changed since" in stale.stdout
+    changed = hairinv(model, "status", "m.h5", "--set", "import.guides=3", "--set", "solver.gamma=0.5")
+    assert changed.returncode == 1 and changed.stdout.strip().splitlines() == [
+        f"m.h5: stale: setting solver.gamma was {config.SolverSettings().gamma!r}, now 0.5"]
+    same = hairinv(model, "status", "m.h5", "--set", "import.guides=3")
+    assert same.returncode == 0
+    unreadable = tmp_path / "broken.h5"
+    unreadable.write_bytes(b"not hdf5")
+    bad = hairinv(tmp_path, "status", "broken.h5")
+    assert bad.returncode == 2 and "broken.h5" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    old = hairinv(tmp_path, "status", SAMPLES / "wavy.h5")
+    assert old.returncode == 2 and "records no command" in old.stderr
+
+
+def _make(folder, *args):
+    run = subprocess.run(["make", "-f", str(ROOT / "samples" / "Makefile"), f"HAIRINV={PYTHON_HAIRINV}",
+                          "SAMPLES=in", "OUT=out", "GROOMS=wavy straight", "OPTIONS=--guides 3", *args],
+                         cwd=folder, env=ENV, capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stdout + run.stderr
+    return run
+
+
+def test_the_sample_makefile_rebuilds_only_what_changed(tmp_path):
+    (tmp_path / "in").mkdir()
+    for name in ("wavy.h5", "straight.h5", "body.obj"):
+        shutil.copyfile(SAMPLES / name, tmp_path / "in" / name)
+    first = _make(tmp_path, "-j2")
+    outputs = sorted((tmp_path / "out").iterdir())
+    assert [p.name for p in outputs] == sorted(f"{g}.{s}" for g in ("wavy", "straight")
+                                               for s in ("fit.h5", "contacts.h5", "model.h5", "usda", "json"))
+    assert "hairinv_cli.main invert" in first.stdout
+    inodes = {p.name: inode(p) for p in outputs}
+    # the second run does nothing
+    second = _make(tmp_path)
+    assert "hairinv" not in second.stdout and "Nothing to be done" in second.stdout
+    # a touched input: only its chain runs, and finds every stage file current (none made again)
+    os.utime(tmp_path / "in" / "wavy.h5")
+    touched = _make(tmp_path)
+    assert "wavy" in touched.stdout and "straight" not in touched.stdout
+    assert {p.name: inode(p) for p in sorted((tmp_path / "out").iterdir()) if p.suffix == ".h5"} == {
+        n: i for n, i in inodes.items() if n.endswith(".h5")}
+    # another setting for every groom, forced: each fit is made again (the settings differ)...
+    forced = _make(tmp_path, "-B", "OPTIONS=--guides 4")
+    assert forced.stdout.count("fit ") == 2
+    assert all(inode(tmp_path / "out" / f"{g}.fit.h5") != inodes[f"{g}.fit.h5"] for g in ("wavy", "straight"))
+    # ...and forced again with the same ones, nothing is
+    kept = {p.name: inode(p) for p in (tmp_path / "out").iterdir() if p.suffix == ".h5"}
+    _make(tmp_path, "-B", "OPTIONS=--guides 4")
+    assert {p.name: inode(p) for p in (tmp_path / "out").iterdir() if p.suffix == ".h5"} == kept
