@@ -857,6 +857,48 @@ def status(obj, stage_file, inputs, quality, config_file, sets):
     sys.exit(FAILED)
 
 
+@main.command()
+@click.argument("manifest", type=click.Path(path_type=Path))
+@click.option("-o", "--output", "outdir", type=click.Path(path_type=Path), default=Path("batch"), show_default=True,
+              help="Folder of the stage files, logs and summary (batch.json).")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="A running Dask scheduler (tcp://host:8786, tls://...) [default: a local cluster on 127.0.0.1].")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Local cluster: worker processes [default: as many as grooms, at most the cores].")
+@click.option("--tls-ca-file", type=click.Path(dir_okay=False), default=None, help="TLS: the CA certificate.")
+@click.option("--tls-cert", type=click.Path(dir_okay=False), default=None, help="TLS: this client's certificate.")
+@click.option("--tls-key", type=click.Path(dir_okay=False), default=None, help="TLS: the certificate's key.")
+@click.pass_obj
+@handle_errors
+def batch(obj, manifest, outdir, scheduler, workers, tls_ca_file, tls_cert, tls_key):
+    """Run every groom of MANIFEST (TOML: hair, body, units, settings, stages, exports) as one task on a
+    Dask cluster, each with its own log and stage files in OUTPUT, and print a summary table (also
+    written to OUTPUT/batch.json). A groom that fails is reported with its message; the others go on.
+    Exit 1 if any failed. A second run redoes only what changed. docs/batch.md has the manifest format.
+    """
+    from hairinv.atomic import write_bytes
+    from hairinv.batch import read_manifest, run_batch, security_from, table
+
+    grooms, tls = read_manifest(manifest)
+    security = security_from(tls, tls_ca_file, tls_cert, tls_key)
+    if security is not None and not scheduler:
+        _say(obj, "note: TLS settings apply to a scheduler given with --scheduler; the local cluster listens "
+                  "on 127.0.0.1 only")
+        security = None
+    _say(obj, f"{len(grooms)} grooms from {manifest}" + (f" on {scheduler}" if scheduler else ", local cluster"))
+
+    def done(row):
+        _say(obj, f"{row['groom']}: {row['status']}" + (f" ({row['message']})" if row["message"] else ""))
+
+    rows = run_batch(grooms, outdir, scheduler=scheduler, workers=workers, security=security, on_row=done)
+    _say(obj, table(rows))
+    summary = {"manifest": str(manifest), "grooms": rows, "failed": sum(r["status"] != "ok" for r in rows)}
+    write_bytes(Path(outdir) / "batch.json", json.dumps(summary, indent=2).encode())
+    _say(obj, f"wrote {Path(outdir) / 'batch.json'}")
+    if summary["failed"]:
+        sys.exit(FAILED)
+
+
 def _late_global(name: str):
     """``-q``, ``-v`` and ``--no-progress`` after the subcommand too (``hairinv invert ... -q`` is what people
     type)."""

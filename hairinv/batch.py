@@ -1,0 +1,292 @@
+"""``hairinv batch``: many grooms, each one task on a Dask cluster (docs/batch.md).
+
+A manifest (TOML) lists the grooms: hair file, body file, their units and axes, settings overrides and
+options, and what to make of each (``invert``, ``verify``, exports). Each groom is one task: it runs the
+``hairinv`` commands a user would type, on the worker, with its own log, and returns one row of the
+summary. The cluster is a :class:`distributed.LocalCluster` on the loopback interface by default, or the
+scheduler at an address given (with TLS when certificates are given). A groom that fails is reported
+with its message and never stops the others.
+
+Resumable: the inversion runs with ``--if-stale``, an export is made again only when the model it was
+made from changed (by SHA-256), and a verification is kept while the model it checked is unchanged (by SHA-256), so a second run
+of the same manifest redoes only what changed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import subprocess
+import sys
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from . import stages
+from .atomic import write_bytes
+from .errors import InputError
+
+#: What a groom may ask for: the model, its still check, and exports by suffix.
+STAGES = ("invert", "verify", "export")
+EXPORT_SUFFIXES = ("usda", "usdc", "usd", "hair", "data", "obj", "json", "png", "html")
+_GROOM_KEYS = {"name", "hair", "body", "units", "scale", "up", "flip", "body_units", "body_scale", "body_up",
+               "body_flip", "guides", "quality", "set", "options", "stages", "exports", "verify_seconds"}
+#: How long to wait for a scheduler given by address.
+CONNECT_TIMEOUT = "20s"
+_OPTION_OF = {"units": "--units", "scale": "--scale", "up": "--up", "flip": "--flip", "body_units": "--body-units",
+              "body_scale": "--body-scale", "body_up": "--body-up", "body_flip": "--body-flip",
+              "guides": "--guides", "quality": "--quality"}
+
+
+@dataclass
+class Groom:
+    """One groom of a manifest, its paths resolved against the manifest's folder."""
+
+    name: str
+    hair: str
+    body: str | None = None
+    options: list[str] = field(default_factory=list)
+    """command-line options of ``hairinv invert`` (units, axes, guides, quality, --set ...)"""
+    stages: list[str] = field(default_factory=lambda: ["invert", "verify"])
+    exports: list[str] = field(default_factory=list)
+    verify_seconds: float | None = None
+
+
+def read_manifest(path) -> tuple[list[Groom], dict]:
+    """The grooms of a manifest and its ``[tls]`` table (empty when absent).
+
+    Raises
+    ------
+    InputError
+        Not TOML, no grooms, an unknown key, a missing hair file, two grooms of one name.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError("no such file", path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"is not valid TOML ({exc})", path) from None
+    unknown = set(data) - {"defaults", "groom", "tls"}
+    if unknown:
+        raise InputError(f"has unknown table(s) {', '.join(sorted(unknown))}; known: defaults, groom, tls", path)
+    defaults = data.get("defaults", {})
+    entries = data.get("groom", [])
+    if not isinstance(entries, list) or not entries:
+        raise InputError("lists no grooms: add [[groom]] tables with name, hair and body", path)
+    grooms, seen = [], set()
+    for k, entry in enumerate(entries, 1):
+        merged = {**defaults, **entry, "set": {**defaults.get("set", {}), **entry.get("set", {})}}
+        bad = set(merged) - _GROOM_KEYS
+        if bad:
+            raise InputError(f"groom {k}: unknown key(s) {', '.join(sorted(bad))}; known: "
+                             f"{', '.join(sorted(_GROOM_KEYS))}", path)
+        name = str(merged.get("name", ""))
+        if not name or "/" in name or name.startswith("."):
+            raise InputError(f"groom {k}: needs a name usable as a file name, got {name!r}", path)
+        if name in seen:
+            raise InputError(f"groom {k}: the name {name!r} is used twice", path)
+        seen.add(name)
+        if "hair" not in merged:
+            raise InputError(f"groom {name!r}: needs a hair file", path)
+        hair = (path.parent / merged["hair"]).resolve()
+        body = (path.parent / merged["body"]).resolve() if merged.get("body") else None
+        options = []
+        for key, flag in _OPTION_OF.items():
+            if key in merged:
+                options += [flag, str(merged[key])]
+        for key, value in merged["set"].items():
+            options += ["--set", f"{key}={str(value).lower() if isinstance(value, bool) else value}"]
+        options += [str(o) for o in merged.get("options", [])]
+        wanted = list(merged.get("stages", ["invert", "verify"]))
+        if not set(wanted) <= set(STAGES) or "invert" not in wanted:
+            raise InputError(f"groom {name!r}: stages must include invert and be among {', '.join(STAGES)}", path)
+        exports = [str(e).lstrip(".").lower() for e in merged.get("exports", [])]
+        bad_exports = [e for e in exports if e not in EXPORT_SUFFIXES]
+        if bad_exports:
+            raise InputError(f"groom {name!r}: unknown export(s) {', '.join(bad_exports)}; known: "
+                             f"{', '.join(EXPORT_SUFFIXES)}", path)
+        if exports and "export" not in wanted:
+            wanted.append("export")
+        grooms.append(Groom(name, str(hair), None if body is None else str(body), options, wanted, exports,
+                            merged.get("verify_seconds")))
+    return grooms, data.get("tls", {})
+
+
+def _hairinv() -> list[str]:
+    return [sys.executable, "-m", "hairinv_cli.main"]
+
+
+def run_groom(groom: Groom, outdir: str, threads: int) -> dict:
+    """One groom's commands, run where this task runs; the summary row. Never raises: a failure is a row."""
+    out = Path(outdir)
+    log_path = out / f"{groom.name}.log"
+    model = out / f"{groom.name}.model.h5"
+    row = {"groom": groom.name, "status": "ok", "seconds": 0.0, "strands": None, "contacts": None,
+           "solver": None, "verify": None, "message": "", "log": str(log_path), "model": str(model), "skipped": []}
+    env = {**os.environ, "HAIRINV_THREADS": str(threads), "OMP_NUM_THREADS": str(threads),
+           "OPENBLAS_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads), "NUMBA_NUM_THREADS": str(threads)}
+    started = time.perf_counter()
+    with open(log_path, "w") as log:
+
+        def run(args: list[str]) -> subprocess.CompletedProcess:
+            log.write(f"$ hairinv {shlex.join(args)}\n")
+            log.flush()
+            result = subprocess.run(_hairinv() + args, env=env, capture_output=True, text=True)
+            log.write(result.stdout + result.stderr + f"(exit {result.returncode})\n\n")
+            log.flush()
+            return result
+
+        def failed(result: subprocess.CompletedProcess, what: str) -> dict:
+            lines = (result.stderr or result.stdout).strip().splitlines()
+            row.update(status="failed", message=f"{what}: {lines[-1] if lines else f'exit {result.returncode}'}")
+            return row
+
+        try:
+            args = ["invert", groom.hair] + ([groom.body] if groom.body else []) + ["-o", str(model), "--if-stale",
+                                                                                  *groom.options]
+            result = run(args)
+            if result.returncode != 0:
+                return failed(result, "invert")
+            if "is current" in result.stdout:
+                row["skipped"].append("invert")
+            _describe(model, row)
+            if "verify" in groom.stages:
+                verify_row(groom, model, out, run, row)
+            if groom.exports:
+                # each export's model, by SHA-256: an export of an unchanged model is kept
+                made_path = out / f"{groom.name}.exports.json"
+                made = json.loads(made_path.read_text()) if made_path.exists() else {}
+                digest = stages.sha256_file(model)
+                for suffix in groom.exports:
+                    target = out / f"{groom.name}.{suffix}"
+                    if target.exists() and made.get(suffix) == digest:
+                        row["skipped"].append(f"export {suffix}")
+                        continue
+                    result = run(["export", str(model), "-o", str(target)])
+                    if result.returncode != 0:
+                        return failed(result, f"export {suffix}")
+                    made[suffix] = digest
+                    write_bytes(made_path, json.dumps(made, indent=2).encode())
+        except Exception as exc:  # a task must report, not raise: the others go on
+            row.update(status="failed", message=f"{type(exc).__name__}: {exc}")
+        finally:
+            row["seconds"] = time.perf_counter() - started
+    return row
+
+
+def _describe(model: Path, row: dict) -> None:
+    stage = stages.read_stage(model)
+    row["strands"] = int(len(stage[stages.HELICES]["root"]))
+    row["contacts"] = int(len(stage[stages.CONTACTS]["mu"])) if stages.CONTACTS in stage else 0
+    row["solver"] = str(stage[stages.MODEL].attrs.get("status", ""))
+
+
+def verify_row(groom: Groom, model: Path, out: Path, run, row: dict) -> None:
+    """``hairinv verify`` of the model, kept in ``<name>.verify.json`` while the model is unchanged."""
+    record = out / f"{groom.name}.verify.json"
+    digest = stages.sha256_file(model)
+    if record.exists():
+        try:
+            kept = json.loads(record.read_text())
+        except json.JSONDecodeError:
+            kept = {}
+        if kept.get("model_sha256") == digest and kept.get("verify_seconds") == groom.verify_seconds:
+            row["verify"] = kept["verdict"]
+            row["skipped"].append("verify")
+            return
+    args = ["verify", str(model), "--json"] + (["--seconds", str(groom.verify_seconds)] if groom.verify_seconds
+                                               else [])
+    result = run(args)
+    if result.returncode not in (0, 1):
+        lines = result.stderr.strip().splitlines()
+        row.update(status="failed", message=f"verify: {lines[-1] if lines else result.returncode}")
+        return
+    verdict = "PASS" if result.returncode == 0 else "FAIL"
+    row["verify"] = verdict
+    write_bytes(record, json.dumps({"model_sha256": digest, "verify_seconds": groom.verify_seconds,
+                                          "verdict": verdict, "summary": json.loads(result.stdout)}, indent=2).encode())
+
+
+def security_from(tls: dict, ca_file=None, cert=None, key=None):
+    """Dask TLS settings from the command line (winning) or the manifest's ``[tls]`` table, or None."""
+    ca_file, cert, key = ca_file or tls.get("ca_file"), cert or tls.get("cert"), key or tls.get("key")
+    if not (ca_file or cert or key):
+        return None
+    if not (ca_file and cert and key):
+        raise InputError("TLS needs a CA file, a certificate and its key (--tls-ca-file, --tls-cert, --tls-key or "
+                         "the manifest's [tls] ca_file, cert, key)")
+    for p in (ca_file, cert, key):
+        if not Path(p).exists():
+            raise InputError("no such file", p)
+    from distributed.security import Security
+
+    return Security(tls_ca_file=str(ca_file), tls_client_cert=str(cert), tls_client_key=str(key),
+                    require_encryption=True)
+
+
+def run_batch(grooms: list[Groom], outdir, scheduler: str | None = None, workers: int | None = None,
+              security=None, on_row=None) -> list[dict]:
+    """Every groom as one task on a Dask cluster; the rows in manifest order.
+
+    ``scheduler``: the address of a running scheduler, else a LocalCluster on 127.0.0.1 with ``workers``
+    processes (default: as many as grooms, at most the cores), one task at a time each, and the cores
+    shared out among them as hairinv's threads (``HAIRINV_THREADS``), so that numba and BLAS do not
+    oversubscribe. ``on_row(row)`` is called as each groom ends.
+    """
+    from distributed import Client, LocalCluster, as_completed
+
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    cores = os.cpu_count() or 1
+    cluster = None
+    if scheduler:
+        try:
+            client = Client(scheduler, security=security, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:  # TypeError: tls:// without certificates
+            raise InputError(f"could not connect to the Dask scheduler at {scheduler} ({type(exc).__name__}: "
+                             f"{str(exc).splitlines()[0] if str(exc) else 'no reason given'}); a tls:// scheduler "
+                             "needs --tls-ca-file, --tls-cert and --tls-key") from None
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        threads = int(os.environ.get("HAIRINV_THREADS", 0)) or 1
+    else:
+        n_workers = max(1, min(workers or cores, len(grooms), cores))
+        threads = max(1, cores // n_workers)
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                               dashboard_address=None, silence_logs=40)
+        client = Client(cluster)
+    try:
+        futures = {client.submit(run_groom, groom, str(outdir.resolve()), threads, key=f"groom-{groom.name}",
+                                 pure=False): groom for groom in grooms}
+        rows = {}
+        for future in as_completed(futures):
+            groom = futures[future]
+            try:
+                row = future.result()
+            except Exception as exc:  # the worker died or the task could not run
+                row = {"groom": groom.name, "status": "failed", "seconds": None, "strands": None, "contacts": None,
+                       "solver": None, "verify": None, "message": f"task lost: {type(exc).__name__}: {exc}",
+                       "log": str(outdir / f"{groom.name}.log"), "model": None, "skipped": []}
+            rows[groom.name] = row
+            if on_row is not None:
+                on_row(row)
+        return [rows[g.name] for g in grooms]
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def table(rows: list[dict]) -> str:
+    """The summary as a text table."""
+    head = ("groom", "status", "seconds", "strands", "contacts", "solver", "verify", "message")
+    lines = [[str(r.get(h)) if r.get(h) is not None else "-" for h in head] for r in rows]
+    for line, r in zip(lines, rows):
+        line[2] = "-" if r.get("seconds") is None else f"{r['seconds']:.1f}"
+        line[7] = r["message"] or (f"reused: {', '.join(r['skipped'])}" if r.get("skipped") else "")
+    widths = [max(len(h), *(len(line[i]) for line in lines)) for i, h in enumerate(head)]
+    fmt = "  ".join(f"{{:{w}}}" for w in widths)
+    return "\n".join([fmt.format(*head), fmt.format(*("-" * w for w in widths))] + [fmt.format(*ln) for ln in lines])
+
