@@ -381,8 +381,9 @@ def find_recorded_body(stage, stage_path, groups=(stages.FRAMES, stages.CONTACTS
     """The body mesh file a stage file was made against, found again from its provenance.
 
     The body is the last input of the first of ``groups`` that records one. Its recorded path is tried as
-    written (relative to the working directory, or absolute) and relative to the stage file's folder, and
-    accepted only where the file's SHA-256 equals the recorded one.
+    written (relative to the working directory, or absolute), relative to the stage file's folder, then as
+    the absolute path it had (``abspath``), and accepted only where the file's SHA-256 equals the recorded
+    one.
 
     Returns
     -------
@@ -401,6 +402,8 @@ def find_recorded_body(stage, stage_path, groups=(stages.FRAMES, stages.CONTACTS
     candidates = [Path(recorded)]
     if not Path(recorded).is_absolute():
         candidates.append(Path(stage_path).parent / recorded)
+    if record.get("abspath"):
+        candidates.append(Path(record["abspath"]))
     found = [p for p in candidates if p.is_file()]
     if not found:
         return None, record, f"the body {recorded!r} it was made with is not there any more"

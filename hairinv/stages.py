@@ -112,9 +112,10 @@ def sha256_file(path) -> str:
 
 
 def file_record(path) -> dict:
-    """Provenance entry ``{"name", "sha256"}`` of an input file."""
+    """Provenance entry of an input file: ``name``, ``path`` as given, ``abspath`` (absolute, so that it is
+    found again from another working folder) and ``sha256``."""
     path = Path(path)
-    return {"name": path.name, "path": str(path), "sha256": sha256_file(path)}
+    return {"name": path.name, "path": str(path), "abspath": str(path.resolve()), "sha256": sha256_file(path)}
 
 
 def is_stage_file(path) -> bool:

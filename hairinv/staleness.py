@@ -146,6 +146,7 @@ def status(path, given_inputs=(), settings: Settings | None = None) -> tuple[boo
         else:
             recorded_path = Path(record.get("path", record["name"]))
             candidates = [recorded_path] + ([path.parent / recorded_path] if not recorded_path.is_absolute() else [])
+            candidates += [Path(record["abspath"])] if record.get("abspath") else []
         found = [c for c in candidates if c.is_file()]
         if not found:
             reasons.append(f"input {record['name']} is not at {str(candidates[0])!r}"

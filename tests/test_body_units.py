@@ -152,3 +152,30 @@ def test_a_bad_body_option_is_refused(bodies):
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "body_cm.obj" in result.stderr and "--flip" in result.stderr
     assert not (bodies / "q.h5").exists()
+
+
+def test_a_model_written_to_another_folder_finds_its_body(tmp_path):
+    """invert from the project folder writes out/m.h5 recording samples/body.obj; simulate run from inside
+    out/ finds the body neither relative to its working folder nor to the stage file's, but at the absolute
+    path it had, with the same SHA-256; a body changed since is refused in one sentence."""
+    project = tmp_path / "project"
+    (project / "samples").mkdir(parents=True)
+    (project / "out").mkdir()
+    for name in ("wavy.h5", "body.obj"):
+        (project / "samples" / name).write_bytes((SAMPLES / name).read_bytes())
+    made = hairinv(project, "detect", "samples/wavy.h5", "samples/body.obj", "--guides", "3", "-o", "out/m.h5")
+    assert made.returncode == 0, made.stderr
+    stage = stages.read_stage(project / "out" / "m.h5")
+    import os
+
+    cwd = os.getcwd()
+    try:
+        os.chdir(project / "out")
+        found_here, _, _ = simulation_body(BodySettings(), None, stage, "m.h5", stage[stages.CURVES])
+        assert found_here.resolve() == (project / "samples" / "body.obj").resolve()
+        with open(project / "samples" / "body.obj", "a") as fh:
+            fh.write("# changed\n")
+        with pytest.raises(InputError, match="has changed since"):
+            simulation_body(BodySettings(), None, stage, "m.h5", stage[stages.CURVES])
+    finally:
+        os.chdir(cwd)
