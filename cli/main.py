@@ -22,7 +22,21 @@ from hairinv import __version__
 OK, FAILED, BAD_INPUT = 0, 1, 2
 
 
+#: --log-json: one JSON object per event on stderr (set once the options are read; one command per process)
+LOG_JSON = {"on": False}
+
+
+def _event(kind: str, **fields) -> None:
+    """With --log-json: one JSON object on one line of stderr, flushed: ``{"event": kind, "time": ..., ...}``."""
+    if not LOG_JSON["on"]:
+        return
+    record = {"event": kind, "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **fields}
+    print(json.dumps(record, default=str), file=sys.stderr, flush=True)
+
+
 def _say(ctx_obj, line: str) -> None:
+    if LOG_JSON["on"]:
+        _event("warning" if line.lstrip().startswith("warning") else "message", text=line)
     if ctx_obj.get("quiet"):
         return
     try:
@@ -60,13 +74,22 @@ def handle_errors(fn):
     def wrapper(*args, **kwargs):
         from hairinv.errors import HairinvError
 
+        started = time.perf_counter()
+        _event("start", command=fn.__name__, argv=sys.argv[1:])
+        code = OK
         try:
             return fn(*args, **kwargs)
         except HairinvError as exc:
+            _event("error", text=str(exc), exit=exc.exit_code)
             click.echo(f"hairinv: error: {exc}", err=True)
+            code = exc.exit_code
             sys.exit(exc.exit_code)
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else FAILED
+            raise
         except KeyboardInterrupt:
             click.echo("hairinv: interrupted; no output was written", err=True)
+            code = 130
             sys.exit(130)
         except click.exceptions.Exit:
             raise
@@ -75,11 +98,15 @@ def handle_errors(fn):
         except Exception as exc:  # an internal failure: one sentence, the traceback only on request
             if os.environ.get("HAIRINV_DEBUG"):
                 raise
+            _event("error", text=f"internal error: {type(exc).__name__}: {exc}", exit=FAILED)
             click.echo(
                 f"hairinv: internal error: {type(exc).__name__}: {exc} (set HAIRINV_DEBUG=1 for the traceback)",
                 err=True,
             )
+            code = FAILED
             sys.exit(FAILED)
+        finally:
+            _event("end", command=fn.__name__, exit=code, seconds=round(time.perf_counter() - started, 3))
 
     return wrapper
 
@@ -97,17 +124,26 @@ class Progress:
         self.bar = None
         self.plain = False
         self.total, self.desc, self.unit, self.n, self.extra = int(total), desc, unit, 0, ""
-        if enabled and sys.stderr.isatty():
+        if LOG_JSON["on"]:  # progress as events, at the plain lines' pace
+            enabled = True
+            self.every = self._every()
+            self.last = time.monotonic()
+            self.plain = True
+        elif enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
             self.bar = tqdm(total=total, desc=desc, unit=unit, leave=False, file=sys.stderr)
         elif enabled:
             self.plain = True
-            try:
-                self.every = max(0.0, float(os.environ.get("HAIRINV_PROGRESS_SECONDS", PLAIN_PROGRESS_SECONDS)))
-            except ValueError:
-                self.every = PLAIN_PROGRESS_SECONDS
+            self.every = self._every()
             self.last = time.monotonic()
+
+    @staticmethod
+    def _every() -> float:
+        try:
+            return max(0.0, float(os.environ.get("HAIRINV_PROGRESS_SECONDS", PLAIN_PROGRESS_SECONDS)))
+        except ValueError:
+            return PLAIN_PROGRESS_SECONDS
 
     def __call__(self, n: int = 1) -> None:
         if self.bar is not None:
@@ -118,6 +154,11 @@ class Progress:
         self.n = n
         if self.plain and time.monotonic() - self.last >= self.every:
             self.last = time.monotonic()
+            if LOG_JSON["on"]:
+                _event("progress", stage=self.desc, done=self.n, total=self.total, unit=self.unit,
+                       percent=round(100.0 * self.n / self.total, 1) if self.total > 0 else None,
+                       detail=self.extra.lstrip(", ") or None)
+                return
             share = f" ({100.0 * self.n / self.total:.0f} %)" if self.total > 0 else ""
             print(f"{self.desc}: {self.n} of {self.total} {self.unit}s{share}{self.extra}", file=sys.stderr,
                   flush=True)
@@ -242,21 +283,27 @@ def _default_output(source: Path, suffix: str) -> Path:
 @click.option("-q", "--quiet", is_flag=True, help="Print only errors.")
 @click.option("-v", "--verbose", is_flag=True, help="Also print the settings in effect and each stage's time.")
 @click.option("--no-progress", is_flag=True, help="Never draw progress bars.")
+@click.option("--log-json", is_flag=True,
+              help="Also write one JSON object per event (start, message, warning, progress, error, end) to stderr.")
 @click.pass_context
-def main(ctx, quiet, verbose, no_progress):
+def main(ctx, quiet, verbose, no_progress, log_json):
     """Inverse dynamic hair modeling with frictional contact.
 
     Stages read and write HDF5 stage files: fit (curves to super-helices),
     detect (hair-body and hair-hair contacts), invert (rest shape and
-    contact forces). `hairinv invert STYLE BODY` runs whatever stage is
-    missing; `hairinv info FILE.h5` summarises any stage file; `hairinv
-    export FILE.h5 -o OUT` writes its groom as USD, .hair, .data or OBJ.
+    contact forces), simulate (the model under a scene), verify (does it
+    stay still). `hairinv invert STYLE BODY` runs whatever stage is missing;
+    `info` summarises any stage file; `export FILE.h5 -o OUT` writes its
+    groom as USD, .hair, .data or OBJ, its summary as JSON, a picture (PNG)
+    or a report (HTML); `status` and `--if-stale` tell whether a file is
+    current; `batch` runs many grooms on a Dask cluster.
     """
     ctx.ensure_object(dict)
     ctx.obj["quiet"] = quiet
     ctx.obj["verbose"] = verbose
     ctx.obj["progress"] = not no_progress and not quiet
     ctx.obj["started"] = time.perf_counter()
+    LOG_JSON["on"] = LOG_JSON["on"] or log_json
 
 
 @main.command()
@@ -908,10 +955,14 @@ def _late_global(name: str):
             if name == "verbose":
                 ctx.obj["verbose"] = True
                 return
+            if name == "log_json":
+                LOG_JSON["on"] = True
+                return
             ctx.obj["progress"] = False
             if name == "quiet":
                 ctx.obj["quiet"] = True
     return callback
+
 
 
 for _command in main.commands.values():
@@ -920,6 +971,9 @@ for _command in main.commands.values():
     _command.params.append(click.Option(["-v", "--verbose"], is_flag=True, expose_value=False,
                                         callback=_late_global("verbose"),
                                         help="Also print the settings in effect and each stage's time."))
+    _command.params.append(click.Option(["--log-json"], is_flag=True, expose_value=False,
+                                        callback=_late_global("log_json"),
+                                        help="Also write one JSON object per event to stderr."))
     _command.params.append(click.Option(["--no-progress"], is_flag=True, expose_value=False,
                                         callback=_late_global("progress"), help="Never draw progress bars."))
 

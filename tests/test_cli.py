@@ -457,3 +457,28 @@ def test_verbose_prints_the_settings_in_effect_and_the_stage_times(tmp_path, whe
     assert f"fit {seconds:.3g} s" in timing and "whole command" in timing
     quiet = hairinv(tmp_path, *args[:-1], "w.h5", "-v", "-q")
     assert quiet.returncode == 0 and quiet.stdout == ""
+
+
+def test_log_json_writes_one_object_per_event(tmp_path):
+    """--log-json (before or after the subcommand): every stderr line a JSON object; start first, end last with
+    the exit code; progress events with counts that add up; the human lines still on stdout; an error as
+    an event with its exit code."""
+    env = dict(ENV, HAIRINV_PROGRESS_SECONDS="0")
+    run = subprocess.run([sys.executable, "-m", "hairinv_cli.main", "fit", str(SAMPLES / "wavy.h5"), "--guides", "3",
+                          "-o", "f.h5", "--log-json"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr
+    events = [json.loads(line) for line in run.stderr.splitlines()]
+    assert events[0]["event"] == "start" and events[0]["command"] == "fit"
+    assert events[-1] == {**events[-1], "event": "end", "command": "fit", "exit": 0}
+    progress = [e for e in events if e["event"] == "progress"]
+    assert progress and progress[-1]["done"] == progress[-1]["total"] == 3
+    assert all(0 <= e["done"] <= e["total"] for e in progress)
+    messages = [e["text"] for e in events if e["event"] == "message"]
+    assert messages == run.stdout.splitlines()
+    bad = subprocess.run([sys.executable, "-m", "hairinv_cli.main", "--log-json", "fit", "missing.h5"],
+                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    lines = bad.stderr.splitlines()
+    assert bad.returncode == 2 and json.loads(lines[-1])["exit"] == 2
+    assert json.loads(lines[1]) == {**json.loads(lines[1]), "event": "error", "text": "missing.h5: no such file"}
+    assert "hairinv: error: missing.h5: no such file" in lines  # the one sentence, as without --log-json
