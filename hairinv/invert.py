@@ -696,7 +696,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     prior = int(prior_sweeps) if warm else 0
     model = Model(material_rest, target, weight, r, material, float(settings.gamma), settings.target, result, prior,
                   factor, None if factor is None else omega_rest,
-                  stability_margin=margin if check_stability else None, stable_under=settings.stable_under)
+                  stability_margin=margin if check_stability else None, stable_under=settings.stable_under,
+                  carrying_threshold=settings.tolerance * force_scale)
     report = InvertReport(
         settings.target, contacts.n_contacts, contacts.n_body, int(carrying.sum()), result, force_scale,
         float(np.sqrt(np.mean(np.sum(drift ** 2, axis=1)))) if len(drift) else 0.0,

@@ -256,6 +256,9 @@ class Model:
     left; below :data:`UNSTABLE_MARGIN` unstable. None when stability was not checked"""
     stable_under: str = ""
     """what ``stability_margin`` holds fixed: ``forces`` or ``supports`` (solver.stable_under)"""
+    carrying_threshold: float | None = None
+    """N: a contact carries force where its normal force exceeds this (the solver's tolerance times the
+    heaviest strand's weight; below it a force is the solver's round-off)"""
 
     @property
     def rest(self) -> np.ndarray:
@@ -274,6 +277,8 @@ class Model:
         if self.stiffening is not None:
             data["stiffening"] = np.asarray(self.stiffening, dtype=np.float64)
             data["omega_rest_stiffened"] = np.asarray(self.omega_rest_stiffened, dtype=np.float64)
+        if self.carrying_threshold is not None:
+            attrs["carrying_threshold"] = float(self.carrying_threshold)
         if self.stability_margin is not None:
             data["stability_margin"] = np.asarray(self.stability_margin, dtype=np.float64)
             attrs["stable_under"] = self.stable_under

@@ -67,6 +67,12 @@ def _helices(g: stages.Group) -> dict:
     }
 
 
+def _carrying_threshold(model: stages.Group) -> float:
+    """N: the normal force above which a contact carries force, as invert counts it (/model
+    ``carrying_threshold``; 0 for files written before it was stored)."""
+    return float(model.attrs.get("carrying_threshold", 0.0))
+
+
 def _contacts(g: stages.Group, model: stages.Group | None) -> dict:
     """Contacts by kind (hair-body, hair-hair) and by the rule that declared them, and how many carry force.
 
@@ -79,7 +85,7 @@ def _contacts(g: stages.Group, model: stages.Group | None) -> dict:
     gap = g.datasets.get("gap")
     settings = g.config.get("contacts", {})
     force = model["force"] if model is not None and len(model["force"]) == len(strand) else None
-    carrying = force[:, 0] > 0 if force is not None else None
+    carrying = force[:, 0] > _carrying_threshold(model) if force is not None else None
 
     def kind(mask, distance_key, rule):
         out = {"declared": _count(mask),
@@ -126,7 +132,7 @@ def _model(g: stages.Group) -> dict:
         "solve_seconds": float(g.attrs.get("seconds", 0.0)),
         "rest_curvature_1_per_m": _stats(np.hypot(rest[:, 0], rest[:, 1])),
         "drift_from_target_1_per_m": _stats(np.linalg.norm(rest - target, axis=1)),
-        "contacts_carrying_force": _count(normal > 0),
+        "contacts_carrying_force": _count(normal > _carrying_threshold(g)),
         "normal_force_N": _stats(normal),
         "youngs_modulus_Pa": float(g.attrs.get("youngs_modulus", 0.0)),
         "radius_m": float(g.attrs.get("radius", 0.0)),

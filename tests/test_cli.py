@@ -482,3 +482,18 @@ def test_log_json_writes_one_object_per_event(tmp_path):
     assert bad.returncode == 2 and json.loads(lines[-1])["exit"] == 2
     assert json.loads(lines[1]) == {**json.loads(lines[1]), "event": "error", "text": "missing.h5: no such file"}
     assert "hairinv: error: missing.h5: no such file" in lines  # the one sentence, as without --log-json
+
+
+def test_invert_and_info_count_the_same_contacts_carrying_force(tmp_path):
+    """What invert prints ('N carry force') is what the stage file's summary says (hairinv info --json)."""
+    import re
+
+    run = hairinv(tmp_path, "invert", SAMPLES / "wavy.h5", SAMPLES / "body.obj", "--guides", "6", "-o", "m.h5")
+    assert run.returncode == 0, run.stderr
+    printed = int(re.search(r"(\d+) carry force", run.stdout).group(1))
+    info = json.loads(hairinv(tmp_path, "info", "--json", "m.h5").stdout)
+    assert info["groups"]["model"]["contacts_carrying_force"] == printed
+    assert info["groups"]["contacts"]["carrying_force"] == printed
+    with h5py.File(tmp_path / "m.h5", "r") as fh:
+        normal = fh["model/force"][:, 0]
+        assert printed == int((normal > fh["model"].attrs["carrying_threshold"]).sum())

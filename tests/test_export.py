@@ -710,7 +710,7 @@ def _assert_summary(summary, path):
         k = summary["groups"]["contacts"]
         strand, force = f["contacts"]["strand"], f["model"]["force"]
         body = strand[:, 1] == -1
-        carrying = force[:, 0] > 0
+        carrying = force[:, 0] > f["model"]["attrs"].get("carrying_threshold", 0.0)  # as invert counts
         assert (k["contacts"], k["hair_body"], k["hair_hair"]) == (len(strand), body.sum(), (~body).sum())
         assert k["carrying_force"] == carrying.sum() == summary["groups"]["model"]["contacts_carrying_force"]
         settings = f["contacts"]["attrs"]["config"].get("contacts", {})
