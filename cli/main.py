@@ -296,7 +296,8 @@ def main(ctx, quiet, verbose, no_progress, log_json):
     `info` summarises any stage file; `export FILE.h5 -o OUT` writes its
     groom as USD, .hair, .data or OBJ, its summary as JSON, a picture (PNG)
     or a report (HTML); `status` and `--if-stale` tell whether a file is
-    current; `batch` runs many grooms on a Dask cluster.
+    current; `diff` compares two stage files; `batch` runs many grooms on
+    a Dask cluster.
     """
     ctx.ensure_object(dict)
     ctx.obj["quiet"] = quiet
@@ -964,6 +965,7 @@ def _late_global(name: str):
     return callback
 
 
+import hairinv_cli.diff  # noqa: E402,F401  `hairinv diff`, registered on main before -q/-v are added below
 
 for _command in main.commands.values():
     _command.params.append(click.Option(["-q", "--quiet"], is_flag=True, expose_value=False,
