@@ -31,7 +31,8 @@ import h5py
 import numpy as np
 import pytest
 from conftest import ROOT, SAMPLES
-from test_export import FLOAT32_M, FPS, N_FRAMES, RADIUS, _body_motion, _expected_frame, _expected_rest, make_stage
+from test_export import (FLOAT32_M, FPS, N_FRAMES, RADIUS, _body_motion, _expected_frame, _expected_rest,
+                         _obj_mesh, make_stage)
 
 from hairinv import stages
 from hairinv.export import export
@@ -90,17 +91,6 @@ def _stage_file(folder: Path, name: str) -> tuple[Path, dict]:
         if spec.removed:
             fh["frames"].attrs["body_removed"] = True
     return path, truth
-
-
-def _obj_mesh(path: Path):
-    v, f = [], []
-    for line in path.read_text().splitlines():
-        words = line.split()
-        if words and words[0] == "v":
-            v.append([float(w) for w in words[1:4]])
-        elif words and words[0] == "f":
-            f.append(len(words) - 1)
-    return np.array(v), f
 
 
 @pytest.fixture(scope="module")
@@ -301,7 +291,12 @@ def test_blender_draws_the_curves_the_file_describes(blender, name):
     if spec.basis == "linear":
         assert tessellated["curve_types"] == ["POLY"]
         assert np.abs(drawn - points).max() < FLOAT32_M
-        return
+    else:
+        _assert_drawn_as_pinned_catmull_rom(tessellated, points, counts, drawn)
+
+
+def _assert_drawn_as_pinned_catmull_rom(tessellated, points, counts, drawn):
+    """Blender's tessellation of pinned Catmull-Rom curves against USD's curve (see the test above)."""
     assert tessellated["curve_types"] == ["CATMULL_ROM"]
     (resolution,) = tessellated["resolution"]
     assert len(drawn) == tessellated["points"] == int(((counts - 1) * resolution + 1).sum())
