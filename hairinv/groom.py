@@ -25,7 +25,7 @@ AXES = {"x": 0, "y": 1, "z": 2}
 _TYPICAL_HAIR_SIZE = 0.45
 _TYPICAL_BODY_SIZE = 0.6
 # |a . b| above this: two unit vectors are the same axis (a stored up vector is a unit axis to round-off).
-_SAME_AXIS = 1.0 - 1e-9
+SAME_AXIS = 1.0 - 1e-9
 
 
 @dataclass
@@ -275,9 +275,9 @@ def rotation_onto(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The smallest rotation taking unit vector ``a`` onto unit vector ``b`` (a half turn about an axis
     normal to both when they are opposite)."""
     c = float(a @ b)
-    if c > _SAME_AXIS:
+    if c > SAME_AXIS:
         return np.eye(3)
-    if c < -_SAME_AXIS:
+    if c < -SAME_AXIS:
         axis = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
         axis /= np.linalg.norm(axis)
         return 2.0 * np.outer(axis, axis) - np.eye(3)

@@ -163,9 +163,5 @@ def status(path, given_inputs=(), settings: Settings | None = None) -> tuple[boo
     return not reasons, reasons
 
 
-def as_text(record: dict) -> str:
-    return json.dumps(_canonical(record), sort_keys=True)
-
-
-__all__ = ["COMMAND_ATTR", "as_text", "check_current", "command_record", "differences", "mark_current",
+__all__ = ["COMMAND_ATTR", "check_current", "command_record", "differences", "mark_current",
            "recorded_command", "status"]

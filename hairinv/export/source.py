@@ -31,6 +31,8 @@ import numpy as np
 from .. import stages
 from ..config import MaterialSettings
 from ..errors import InputError
+from ..groom import AXES as _AXES
+from ..groom import SAME_AXIS as _SAME_AXIS
 from ..groom import rotation_onto
 from ..model import UNSTABLE_MARGIN, Helices, rest_from_group, stability_from_group, stiffening_from_group
 from ..rod.helix import points_at
@@ -39,9 +41,6 @@ __all__ = ["SHAPE_KINDS", "ExportSource", "OutputAxes", "Shape", "Strands", "par
 
 SHAPE_KINDS = ("input", "rest", "frame", "all")
 _SHAPE_HELP = "input, rest, frame:N (N counted from 0) or all"
-# |up . axis| above this: the groom's up axis is that axis (a stored up vector is a unit axis to round-off).
-_SAME_AXIS = 1.0 - 1e-9
-_AXES = {"x": 0, "y": 1, "z": 2}
 
 
 @dataclass(frozen=True)
