@@ -220,14 +220,15 @@ def if_stale_option(fn):
                              "with the same contents, with the same settings and options.")(fn)
 
 
-def _up_to_date(obj, if_stale: bool, output: Path, record: dict) -> bool:
+def _up_to_date(obj, if_stale: bool, output: Path, record: dict, check=None) -> bool:
     """With --if-stale: True (and the output's time set to now, for make) when ``output`` is current for
-    ``record``; else say why it is made again."""
+    ``record`` (by ``check``, default :func:`hairinv.staleness.check_current`); else say why it is made
+    again."""
     from hairinv.staleness import check_current, mark_current
 
     if not if_stale:
         return False
-    current, reasons = check_current(output, record)
+    current, reasons = (check or check_current)(output, record)
     if current:
         mark_current(output)
         _say(obj, f"{output} is current (the same inputs, settings and options): nothing to do")
@@ -763,10 +764,11 @@ def _verdict_lines(verdict, every_strand: bool, rows: int = VERIFY_ROWS) -> list
               help="Also write the frames simulated to this stage file, as `simulate` does [default: none].")
 @body_options
 @settings_options
+@if_stale_option
 @click.pass_obj
 @handle_errors
 def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, output, quality, config_file,
-           sets, body_frame):
+           sets, if_stale, body_frame):
     """Check that an inverted MODEL stays still: exit 0 if no strand point
     moves more than the tolerance in the still scene, 1 if some do.
 
@@ -775,37 +777,63 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
     the first frame in which a strand point is farther than the tolerance
     from where it started ends the run (unless --full). Prints the verdict,
     then the strands that moved: largest displacement and when each first
-    passed the tolerance. BODY is as for `simulate`.
+    passed the tolerance. BODY is as for `simulate`. With -o and --if-stale,
+    an output written by the same check (same inputs, settings and options)
+    is not simulated again: its verdict is read back from it.
     """
     from hairinv.dynamics.verify import judge, parse_length
+    from hairinv.staleness import command_record
 
     tolerance = parse_length(tolerance_text, "--tolerance")
+    if if_stale and output is None:
+        raise click.UsageError("--if-stale needs -o: without an output file verify keeps nothing to compare")
     notes = []
     run = _load_simulation(notes.append, model, body, output, "still", quality, config_file, sets, body_frame)
     scene = run["scene"]
     run_seconds = scene.seconds if seconds is None else seconds
     run_fps = scene.fps if fps is None else fps
-    stop = None if full else (lambda log: log.displacement > tolerance)
-    frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=stop)
-    verdict = judge(frames, tolerance, run_seconds)
-    if output is not None:
-        _write_frames(output, model, run, frames, init)
+    run["record"] = command_record("verify", [model, run["body"]], run["settings"], ("body", "contacts", "dynamics"),
+                                   {"init": init, "seconds": run_seconds, "fps": run_fps, "tolerance_m": tolerance,
+                                    "full": full})
+    if output is not None and _up_to_date(obj, if_stale, output, run["record"]):
+        verdict = _recorded_verdict(output, tolerance, run_seconds)
+        notes.append(f"the verdict recorded in {output}")
+    else:
+        stop = None if full else (lambda log: log.displacement > tolerance)
+        frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=stop)
+        verdict = judge(frames, tolerance, run_seconds)
+        if output is not None:
+            _write_frames(output, model, run, frames, init)
+        notes.append(f"init {init}; checked at {run_fps:g} frames per second; simulated "
+                     f"{verdict.seconds_simulated:.3g} of {run_seconds:g} s in "
+                     f"{sum(f.seconds for f in frames.log):.1f} s")
+        if output is not None:
+            notes.append(f"wrote {output}")
+        _say_timings(obj, {"simulate": sum(f.seconds for f in frames.log)})
     if as_json:
         summary = {"model": str(model), "init": init, "fps": run_fps, **verdict.as_dict(every_strand=full)}
         _say({**obj, "quiet": False}, json.dumps(summary, indent=2))
     else:
         for line in _verdict_lines(verdict, every_strand=full):
             _say(obj, line)
-        notes.append(f"init {init}; checked at {run_fps:g} frames per second; simulated "
-                     f"{verdict.seconds_simulated:.3g} of {run_seconds:g} s in "
-                     f"{sum(f.seconds for f in frames.log):.1f} s")
-        if output is not None:
-            notes.append(f"wrote {output}")
         for line in notes:
             _say(obj, line)
-        _say_timings(obj, {"simulate": sum(f.seconds for f in frames.log)})
     if not verdict.passed:
         sys.exit(FAILED)
+
+
+def _recorded_verdict(path: Path, tolerance: float, seconds: float):
+    """The verdict of a check from the /frames group ``verify -o`` wrote (each frame's per-strand displacement)."""
+    from hairinv import stages
+    from hairinv.dynamics.verify import judge_displacements
+    from hairinv.errors import InputError
+
+    group = stages.read_stage(path)[stages.FRAMES]
+    if "strand_displacement" not in group.datasets:
+        raise InputError("holds no per-strand displacements (written by an older hairinv); run verify without "
+                         "--if-stale", path)
+    return judge_displacements(group.datasets["time"], group.datasets["strand_displacement"], tolerance, seconds,
+                               bool(group.attrs.get("stopped", False)))
 
 
 @main.command()
@@ -825,9 +853,10 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
 @click.option("--plot", default=None, metavar="groom|convergence",
               help="PNG: the groom from the front and the side, or the contact solver's residual against its "
                    "sweeps (needs /model) [default: groom].")
+@if_stale_option
 @click.pass_obj
 @handle_errors
-def export(obj, stage_files, output, shape, color, plot, basis):
+def export(obj, stage_files, output, shape, color, plot, basis, if_stale):
     """Write STAGE_FILE for other tools and for people: its groom as USD, Yuksel .hair, USC .data or OBJ
     polylines, its summary as JSON, a picture as PNG, or both in one HTML report.
 
@@ -842,12 +871,47 @@ def export(obj, stage_files, output, shape, color, plot, basis):
     """
     from hairinv.export import export as run_export
 
+    record = None
+    if if_stale:
+        from hairinv.staleness import check_sidecar
+
+        record = _export_record(stage_files, output, shape, color, plot, basis)
+        if _up_to_date(obj, if_stale, output, record, check=check_sidecar):
+            return
     report = run_export(list(stage_files), output, shape, color=color, plot=plot, basis=basis)
+    if record is not None:
+        from hairinv.staleness import write_sidecar
+
+        write_sidecar(output, record)
     if not obj.get("quiet"):
         for line in report.warnings:
             click.echo(f"hairinv: {line}", err=True)
     for line in report.lines:
         _say(obj, line)
+
+
+def _export_record(stage_files, output: Path, shape, color, plot, basis) -> dict:
+    """The command record of an export: the stage files, and each one's recorded body where it still is (USD
+    holds the body when it is found), with the options that change what is written."""
+    from hairinv import config, stages
+    from hairinv.errors import InputError
+    from hairinv.groom import find_recorded_body
+    from hairinv.staleness import command_record, is_sidecar, sidecar_path
+
+    inputs = []
+    for path in stage_files:
+        if not Path(path).exists():
+            raise InputError("no such file", path)
+        if not stages.is_stage_file(path):
+            raise InputError("is not a hairinv stage file", path)
+        body, _, _ = find_recorded_body(stages.read_stage(path), path)
+        inputs += [path, body]
+    sidecar = sidecar_path(output)
+    if sidecar.exists() and not is_sidecar(sidecar):
+        raise InputError("exists and is not a record hairinv wrote; refusing to overwrite it (with --if-stale, "
+                         "export keeps its record there)", sidecar)
+    options = {"format": output.suffix.lower(), "shape": shape, "color": color, "plot": plot, "basis": basis}
+    return command_record("export", inputs, config.Settings(), (), options)
 
 
 @main.command()

@@ -436,7 +436,9 @@ class _Comparison:
                     ("model.gamma", "gamma (weight of the forces)", "1/(N^2 m^2)", 1.0)]
         solver = [("model.status", "solver status", ""), ("model.sweeps", "solver sweeps", "sweeps"),
                   ("model.residual", "solver residual", "N"),
-                  ("model.objective", "objective", "1/m^2")]
+                  ("model.objective", "objective", "1/m^2"),
+                  ("model.carrying_threshold", "normal force counted as carrying", "N"),
+                  ("model.unstable", "strands unstable at rest", "strands")]
         shapes = [("model.force", "contact forces, largest difference", "N"),
                   ("model.rest_rms", "rest shape, rms difference", "1/m"),
                   ("model.rest_max", "rest shape, largest difference", "1/m"),
@@ -482,6 +484,22 @@ class _Comparison:
         helices_o = self.old.groups.get(stages.HELICES)
         helices_n = self.new.groups.get(stages.HELICES)
         self.objective(solver[3], go, gn)
+        missing = self.optional(stages.MODEL, "carrying_threshold", attr=True)
+        if missing:
+            self.skip(*solver[4], missing[1], missing[0])
+        else:
+            to, tn = float(go.attrs["carrying_threshold"]), float(gn.attrs["carrying_threshold"])
+            self.scalar(*solver[4], 1.0, to, tn, self.tol.force + self.tol.rtol * abs(to))
+        missing = self.optional(stages.MODEL, "stability_margin")
+        if missing:
+            self.skip(*solver[5], missing[1], missing[0])
+        else:
+            from .model import UNSTABLE_MARGIN
+
+            uo, un = (np.flatnonzero(np.asarray(g["stability_margin"]) < UNSTABLE_MARGIN) for g in (go, gn))
+            changed = np.setxor1d(uo, un)
+            self.add(Row(*solver[5], len(uo), len(un), len(un) - len(uo), 0, FAIL if len(changed) else PASS,
+                         "", [(int(k), 1.0) for k in changed]))
         # contact forces, where the contact sets match
         contacts = self.groups_of(stages.CONTACTS)
         if isinstance(contacts, str):

@@ -11,6 +11,11 @@ subcommand, same input contents (by SHA-256, wherever the files now are), same s
 to now, so that ``make`` sees it newer than its inputs) and the command exits 0. ``hairinv status`` compares
 a file with its recorded inputs as they are on disk now (or with the files named), and with settings when
 they are given.
+
+``export`` writes formats with no room for a record (``.hair``, ``.data``), so with ``--if-stale`` it keeps
+the record beside its output, as JSON in ``OUTPUT.hairinv.json`` (:func:`write_sidecar`), together with the
+output's own SHA-256: an output written again by another command, or edited, is then never taken as
+current.
 """
 
 from __future__ import annotations
@@ -106,6 +111,52 @@ def check_current(output, wanted: dict) -> tuple[bool, list[str]]:
     return not found, found
 
 
+#: Suffix added to an export's file name for the file holding its command record (:func:`write_sidecar`).
+SIDECAR_SUFFIX = ".hairinv.json"
+
+
+def sidecar_path(output) -> Path:
+    """Where the command record of a non-stage output is kept: ``OUTPUT.hairinv.json`` beside it."""
+    output = Path(output)
+    return output.with_name(output.name + SIDECAR_SUFFIX)
+
+
+def is_sidecar(path) -> bool:
+    """Whether ``path`` holds a command record hairinv kept (so that it may be written over)."""
+    try:
+        recorded = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return False
+    return isinstance(recorded, dict) and "subcommand" in recorded and "output_sha256" in recorded
+
+
+def write_sidecar(output, record: dict) -> Path:
+    """Keep ``record`` for ``output`` (just written) beside it, with the output's SHA-256, atomically."""
+    from .atomic import write_bytes
+
+    text = json.dumps({"output_sha256": stages.sha256_file(output), **_canonical(record)}, indent=1,
+                      sort_keys=True)
+    return write_bytes(sidecar_path(output), (text + "\n").encode())
+
+
+def check_sidecar(output, wanted: dict) -> tuple[bool, list[str]]:
+    """Whether ``output`` (not a stage file) is current for ``wanted``: its sidecar record is ``wanted`` and
+    the output is the file that record was written for."""
+    output, sidecar = Path(output), sidecar_path(output)
+    if not output.exists():
+        return False, [f"{output} does not exist"]
+    if not sidecar.is_file():
+        return False, [f"{output} has no record of what made it ({sidecar.name} is missing)"]
+    try:
+        recorded = json.loads(sidecar.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return False, [f"{sidecar.name} cannot be read as JSON"]
+    if not isinstance(recorded, dict) or recorded.get("output_sha256") != stages.sha256_file(output):
+        return False, [f"{output} was written again or changed since {sidecar.name} recorded it"]
+    found = differences(recorded, wanted)
+    return not found, found
+
+
 def mark_current(output) -> None:
     """Set ``output``'s modification time to now: make then sees it newer than the inputs it was checked against."""
     os.utime(output)
@@ -163,5 +214,5 @@ def status(path, given_inputs=(), settings: Settings | None = None) -> tuple[boo
     return not reasons, reasons
 
 
-__all__ = ["COMMAND_ATTR", "check_current", "command_record", "differences", "mark_current",
-           "recorded_command", "status"]
+__all__ = ["COMMAND_ATTR", "SIDECAR_SUFFIX", "check_current", "check_sidecar", "command_record", "differences",
+           "is_sidecar", "mark_current", "recorded_command", "sidecar_path", "status", "write_sidecar"]

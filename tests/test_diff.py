@@ -406,3 +406,23 @@ def test_the_readme_example_runs_as_written(tmp_path):
         assert argv[0] == "hairinv"
         result = run(tmp_path, *argv[1:])
         assert result.returncode == 0, f"{command}: exit {result.returncode}\n{result.stdout[-2000:]}{result.stderr}"
+
+
+def test_a_strand_turned_unstable(pair):
+    """/model/stability_margin below -1e-6 marks a strand unstable at rest: a strand that turns unstable is a
+    regression, named; the carrying threshold is compared as a force."""
+    for name in ("old.h5", "new.h5"):
+        with h5py.File(pair / name, "r+") as fh:
+            strands = len(fh["curves/offsets"]) - 1
+            fh["model"].create_dataset("stability_margin", data=np.full(strands, 0.25))
+            fh["model"].attrs["carrying_threshold"] = 1e-9
+    edit(pair / "new.h5", "model/stability_margin", lambda m: np.where(np.arange(len(m)) == 1, -0.5, m))
+    code, report = diff_json(pair, "old.h5", "new.h5")
+    q = report["quantities"]
+    assert code == 1 and report["failed"] == ["model.unstable"]
+    assert (q["model.unstable"]["old"], q["model.unstable"]["new"]) == (0, 1)
+    assert [s["strand"] for s in q["model.unstable"]["strands"]] == [1]
+    assert q["model.carrying_threshold"]["verdict"] == "PASS" and q["model.carrying_threshold"]["old"] == 1e-9
+    # within round-off of zero (above -1e-6) a strand still rests stably
+    edit(pair / "new.h5", "model/stability_margin", lambda m: np.where(np.arange(len(m)) == 1, -1e-7, m))
+    assert diff_json(pair, "old.h5", "new.h5")[0] == 0

@@ -125,7 +125,8 @@ def test_the_sample_makefile_rebuilds_only_what_changed(tmp_path):
     first = _make(tmp_path, "-j2")
     outputs = sorted((tmp_path / "out").iterdir())
     assert [p.name for p in outputs] == sorted(f"{g}.{s}" for g in ("wavy", "straight")
-                                               for s in ("fit.h5", "contacts.h5", "model.h5", "usda", "json"))
+                                               for s in ("fit.h5", "contacts.h5", "model.h5", "usda", "json",
+                                                         "usda.hairinv.json", "json.hairinv.json"))
     assert "hairinv_cli.main invert" in first.stdout
     inodes = {p.name: inode(p) for p in outputs}
     # the second run does nothing
@@ -135,8 +136,7 @@ def test_the_sample_makefile_rebuilds_only_what_changed(tmp_path):
     os.utime(tmp_path / "in" / "wavy.h5")
     touched = _make(tmp_path)
     assert "wavy" in touched.stdout and "straight" not in touched.stdout
-    assert {p.name: inode(p) for p in sorted((tmp_path / "out").iterdir()) if p.suffix == ".h5"} == {
-        n: i for n, i in inodes.items() if n.endswith(".h5")}
+    assert {p.name: inode(p) for p in sorted((tmp_path / "out").iterdir())} == inodes
     # another setting for every groom, forced: each fit is made again (the settings differ)...
     forced = _make(tmp_path, "-B", "OPTIONS=--guides 4")
     assert forced.stdout.count("fit ") == 2
@@ -145,3 +145,54 @@ def test_the_sample_makefile_rebuilds_only_what_changed(tmp_path):
     kept = {p.name: inode(p) for p in (tmp_path / "out").iterdir() if p.suffix == ".h5"}
     _make(tmp_path, "-B", "OPTIONS=--guides 4")
     assert {p.name: inode(p) for p in (tmp_path / "out").iterdir() if p.suffix == ".h5"} == kept
+
+
+def test_export_if_stale_keeps_its_record_beside_the_output(model):
+    """An export's record lives in OUTPUT.hairinv.json with the output's SHA-256: a current export is left as
+    it is; other options, or an output written over by another export, make it again."""
+    usd, sidecar = model / "m.usda", model / "m.usda.hairinv.json"
+    first = hairinv(model, "export", "m.h5", "-o", "m.usda", "--if-stale")
+    assert first.returncode == 0, first.stderr
+    record = json.loads(sidecar.read_text())
+    assert record["subcommand"] == "export" and record["output_sha256"] == stages.sha256_file(usd)
+    # the stage file and the body it records (USD holds the body)
+    assert [r and r["name"] for r in record["inputs"]] == ["m.h5", "body.obj"]
+    before = inode(usd)
+    again = hairinv(model, "export", "m.h5", "-o", "m.usda", "--if-stale")
+    assert again.returncode == 0 and "is current" in again.stdout and inode(usd) == before
+    other = hairinv(model, "export", "m.h5", "-o", "m.usda", "--basis", "catmull-rom", "--if-stale")
+    assert other.returncode == 0 and "option basis was None, now 'catmull-rom'" in other.stdout
+    assert inode(usd) != before and 'uniform token type = "cubic"' in usd.read_text()
+    # written over without --if-stale: the record no longer describes the file, so it is made again
+    assert hairinv(model, "export", "m.h5", "-o", "m.usda").returncode == 0
+    stale = hairinv(model, "export", "m.h5", "-o", "m.usda", "--basis", "catmull-rom", "--if-stale")
+    assert stale.returncode == 0 and "written again or changed since" in stale.stdout
+    assert 'uniform token type = "cubic"' in usd.read_text()
+    # a file of the user's where the record would go is not written over
+    (model / "m.json.hairinv.json").write_text("my notes\n")
+    refused = hairinv(model, "export", "m.h5", "-o", "m.json", "--if-stale")
+    assert refused.returncode == 2 and "m.json.hairinv.json" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1 and not (model / "m.json").exists()
+    assert (model / "m.json.hairinv.json").read_text() == "my notes\n"
+
+
+def test_verify_if_stale_reads_the_verdict_back(model):
+    """verify -o records its check; with --if-stale a current output is not simulated again and gives the
+    same verdict, table and exit code."""
+    args = ("verify", "m.h5", "--seconds", "0.2", "--full", "-o", "v.h5")
+    first = hairinv(model, *args)
+    assert first.returncode in (0, 1), first.stderr
+    before = inode(model / "v.h5")
+    with h5py.File(model / "v.h5", "r") as fh:
+        per_strand = fh["frames/strand_displacement"][()]
+        assert per_strand.shape == (len(fh["frames/time"]), 3)
+        assert (per_strand.max(axis=1) == fh["frames/displacement"][()]).all()
+    again = hairinv(model, *args, "--if-stale")
+    assert again.returncode == first.returncode and inode(model / "v.h5") == before
+    verdict = [line for line in first.stdout.splitlines() if not line.startswith(("init ", "wrote "))]
+    assert [line for line in again.stdout.splitlines()
+            if "is current" not in line and "verdict recorded" not in line] == verdict
+    tighter = hairinv(model, *args[:-2], "--tolerance", "1um", "-o", "v.h5", "--if-stale")
+    assert "option tolerance_m was 0.0001, now 1e-06" in tighter.stdout and inode(model / "v.h5") != before
+    lonely = hairinv(model, "verify", "m.h5", "--if-stale")
+    assert lonely.returncode == 2 and "--if-stale needs -o" in lonely.stderr

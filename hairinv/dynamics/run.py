@@ -89,11 +89,13 @@ class Frames:
                 "contact_count": np.array([f.contacts for f in self.log], dtype=np.int64),
                 "solver_residual": np.array([f.relative_residual for f in self.log]),
                 "frame_seconds": np.array([f.seconds for f in self.log])}
+        if self.log and all(f.strand_displacement is not None for f in self.log):
+            data["strand_displacement"] = np.array([f.strand_displacement for f in self.log], dtype=np.float64)
         if self.trimmed:
             data["offsets"] = self.helices.offsets
             data["length"] = self.helices.length
         attrs = dict(self.attrs)
-        attrs.update(body_removed=self.body_removed, trimmed=self.trimmed,
+        attrs.update(body_removed=self.body_removed, trimmed=self.trimmed, stopped=self.stopped,
                      seconds=float(sum(f.seconds for f in self.log)))
         return stages.Group(stages.FRAMES, data, attrs=attrs, config=config, inputs=inputs)
 

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import InputError
 from .run import Frames
 
-__all__ = ["LENGTH_UNITS", "StrandMotion", "Verdict", "judge", "parse_length"]
+__all__ = ["LENGTH_UNITS", "StrandMotion", "Verdict", "judge", "judge_displacements", "parse_length"]
 
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
 _LENGTH = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\s\d.+-][^\s]*)?\s*")
@@ -111,6 +111,25 @@ def judge(frames: Frames, tolerance: float, seconds_requested: float) -> Verdict
     log = frames.log
     n_strands = frames.root.shape[1]
     per_frame = np.array([f.strand_displacement for f in log], dtype=np.float64).reshape(len(log), n_strands)
+    return judge_displacements(np.array([f.time for f in log]), per_frame, tolerance, seconds_requested,
+                               frames.stopped)
+
+
+def judge_displacements(times: np.ndarray, per_frame: np.ndarray, tolerance: float, seconds_requested: float,
+                        stopped: bool) -> Verdict:
+    """The verdict from each frame's time (F,) and each strand's largest displacement in it (F, S), m: what a
+    run records, and what a ``/frames`` group written by ``verify -o`` holds (``time``,
+    ``strand_displacement``, attribute ``stopped``)."""
+    per_frame = np.asarray(per_frame, dtype=np.float64)
+    n_strands = per_frame.shape[1]
+    largest = per_frame.max(axis=0) if len(per_frame) else np.zeros(n_strands)
+    past = per_frame > tolerance
+    first = np.where(past.any(axis=0), past.argmax(axis=0), -1)
+    order = sorted(range(n_strands), key=lambda k: (-largest[k], k))
+    strands = tuple(StrandMotion(k, float(largest[k]), float(times[first[k]]) if first[k] >= 0 else None)
+                    for k in order)
+    return Verdict(tolerance, float(seconds_requested), float(times[-1]) if len(times) else 0.0, bool(stopped),
+                   n_strands, strands)
     largest = per_frame.max(axis=0) if len(log) else np.zeros(n_strands)
     past = per_frame > tolerance
     first = np.where(past.any(axis=0), past.argmax(axis=0), -1)
