@@ -952,7 +952,8 @@ def status(obj, stage_file, inputs, quality, config_file, sets):
     cannot be read or records nothing to compare.
 
     The inputs are found where the file recorded them (as written, then next to STAGE_FILE), or given as
-    INPUTS in the order the command took them (e.g. the hairstyle, then the body).
+    INPUTS in the order the command took them (e.g. the hairstyle, then the body). An export written with
+    --if-stale (a USD, PNG, ... with its OUTPUT.hairinv.json beside it) is checked the same way.
     """
     from hairinv import config
     from hairinv.staleness import status as file_status

@@ -163,8 +163,9 @@ def mark_current(output) -> None:
 
 
 def status(path, given_inputs=(), settings: Settings | None = None) -> tuple[bool, list[str]]:
-    """Whether a stage file is current: its recorded inputs (or ``given_inputs``, in order) with the recorded
-    SHA-256, and, when ``settings`` are given, the recorded settings.
+    """Whether a stage file, or an export with its record (:func:`write_sidecar`), is current: its recorded
+    inputs (or ``given_inputs``, in order) with the recorded SHA-256, and, when ``settings`` are given, the
+    recorded settings.
 
     Inputs are found as :func:`hairinv.groom.find_recorded_body` finds the body: the recorded path as written
     (relative to the working directory or absolute), then relative to the stage file's folder.
@@ -177,13 +178,19 @@ def status(path, given_inputs=(), settings: Settings | None = None) -> tuple[boo
     path = Path(path)
     if not path.exists():
         raise InputError("no such file", path)
-    if not stages.is_stage_file(path):
-        raise InputError("is not a hairinv stage file", path)
-    recorded = recorded_command(path)
-    if recorded is None:
-        raise InputError("records no command (written by an older hairinv): its currency cannot be told; "
-                         "make it again", path)
     reasons = []
+    if stages.is_stage_file(path):
+        recorded = recorded_command(path)
+        if recorded is None:
+            raise InputError("records no command (written by an older hairinv): its currency cannot be told; "
+                             "make it again", path)
+    elif sidecar_path(path).is_file() and is_sidecar(sidecar_path(path)):
+        recorded = json.loads(sidecar_path(path).read_text())
+        if recorded["output_sha256"] != stages.sha256_file(path):
+            reasons.append(f"{path.name} was written again or changed since {sidecar_path(path).name} recorded it")
+    else:
+        raise InputError(f"is neither a hairinv stage file nor an export with its record ({sidecar_path(path).name})",
+                         path)
     records = recorded.get("inputs", [])
     given = [Path(p) for p in given_inputs]
     if given and len(given) != len([r for r in records if r is not None]):

@@ -163,11 +163,16 @@ def test_export_if_stale_keeps_its_record_beside_the_output(model):
     other = hairinv(model, "export", "m.h5", "-o", "m.usda", "--basis", "catmull-rom", "--if-stale")
     assert other.returncode == 0 and "option basis was None, now 'catmull-rom'" in other.stdout
     assert inode(usd) != before and 'uniform token type = "cubic"' in usd.read_text()
+    assert hairinv(model, "status", "m.usda").stdout.strip() == "m.usda: current"
     # written over without --if-stale: the record no longer describes the file, so it is made again
     assert hairinv(model, "export", "m.h5", "-o", "m.usda").returncode == 0
+    overwritten = hairinv(model, "status", "m.usda")
+    assert overwritten.returncode == 1 and "written again or changed since" in overwritten.stdout
     stale = hairinv(model, "export", "m.h5", "-o", "m.usda", "--basis", "catmull-rom", "--if-stale")
     assert stale.returncode == 0 and "written again or changed since" in stale.stdout
     assert 'uniform token type = "cubic"' in usd.read_text()
+    lone = hairinv(model, "status", "body.obj")
+    assert lone.returncode == 2 and "neither a hairinv stage file nor an export" in lone.stderr
     # a file of the user's where the record would go is not written over
     (model / "m.json.hairinv.json").write_text("my notes\n")
     refused = hairinv(model, "export", "m.h5", "-o", "m.json", "--if-stale")
