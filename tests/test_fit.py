@@ -10,6 +10,7 @@ from conftest import SAMPLES
 from hairinv.config import FitSettings, ImportSettings
 from hairinv.fit import fit_groom
 from hairinv.groom import Groom, load_groom
+from hairinv.rod import fitting
 from hairinv.rod.fitting import closest_distances, fit_adaptive
 from hairinv.rod.helix import points_at
 
@@ -237,3 +238,64 @@ def test_fitted_curvature_stays_within_the_data_curvature(wavy_subset):
         worst_data = max(worst_data, kappa.max())
     fitted = np.hypot(helices.omega[:, 0], helices.omega[:, 1])
     assert fitted.max() <= 3.0 * worst_data
+
+
+def _residual_at(root, F0, omega, length, s, p, angles=(0.0, 0.0), total_change=0.0):
+    """The vertex residuals (fixed fractions of the length) after turning the root tangent by ``angles``
+    about its normals and changing the strand length by ``total_change``: the parameters of the fit."""
+    F = np.empty((3, 3))
+    fitting._rotate_rows(F0, angles[0] * F0[1] + angles[1] * F0[2], F)
+    ratio = (length.sum() + total_change) / length.sum()
+    n, m = len(omega), len(s)
+    r = np.empty(3 * (m - 1))
+    fitting._residual(root, F, omega, length * ratio, s * ratio, p, -1, np.empty((n + 1, 3)),
+                      np.empty((n + 1, 3, 3)), np.empty(n + 1), r, np.zeros((m, 3)))
+    return r
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 9])
+@pytest.mark.parametrize("odr", [False, True])
+def test_normal_equations_match_finite_differences(n, odr):
+    """J^T J and J^T r summed element by element (no J formed) against a Jacobian of central differences
+    of the residuals: the root tangent's two angles, every omega, the strand length. With the
+    orthogonal-distance rows, each interior row is the difference projected on the curve's normal plane."""
+    rng = np.random.default_rng(n)
+    m = 25
+    omega = rng.normal(size=(n, 3)) * 15.0
+    length = rng.uniform(0.01, 0.04, n)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    F0 = np.ascontiguousarray(q if np.linalg.det(q) > 0 else -q)
+    root = np.array([0.1, 1.6, -0.05])
+    s = np.sort(rng.uniform(0.0, length.sum(), m))
+    s[0], s[-1] = 0.0, length.sum()
+    p = root + rng.normal(size=(m, 3)) * 0.01
+    xs, Fs, starts = np.empty((n + 1, 3)), np.empty((n + 1, 3, 3)), np.empty(n + 1)
+    r, tang = np.empty(3 * (m - 1)), np.zeros((m, 3))
+    fitting._residual(root, F0, omega, length, s.copy(), p, -1, xs, Fs, starts, r, tang)
+    npar = 3 + 3 * n
+    J = np.empty((3 * (m - 1), npar))
+    h = 1e-6
+    for c in range(2):
+        step = np.zeros(2)
+        step[c] = h
+        J[:, c] = (_residual_at(root, F0, omega, length, s, p, step)
+                   - _residual_at(root, F0, omega, length, s, p, -step)) / (2 * h)
+    for c in range(3 * n):
+        plus, minus = omega.copy(), omega.copy()
+        plus.flat[c] += h
+        minus.flat[c] -= h
+        J[:, 2 + c] = (_residual_at(root, F0, plus, length, s, p) - _residual_at(root, F0, minus, length, s, p)) / (2 * h)
+    dl = 1e-7
+    J[:, -1] = (_residual_at(root, F0, omega, length, s, p, total_change=dl)
+                - _residual_at(root, F0, omega, length, s, p, total_change=-dl)) / (2 * dl)
+    if odr:
+        for j in range(1, m - 1):
+            t = tang[j]
+            rows = J[3 * (j - 1):3 * j]
+            rows -= np.outer(t, t @ rows)
+    N, g = np.empty((npar, npar)), np.empty(npar)
+    fitting._normal_equations(root, omega, length, s, p, xs, Fs, starts, r, tang, odr, N, g)
+    scale = np.abs(J.T @ J).max()
+    np.testing.assert_allclose(N, J.T @ J, rtol=0, atol=1e-6 * scale)
+    np.testing.assert_allclose(g, J.T @ r, rtol=0, atol=1e-6 * np.abs(J.T @ r).max())
+    assert np.allclose(N, N.T, rtol=0, atol=0)
