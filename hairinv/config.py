@@ -74,7 +74,10 @@ class FitSettings:
     min_elements: int = 4
     """Smallest element count tried by the adaptive fit (the paper uses 6 to 40)."""
     max_elements: int = 40
-    """Largest element count (the paper's maximum); never more than the strand's segment count."""
+    """Largest element count (the paper's maximum), raised to two per turn of a curl on curly strands
+    (their polyline's turning adds up to more turns), but never more than the vertices determine:
+    3 n + 3 parameters for the 2 (M - 1) distances of M vertices, so n <= (2 M - 5) / 3 (a 21-point
+    strand carries at most 12). A strand that misses the tolerance at that count is reported, with why."""
     max_iterations: int = 40
     """Levenberg-Marquardt iterations per element count; near-zero-residual fits converge in under 10."""
 

@@ -17,12 +17,18 @@ from .errors import InputError
 from ._parallel import run_chunks
 from .groom import Groom, strand_lengths
 from .model import Helices
-from .rod.fitting import FIT_TOLERANCE_NOT_MET, closest_distances, fit_batch
+from .rod.fitting import FIT_TOLERANCE_NOT_MET, closest_distances, element_caps, fit_batch, sampling_figures
 
 __all__ = ["Helices", "FitReport", "fit_groom"]
 
-# A fitted strand longer than this times its polyline winds between vertices.
-OVERLONG = 1.05
+# A fitted strand longer than this times the smooth curve through its vertices (their chords lengthened
+# by their turning, hairinv.rod.fitting.sampling_figures) winds between vertices: a shape they do not show.
+OVERLONG = 1.02
+# Strands listed by name in the report, worst first.
+LISTED = 5
+# Below this correlation of consecutive second differences, a strand's vertices scatter about a smooth
+# curve (white noise gives -2/3; a smooth curve, however coarsely sampled, near 1).
+SCATTERED = 0.3
 
 
 @dataclass
@@ -35,8 +41,26 @@ class FitReport:
     tolerance_missed: int
     seconds: float
     overlong: int = 0
-    """Strands whose fitted curve is over 5% longer than their polyline: it
-    winds between vertices, a shape the vertices do not show."""
+    """Strands whose fitted curve is over 2% longer than the smooth curve through their vertices: it winds
+    between vertices, a shape the vertices do not show."""
+    tolerance: float = 0.0
+    """m, the fit tolerance"""
+    length_ratio: np.ndarray | None = None
+    """(S,) each strand's fitted length over its polyline's"""
+    sagitta: np.ndarray | None = None
+    """(S,) m, the largest distance a smooth curve through the vertices may pass from a chord
+    (:func:`hairinv.rod.fitting.sampling_figures`): above the tolerance the strand is too coarse for it"""
+    missed: np.ndarray | None = None
+    """(S,) bool, the strands farther than the tolerance from a vertex"""
+    smooth: np.ndarray | None = None
+    """(S,) the correlation of consecutive second differences of the vertices: near 1 on a smooth curve,
+    below :data:`SCATTERED` where the vertices scatter about one (noise)"""
+
+    def worst(self, count: int = LISTED) -> list[tuple[int, float, float]]:
+        """The strands farthest from their vertices: (index, largest distance m, length ratio)."""
+        order = np.argsort(-self.fit_error[:, 1], kind="stable")[:count]
+        ratio = self.length_ratio if self.length_ratio is not None else np.full(self.strands, np.nan)
+        return [(int(k), float(self.fit_error[k, 1]), float(ratio[k])) for k in order]
 
     def lines(self) -> list[str]:
         mean_mm = 1e3 * self.fit_error[:, 0]
@@ -48,16 +72,45 @@ class FitReport:
             f"fit error, mm: mean {mean_mm.mean():.4f}, median of strand means {np.median(mean_mm):.4f}, "
             f"95th percentile of strand maxima {np.percentile(max_mm, 95):.4f}, max {max_mm.max():.4f}",
         ]
+        if self.length_ratio is not None and self.strands:
+            lines.append(f"fitted length over polyline length: {self.length_ratio.min():.4f} to "
+                         f"{self.length_ratio.max():.4f}")
         if self.overlong:
             lines.append(
-                f"warning: {self.overlong} fitted strands are over 5% longer than their polyline (the curve winds "
-                "between vertices); check them, or fit with more points per strand or a larger tolerance"
+                f"warning: {self.overlong} fitted strands are over {100 * (OVERLONG - 1):.0f}% longer than a smooth "
+                "curve through their vertices (the curve winds between vertices); check them, or fit with more "
+                "points per strand or a larger tolerance"
             )
         if self.tolerance_missed:
-            lines.append(
-                f"{self.tolerance_missed} strands did not reach the tolerance with the maximum element count "
-                "(raise fit.max_elements or the tolerance)"
-            )
+            lines += self._missed_lines()
+        return lines
+
+    def _missed_lines(self) -> list[str]:
+        """Which strands missed the tolerance, why, and what to change."""
+        tol_mm = 1e3 * self.tolerance
+        missed = self.missed if self.missed is not None else self.fit_error[:, 1] > self.tolerance
+        lines = [f"{self.tolerance_missed} of {self.strands} strands are farther than the tolerance "
+                 f"({tol_mm:.3g} mm) from some vertex, with the most elements their vertices determine:"]
+        if self.sagitta is not None:
+            coarse = missed & (self.sagitta > self.tolerance)
+            if self.smooth is not None:
+                coarse &= self.smooth >= SCATTERED
+            rough = missed & ~coarse
+            if coarse.any():
+                lines.append(
+                    f"  {int(coarse.sum())} are sampled too coarsely for it: between their vertices a smooth curve "
+                    f"may pass up to {1e3 * self.sagitta[coarse].max():.2f} mm from the chords, so the vertices do "
+                    "not determine it to the tolerance; their fit is the smoothest through them. Resample them "
+                    "more finely, or raise fit.tolerance")
+            if rough.any():
+                need = 1e3 * self.fit_error[rough, 1].max()
+                lines.append(
+                    f"  {int(rough.sum())} have vertices that scatter about a smooth curve (noise) or bend "
+                    "sharper (kinks) than a smooth rod follows within it; their fit is the smoothest near them. "
+                    f"Smooth them, or raise fit.tolerance to {need:.2g} mm")
+        listed = ", ".join(f"{k} ({1e3 * e:.3f} mm, length ratio {r:.3f})"
+                           for k, e, r in self.worst() if e > self.tolerance)
+        lines.append(f"  worst strands (index, largest distance, fitted length over polyline): {listed}")
         return lines
 
 
@@ -87,7 +140,10 @@ def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 3
     offsets = np.ascontiguousarray(groom.offsets, dtype=np.int64)
     up = np.ascontiguousarray(groom.up, dtype=np.float64)
     count = groom.n_strands
-    n_max = max(settings.max_elements, settings.elements)
+    if settings.elements > 0:
+        n_max = settings.elements
+    else:
+        n_max = int(element_caps(points, offsets, settings.max_elements).max()) if count else 1
     out_n = np.zeros(count, np.int64)
     out_frame = np.zeros((count, 3, 3))
     out_omega = np.zeros((count, n_max, 3))
@@ -97,7 +153,7 @@ def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 3
     def fit_chunk(lo: int, hi: int) -> None:
         sub = offsets[lo:hi + 1] - offsets[lo]
         fit_batch(points[offsets[lo]:offsets[hi]], sub, up, float(settings.tolerance), int(settings.elements),
-                  int(settings.min_elements), int(n_max), int(settings.max_iterations), out_n[lo:hi],
+                  int(settings.min_elements), int(settings.max_elements), int(settings.max_iterations), out_n[lo:hi],
                   out_frame[lo:hi], out_omega[lo:hi], out_length[lo:hi], out_worst[lo:hi], out_status[lo:hi])
 
     run_chunks(fit_chunk, count, chunk, progress)
@@ -116,8 +172,12 @@ def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 3
     run_chunks(error_chunk, count, 1024)
     fit_error = np.stack([err_mean, err_max], axis=1)
     helices = Helices(roots, out_frame, helix_offsets, length, omega, fit_error)
-    missed = int((out_status == FIT_TOLERANCE_NOT_MET).sum()) if settings.elements == 0 else 0
-    fitted_length = np.add.reduceat(length, helix_offsets[:-1])
-    overlong = int((fitted_length > OVERLONG * strand_lengths(points, offsets)).sum())
-    report = FitReport(count, out_n, fit_error, missed, time.perf_counter() - start, overlong)
+    missed = (out_status == FIT_TOLERANCE_NOT_MET) if settings.elements == 0 else np.zeros(count, bool)
+    fitted_length = np.add.reduceat(length, helix_offsets[:-1]) if count else np.zeros(0)
+    arc, sagitta, smooth = np.zeros(count), np.zeros(count), np.zeros(count)
+    sampling_figures(points, offsets, arc, sagitta, smooth)
+    overlong = int((fitted_length > OVERLONG * arc).sum())
+    report = FitReport(count, out_n, fit_error, int(missed.sum()), time.perf_counter() - start, overlong,
+                       float(settings.tolerance), fitted_length / strand_lengths(points, offsets), sagitta, missed,
+                       smooth)
     return helices, report

@@ -299,3 +299,86 @@ def test_normal_equations_match_finite_differences(n, odr):
     np.testing.assert_allclose(N, J.T @ J, rtol=0, atol=1e-6 * scale)
     np.testing.assert_allclose(g, J.T @ r, rtol=0, atol=1e-6 * np.abs(J.T @ r).max())
     assert np.allclose(N, N.T, rtol=0, atol=0)
+
+
+def _groom_of(*strands) -> Groom:
+    points = np.concatenate(strands)
+    offsets = np.concatenate([[0], np.cumsum([len(s) for s in strands])]).astype(np.int64)
+    return Groom(points, offsets, UP.copy(), 1.0, "test", np.arange(len(strands), dtype=np.int64))
+
+
+def test_the_element_count_is_bounded_by_what_the_vertices_determine():
+    """3 n + 3 parameters for 2 (M - 1) distances: a 21-point strand carries at most 12 elements, whatever
+    max_elements says; a curly strand may carry more than max_elements (two per turn)."""
+    rng = np.random.default_rng(0)
+    zigzag = np.cumsum(rng.normal(size=(21, 3)) * 0.01, axis=0)
+    assert fitting.element_cap(zigzag, 40) == 12
+    assert fitting.element_cap(zigzag[:4], 40) == 1
+    t = np.linspace(0.0, 30 * 2 * np.pi, 30 * 6 + 1)  # 30 turns, 6 points per turn
+    R, c, step = 0.002, 0.0005, np.pi / 3
+    coil = np.stack([R * np.cos(t), R * np.sin(t), c * t], axis=1)
+    # the angle between consecutive chords of the coil, at each of its 179 interior vertices
+    side = 4 * R ** 2 * np.sin(step / 2) ** 2
+    alpha = np.arccos((side * np.cos(step) + (c * step) ** 2) / (side + (c * step) ** 2))
+    assert fitting.element_cap(coil, 40) == int(np.ceil(179 * alpha / np.pi)) > 40
+    _, report = fit_groom(_groom_of(zigzag), FitSettings())
+    assert report.elements.max() <= 12
+
+
+def test_a_sharp_kink_gives_no_loop():
+    """A polyline turning by 60 degrees at one vertex, points every 4 mm: the fit may cut the corner or
+    round it, but not wind around it. Its length stays within +8 % / -1 % of the polyline's and every
+    point of the fitted curve stays near the polyline."""
+    s = np.arange(0.0, 0.1, 0.004)
+    a = np.stack([np.zeros_like(s), -s, np.zeros_like(s)], axis=1)
+    turn = np.radians(60.0)
+    b = a[-1] + np.stack([np.sin(turn) * s[1:], -np.cos(turn) * s[1:], np.zeros_like(s[1:])], axis=1)
+    kinked = np.concatenate([a, b])
+    helices, report = fit_groom(_groom_of(kinked), FitSettings())
+    polyline = np.linalg.norm(np.diff(kinked, axis=0), axis=1).sum()
+    fitted = helices.length.sum()
+    assert 0.99 * polyline <= fitted <= 1.08 * polyline
+    dense = np.empty((2001, 3))
+    points_at(helices.root[0], helices.frame0[0], helices.omega, helices.length, np.linspace(0, fitted, 2001), dense)
+    # distance of every curve point to the polyline's segments: a loop would leave it
+    seg_a, seg_b = kinked[:-1], kinked[1:]
+    d = seg_b - seg_a
+    u = np.clip(np.einsum("psk,sk->ps", dense[:, None] - seg_a[None], d) / np.einsum("sk,sk->s", d, d), 0, 1)
+    away = np.linalg.norm(dense[:, None] - (seg_a[None] + u[..., None] * d[None]), axis=2).min(axis=1)
+    assert away.max() < 2e-3
+
+
+def test_a_coarse_smooth_strand_and_a_noisy_one_are_reported_with_their_reasons():
+    """A smooth curve sampled every 2 cm cannot be pinned to 0.2 mm between its vertices; a finely sampled
+    strand with 0.5 mm noise cannot be followed within 0.2 mm by a smooth rod. Both miss the tolerance, and
+    the report names each and says why; the coarse fit's length stays within +8 % / -1 %."""
+    t = np.linspace(0.0, 0.3, 16)
+    coarse = np.stack([0.05 * np.sin(25 * t), -t, 0.03 * np.cos(18 * t)], axis=1)
+    rng = np.random.default_rng(1)
+    u = np.linspace(0.0, 0.3, 101)
+    noisy = np.stack([0.02 * np.sin(8 * u), -u, np.zeros_like(u)], axis=1) + rng.normal(size=(101, 3)) * 5e-4
+    helices, report = fit_groom(_groom_of(coarse, noisy), FitSettings())
+    assert report.missed.tolist() == [True, True]
+    assert report.sagitta[0] > 2e-4 and report.smooth[0] > 0.3 and report.smooth[1] < 0.3
+    text = "\n".join(report.lines())
+    assert "1 are sampled too coarsely" in text and "1 have vertices that scatter" in text
+    assert "worst strands" in text and "1 (" in text and "0 (" in text
+    fitted = np.add.reduceat(helices.length, helices.offsets[:-1])
+    polyline = np.linalg.norm(np.diff(coarse, axis=0), axis=1).sum()
+    assert 0.99 * polyline <= fitted[0] <= 1.08 * polyline
+
+
+def test_sampling_figures_closed_forms():
+    """On a circle of radius R sampled every h: the smooth curve's length is the arc (chords times
+    (a/2)/sin(a/2)), the sagitta estimate h a / 8 with a the turning per vertex, and consecutive second
+    differences are parallel (correlation 1 but for the ends)."""
+    R, k = 0.05, 40
+    a = 2 * np.pi / 60
+    phi = a * np.arange(k)
+    circle = np.stack([R * np.cos(phi), R * np.sin(phi), np.zeros(k)], axis=1)
+    arc, sag, smooth = np.zeros(1), np.zeros(1), np.zeros(1)
+    fitting.sampling_figures(circle, np.array([0, k]), arc, sag, smooth)
+    assert arc[0] == pytest.approx(R * a * (k - 1), rel=1e-12)
+    h = 2 * R * np.sin(a / 2)
+    assert sag[0] == pytest.approx(h * a / 8, rel=1e-9)
+    assert smooth[0] == pytest.approx((k - 3) / (k - 2) * np.cos(a), rel=1e-9)

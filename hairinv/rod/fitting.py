@@ -32,7 +32,8 @@ import numpy as np
 from .._jit import jit
 from .helix import _advance, chain, element_derivatives, element_step
 
-__all__ = ["fit_batch", "fit_adaptive", "closest_distances", "FIT_OK", "FIT_TOLERANCE_NOT_MET"]
+__all__ = ["fit_batch", "fit_adaptive", "closest_distances", "element_cap", "element_caps", "sampling_figures",
+           "FIT_OK", "FIT_TOLERANCE_NOT_MET"]
 
 FIT_OK = 0
 FIT_TOLERANCE_NOT_MET = 1
@@ -864,6 +865,62 @@ def _start(root, F0, p, s, up, length, omega, eta, bend_cap, err):
 
 
 @jit
+def element_cap(p, n_max):
+    """The most elements the adaptive fit gives a polyline (M, 3): ``n_max``, or two per turn of the
+    polyline where it curls more (its discrete turning angles add up to the turns), but never more than
+    its vertices determine: ``3 n + 3`` parameters (each element's omega, the root tangent and the
+    length) for the ``2 (M - 1)`` distances of the vertices to the curve."""
+    m = p.shape[0]
+    turn = np.empty(m)
+    span = np.empty(m)
+    _turning_angles(p, turn, span)
+    wanted = max(n_max, int(np.ceil(turn.sum() / np.pi)))
+    return max(1, min(wanted, (2 * m - 5) // 3))
+
+
+@jit
+def sampling_figures(points, offsets, out_arc, out_sagitta, out_smooth):
+    """Per strand of a CSR polyline set: the arc length of a smooth curve through its vertices
+    (:func:`_arc_lengths`, m); the largest distance such a curve may pass from a chord, half way between
+    two vertices, ``h alpha / 8`` for a chord ``h`` with turning ``alpha`` at its ends (m): above the
+    tolerance, the vertices do not determine the curve between them to the tolerance; and how smooth the
+    vertices are, the correlation of consecutive second differences ``sum d_j . d_j+1 / sum |d_j|^2``:
+    near 1 on a smooth curve however coarsely sampled, near -2/3 where the vertices scatter (noise)."""
+    for i in range(offsets.shape[0] - 1):
+        p = points[offsets[i]:offsets[i + 1]]
+        m = p.shape[0]
+        s = np.zeros(m)
+        _arc_lengths(p, s)
+        out_arc[i] = s[m - 1]
+        turn = np.empty(m)
+        span = np.empty(m)
+        _turning_angles(p, turn, span)
+        worst = 0.0
+        for j in range(1, m):
+            d = p[j] - p[j - 1]
+            alpha = min(max(turn[j - 1], turn[j] if j < m - 1 else 0.0), 0.5 * np.pi)
+            worst = max(worst, np.sqrt(d @ d) * alpha / 8.0)
+        out_sagitta[i] = worst
+        num = 0.0
+        den = 0.0
+        for j in range(1, m - 1):
+            a = p[j + 1] - 2.0 * p[j] + p[j - 1]
+            den += a @ a
+            if j < m - 2:
+                num += a @ (p[j + 2] - 2.0 * p[j + 1] + p[j])
+        out_smooth[i] = num / den if den > 0.0 else 1.0
+
+
+@jit
+def element_caps(points, offsets, n_max):
+    """:func:`element_cap` of every strand of a CSR polyline set, (S,) int64."""
+    out = np.empty(offsets.shape[0] - 1, dtype=np.int64)
+    for i in range(out.shape[0]):
+        out[i] = element_cap(points[offsets[i]:offsets[i + 1]], n_max)
+    return out
+
+
+@jit
 def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out, length_out):
     """Fit one strand, splitting elements until the tolerance is met.
 
@@ -873,11 +930,13 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     up : (3,) float64, world up (fixes the roll of the root frame)
     tolerance : float64, m, target for the largest vertex distance
     fixed : int64, a fixed element count (equal lengths), or 0 for adaptive
-    n_min, n_max : int64, bounds of the adaptive count (never above M - 1)
+    n_min, n_max : int64, bounds of the adaptive count; a curly strand may have more than ``n_max``, up to
+        :func:`element_cap`
     max_iter : int64, Levenberg-Marquardt iterations per refinement
     F0 : (3, 3) float64, out, root frame
-    omega_out : (n_max, 3) float64, out, first ``n`` rows used
-    length_out : (n_max,) float64, out, first ``n`` entries used
+    omega_out : (K, 3) float64, out, first ``n`` rows used; K at least ``element_cap(p, n_max)``, or
+        ``fixed`` when it is given
+    length_out : (K,) float64, out, first ``n`` entries used
 
     Returns
     -------
@@ -886,7 +945,7 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     m = p.shape[0]
     s = np.zeros(m)
     _arc_lengths(p, s)
-    cap = max(1, min(n_max, m - 1))
+    cap = element_cap(p, n_max)
     # Start with at least one element per half turn of the polyline: an
     # element that has to wind through several turns of a curl starts far
     # from the data and the refinement can settle on loops between vertices.
@@ -894,7 +953,7 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     span = np.empty(m)
     _turning_angles(p, turn, span)
     n_start = max(n_min, int(np.ceil(turn.sum() / np.pi)))
-    n = min(fixed, cap) if fixed > 0 else min(max(n_start, 1), cap)
+    n = min(fixed, m - 1) if fixed > 0 else min(max(n_start, 1), cap)
     root = p[0].copy()
     err = np.zeros(m)
     eta = _PRIOR_OF_TOLERANCE * tolerance
