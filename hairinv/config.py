@@ -73,11 +73,12 @@ class FitSettings:
     """Fixed number of elements per strand; 0 chooses it adaptively from the tolerance."""
     min_elements: int = 4
     """Smallest element count tried by the adaptive fit (the paper uses 6 to 40)."""
-    max_elements: int = 40
-    """Largest element count (the paper's maximum), raised to two per turn of a curl on curly strands
-    (their polyline's turning adds up to more turns), but never more than the vertices determine:
-    3 n + 3 parameters for the 2 (M - 1) distances of M vertices, so n <= (2 M - 5) / 3 (a 21-point
-    strand carries at most 12). A strand that misses the tolerance at that count is reported, with why."""
+    max_elements: int = 0
+    """Largest element count; 0 (the default): as many as the tolerance needs, up to what the vertices
+    determine: 3 n + 3 parameters for the 2 (M - 1) distances of M vertices, so n <= (2 M - 5) / 3 (a
+    21-point strand carries at most 12). Elements are chosen along the strand, each as long as one helix
+    fits its vertices at their arc lengths, so a tight curl gets the elements it needs and no element
+    winds between vertices. A strand that misses the tolerance is reported, with why."""
     max_iterations: int = 40
     """Levenberg-Marquardt iterations per element count; near-zero-residual fits converge in under 10."""
 

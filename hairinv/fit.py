@@ -117,8 +117,10 @@ class FitReport:
 def _validate(settings: FitSettings) -> None:
     if not settings.tolerance > 0:
         raise InputError(f"fit.tolerance must be > 0 m, got {settings.tolerance}")
-    if settings.elements < 0 or settings.min_elements < 1 or settings.max_elements < settings.min_elements:
-        raise InputError("fit element counts must satisfy 1 <= min_elements <= max_elements and elements >= 0")
+    if settings.elements < 0 or settings.min_elements < 1 or (
+            settings.max_elements != 0 and settings.max_elements < settings.min_elements) or settings.max_elements < 0:
+        raise InputError("fit element counts must satisfy 1 <= min_elements <= max_elements (or max_elements = 0, "
+                         "as many as the vertices determine) and elements >= 0")
     if settings.max_iterations < 1:
         raise InputError("fit.max_iterations must be >= 1")
 

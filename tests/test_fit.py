@@ -151,10 +151,12 @@ def test_straight_polyline_gives_zero_curvature():
     assert ln.sum() == pytest.approx(0.3, rel=1e-14)
 
 
-def test_fit_error_is_the_true_distance(rng):
-    """closest_distances against brute force on a dense sampling of the fitted curve."""
+@pytest.mark.parametrize("curl", [15.0, 1500.0])
+def test_fit_error_is_the_true_distance(rng, curl):
+    """closest_distances against brute force on a dense sampling of the fitted curve; with |omega| ~ 1500
+    1/m each element winds about 12 turns (a coil followed by few elements)."""
     n = 3
-    omega = rng.normal(size=(n, 3)) * 15
+    omega = rng.normal(size=(n, 3)) * curl
     length = np.full(n, 0.05)
     root = np.zeros(3)
     frame0 = np.eye(3)
@@ -192,7 +194,8 @@ def test_adaptive_fit_meets_the_tolerance_on_a_sample(wavy_subset):
     assert np.all(helices.fit_error[:, 0] <= helices.fit_error[:, 1])
     counts = np.diff(helices.offsets)
     assert counts.min() >= fit.min_elements
-    assert counts.max() <= fit.max_elements
+    # no more elements than the vertices determine: 3 n + 3 parameters for 2 (M - 1) distances
+    assert np.all(3 * counts + 3 <= 2 * (np.diff(wavy_subset.offsets) - 1))
     # the fitted curves start at the roots and keep the strands' length to within the tolerance scale
     np.testing.assert_array_equal(helices.root, wavy_subset.points[wavy_subset.offsets[:-1]])
     frames = helices.frame0
@@ -308,21 +311,48 @@ def _groom_of(*strands) -> Groom:
 
 
 def test_the_element_count_is_bounded_by_what_the_vertices_determine():
-    """3 n + 3 parameters for 2 (M - 1) distances: a 21-point strand carries at most 12 elements, whatever
-    max_elements says; a curly strand may carry more than max_elements (two per turn)."""
+    """3 n + 3 parameters for 2 (M - 1) distances: a 21-point strand carries at most 12 elements, and
+    fit.max_elements caps it further when above 0."""
     rng = np.random.default_rng(0)
     zigzag = np.cumsum(rng.normal(size=(21, 3)) * 0.01, axis=0)
-    assert fitting.element_cap(zigzag, 40) == 12
-    assert fitting.element_cap(zigzag[:4], 40) == 1
-    t = np.linspace(0.0, 30 * 2 * np.pi, 30 * 6 + 1)  # 30 turns, 6 points per turn
-    R, c, step = 0.002, 0.0005, np.pi / 3
-    coil = np.stack([R * np.cos(t), R * np.sin(t), c * t], axis=1)
-    # the angle between consecutive chords of the coil, at each of its 179 interior vertices
-    side = 4 * R ** 2 * np.sin(step / 2) ** 2
-    alpha = np.arccos((side * np.cos(step) + (c * step) ** 2) / (side + (c * step) ** 2))
-    assert fitting.element_cap(coil, 40) == int(np.ceil(179 * alpha / np.pi)) > 40
+    assert fitting.element_cap(zigzag, 0) == 12
+    assert fitting.element_cap(zigzag, 5) == 5
+    assert fitting.element_cap(zigzag[:4], 0) == 1
     _, report = fit_groom(_groom_of(zigzag), FitSettings())
     assert report.elements.max() <= 12
+
+
+def _coil(radius, points_per_turn, turns, bend_radius, pitch):
+    """A coil wound around a circular arc of radius ``bend_radius`` in the x-y plane (its axis), hanging
+    down from the origin: ``points_per_turn`` points per turn, m."""
+    t = np.arange(turns * points_per_turn + 1) * 2 * np.pi / points_per_turn
+    a = pitch * t / (2 * np.pi) / bend_radius  # angle along the axis
+    centre = np.stack([bend_radius * (1 - np.cos(a)), -bend_radius * np.sin(a), np.zeros_like(a)], axis=1)
+    tangent = np.stack([np.sin(a), -np.cos(a), np.zeros_like(a)], axis=1)
+    normal = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)  # in the plane, off the axis
+    binormal = np.cross(tangent, normal)
+    ring = radius * (np.cos(t)[:, None] * normal + np.sin(t)[:, None] * binormal)
+    return centre + ring - ring[0]
+
+
+@pytest.mark.parametrize("radius, points_per_turn", [(0.001, 5), (0.002, 5), (0.004, 7)])
+def test_a_coil_sampled_at_few_points_per_turn_is_followed(radius, points_per_turn):
+    """Curly hair: 25 turns of a coil around a bending axis (10 cm radius), sampled at 5-7 points per turn.
+    Every vertex within the tolerance, with at most three elements per turn (a curl is not followed
+    vertex by vertex), and the length of a smooth curve through the vertices: within +8 % / -1 % of the
+    polyline's, and within 1 % of the coil's own arc length."""
+    pitch = 3 * radius
+    coil = _coil(radius, points_per_turn, 25, 0.1, pitch)
+    helices, report = fit_groom(_groom_of(coil), FitSettings())
+    assert report.tolerance_missed == 0 and helices.fit_error[0, 1] <= 2e-4 * (1 + 1e-9)
+    assert len(helices.omega) <= 3 * 25
+    polyline = np.linalg.norm(np.diff(coil, axis=0), axis=1).sum()
+    fitted = helices.length.sum()
+    assert 0.99 * polyline <= fitted <= 1.08 * polyline
+    # the coil's own length: per turn, the hypotenuse of the ring's circumference and the pitch (to first
+    # order in radius / bend radius)
+    own = 25 * np.hypot(2 * np.pi * radius, pitch)
+    assert fitted == pytest.approx(own, rel=0.01)
 
 
 def test_a_sharp_kink_gives_no_loop():

@@ -186,10 +186,13 @@ def test_output_piped_into_a_closed_reader_still_writes_the_file(inverted):
 
 
 def _objective(path) -> float:
-    """``1/2 sum_e w_e |q0_e - t_e|^2 + gamma/2 |r|^2``, the inversion's objective, from the file alone."""
+    """``1/2 sum_e w_e |q0_e - t_e|^2 + gamma/2 |r|^2``, the inversion's objective, from the file alone; on
+    strands stiffened for stability the forces minimise the stiffened problem's, whose rest shape is
+    ``omega_rest_stiffened`` (docs/stage-files.md)."""
     with h5py.File(path, "r") as fh:
         m = fh["model"]
-        dq = m["omega_rest"][()] - m["omega_target"][()]
+        rest = m["omega_rest_stiffened"][()] if "omega_rest_stiffened" in m else m["omega_rest"][()]
+        dq = rest - m["omega_target"][()]
         r = m["force"][()]
         return float(0.5 * np.sum(m["target_weight"][()] * np.sum(dq ** 2, axis=1))
                      + 0.5 * float(m.attrs["gamma"]) * np.sum(r ** 2))

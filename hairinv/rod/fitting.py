@@ -3,12 +3,20 @@
 One strand at a time (strands are independent, so the batch runs them in
 parallel with deterministic results):
 
-1. Sequential initialisation: element after element, starting from the
-   frame where the previous element ended, a circular arc is aimed at the
-   polyline point at the element's end, then its three parameters (and, for
-   the first element, the root tangent) are refined by a small
-   Levenberg-Marquardt solve on the vertices it covers.
-2. Global refinement, an orthogonal-distance fit: Levenberg-Marquardt on all
+1. Elements chosen along the strand (the adaptive fit): from the root,
+   each element is as long as one helix started where the previous one
+   ended fits its vertices within the tolerance at their arc lengths (found
+   by doubling, then bisection over the vertex count; the helix started from
+   the best of the previous element's omega, the polyline's screw rotation
+   and a circular arc, refined by a small Levenberg-Marquardt solve that
+   also holds its end tangent near the polyline's). The vertices keep their
+   arc lengths (exact on circles and helices, :func:`_arc_lengths`), so no
+   element winds between vertices, and a curl gets as many elements as it
+   needs, never more than the vertices determine (:func:`element_cap`). A
+   fixed element count starts instead from equal elements, each aimed at the
+   polyline point at its end.
+2. Global refinement where the tolerance is not met yet, an orthogonal-distance
+   fit: Levenberg-Marquardt on all
    ``(kappa1, kappa2, tau)``, the root tangent (2 angles: the roll about the
    tangent is a gauge freedom of an isotropic rod and stays fixed) and the
    strand length. Interior vertices are matched to their closest curve point
@@ -18,9 +26,10 @@ parallel with deterministic results):
    element ``e`` moves everything downstream rigidly about the end of ``e``,
    which also lets the normal equations be summed without forming it
    (:func:`_normal_equations`, O(M + n^2) instead of O(M n^2)).
-3. Adaptive size: elements holding a vertex farther than the tolerance are
-   split in two. A split element with unchanged omega is the same curve, so
-   each refinement starts from the previous optimum.
+3. Adaptive size, if the tolerance is still not met: elements holding a
+   vertex farther than the tolerance are split in two. A split element with
+   unchanged omega is the same curve, so each refinement starts from the
+   previous optimum; a refit from equal elements is kept if it is better.
 
 Kernels return status codes instead of raising.
 """
@@ -67,6 +76,10 @@ _MIN_ARC_PER_CHORD = 0.5
 _MAX_ARC_PER_CHORD = 1.5
 # The look-ahead of the second initial guess, in element lengths.
 _LOOK_AHEAD = 0.5
+# Elements chosen along the strand hold their end tangent near the polyline's: a tangent off by delta
+# weighs like a vertex off by delta times this fraction of the next segment's length.
+_TANGENT_WEIGHT = 0.5
+_NO_TANGENT = np.zeros(3)
 
 
 @jit
@@ -536,31 +549,44 @@ def _initial_frame(p, up, F0):
 
 
 @jit
-def _element_residual(x, F, om, sig, tgt, res):
-    """Residuals of one element started at (x, F) against targets; returns the cost."""
+def _element_residual(x, F, om, sig, tgt, res, tan_tgt, tan_w):
+    """Residuals of one element started at (x, F) against targets; returns the cost. With ``tan_w > 0``,
+    three more rows ``tan_w (t(ell) - tan_tgt)``: the tangent at the element's end (``ell``, the largest
+    ``sig``) against a unit target."""
     R = np.empty((3, 3))
     P = np.empty(3)
     Q = np.empty(3)
     cost = 0.0
-    for i in range(sig.shape[0]):
+    k = sig.shape[0]
+    ell = 0.0
+    for i in range(k):
+        ell = max(ell, sig[i])
         element_step(om[2], om[0], om[1], sig[i], R, P, Q)
         for a in range(3):
             v = x[a] + F[0, a] * P[0] + F[1, a] * P[1] + F[2, a] * P[2] - tgt[i, a]
             res[3 * i + a] = v
             cost += 0.5 * v * v
+    if tan_w > 0.0:
+        element_step(om[2], om[0], om[1], ell, R, P, Q)
+        for a in range(3):
+            v = tan_w * (R[0, 0] * F[0, a] + R[1, 0] * F[1, a] + R[2, 0] * F[2, a] - tan_tgt[a])
+            res[3 * k + a] = v
+            cost += 0.5 * v * v
     return cost
 
 
 @jit
-def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap):
+def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, tan_w):
     """Levenberg-Marquardt on one element's omega (and, for the first element,
-    the two angles of its start tangent); updates ``om`` and ``F`` in place."""
+    the two angles of its start tangent); updates ``om`` and ``F`` in place.
+    ``tan_tgt``, ``tan_w``: an end-tangent target, as in :func:`_element_residual`."""
     k = sig.shape[0]
+    rows = 3 * k + (3 if tan_w > 0.0 else 0)
     npar = 5 if free_frame else 3
     off = 2 if free_frame else 0
-    res = np.empty(3 * k)
-    res_try = np.empty(3 * k)
-    Jl = np.zeros((3 * k, npar))
+    res = np.empty(rows)
+    res_try = np.empty(rows)
+    Jl = np.zeros((rows, npar))
     om_try = np.empty(3)
     F_try = F.copy()
     th = np.empty(3)
@@ -568,6 +594,10 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap):
     dth = np.empty((3, 3))
     col = np.empty(3)
     xi = np.empty(3)
+    t_end = np.empty(3)
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
     D = np.empty(npar)
     ell = 0.0
     for i in range(k):
@@ -575,7 +605,7 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap):
     ell_a = np.full(1, ell)
     om_a = np.empty((1, 3))
     om_a[0] = om
-    cost = _element_residual(x, F, om, sig, tgt, res) + _prior_cost(om_a, ell_a, eta, cap)
+    cost = _element_residual(x, F, om, sig, tgt, res, tan_tgt, tan_w) + _prior_cost(om_a, ell_a, eta, cap)
     lam = 1e-4
     nu = 2.0
     for _ in range(max_iter):
@@ -592,6 +622,23 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap):
                     _cross_add(F[1 + c], xi, col, 1.0)
                     for a in range(3):
                         Jl[3 * i + a, c] = col[a]
+        if tan_w > 0.0:
+            # the end tangent turns with the frame: d t = dtheta x t
+            element_step(om[2], om[0], om[1], ell, R, P, Q)
+            for a in range(3):
+                t_end[a] = R[0, 0] * F[0, a] + R[1, 0] * F[1, a] + R[2, 0] * F[2, a]
+            element_derivatives(om, ell, F, dx, dth)
+            for b in range(3):
+                col[:] = 0.0
+                _cross_add(dth[b], t_end, col, tan_w)
+                for a in range(3):
+                    Jl[3 * k + a, off + b] = col[a]
+            if free_frame:
+                for c in range(2):
+                    col[:] = 0.0
+                    _cross_add(F[1 + c], t_end, col, tan_w)
+                    for a in range(3):
+                        Jl[3 * k + a, c] = col[a]
         JtJ = Jl.T @ Jl
         g = Jl.T @ res
         _add_prior(JtJ, g, off, om, ell, eta, cap)
@@ -615,7 +662,8 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap):
             else:
                 F_try[:, :] = F
             om_a[0] = om_try
-            c_try = _element_residual(x, F_try, om_try, sig, tgt, res_try) + _prior_cost(om_a, ell_a, eta, cap)
+            c_try = (_element_residual(x, F_try, om_try, sig, tgt, res_try, tan_tgt, tan_w)
+                     + _prior_cost(om_a, ell_a, eta, cap))
             accepted, lam, nu = _gain_ratio(cost, c_try, d, D, g, lam, nu)
             if accepted:
                 break
@@ -684,6 +732,154 @@ def _discrete_darboux(p, j0, j1):
 
 
 @jit
+def _arc_toward(x, F, target, ell, om):
+    """``om`` of the circular arc of length ``ell`` from (x, F) aimed at ``target``: chord angle theta,
+    curvature 2 theta / ell, no twist (zero if the target is straight ahead)."""
+    om[:] = 0.0
+    c = target - x
+    cn = np.sqrt(c @ c)
+    if cn > 0.0:
+        c = c / cn
+        ax = np.empty(3)
+        ax[0] = F[0, 1] * c[2] - F[0, 2] * c[1]
+        ax[1] = F[0, 2] * c[0] - F[0, 0] * c[2]
+        ax[2] = F[0, 0] * c[1] - F[0, 1] * c[0]
+        sn = np.sqrt(ax @ ax)
+        if sn > 1e-14:
+            theta = np.arctan2(sn, F[0] @ c)
+            ax = ax * (2.0 * theta / ell / sn)
+            om[0] = ax @ F[1]
+            om[1] = ax @ F[2]
+
+
+@jit
+def _vertex_tangent(p, i, out):
+    """Unit tangent estimate at interior vertex ``i``: the chords' directions averaged with the other
+    chord's length as weight, exact at the middle of three points evenly spaced on a circle or a helix."""
+    a = p[i] - p[i - 1]
+    b = p[i + 1] - p[i]
+    la = np.sqrt(a @ a)
+    lb = np.sqrt(b @ b)
+    out[:] = 0.0
+    if la > 0.0:
+        out += (lb / la) * a
+    if lb > 0.0:
+        out += (la / lb) * b
+    n = np.sqrt(out @ out)
+    if n > 0.0:
+        out /= n
+
+
+@jit
+def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_out, tangent_weight):
+    """One element from (x, F) through vertices ``j+1 .. j+k`` at their arc lengths (``s[j]`` at its start):
+    the best of three starts (the previous element's omega, the polyline's screw rotation over those
+    vertices, a circular arc aimed at the last), refined by Levenberg-Marquardt (with the start tangent
+    when ``free_frame``), its end tangent held near the polyline's there (:func:`_vertex_tangent`) so
+    that the next element starts along the strand. Writes ``om_out`` and ``F_out``; returns the largest
+    vertex distance, m."""
+    m = p.shape[0]
+    sig = np.empty(k)
+    tgt = np.empty((k, 3))
+    for i in range(k):
+        sig[i] = s[j + 1 + i] - s[j]
+        tgt[i] = p[j + 1 + i]
+    res = np.empty(3 * k + 3)
+    F_out[:, :] = F
+    om_out[:] = om_prev
+    best = _element_residual(x, F, om_out, sig, tgt, res, _NO_TANGENT, 0.0)
+    om = np.empty(3)
+    Om = _discrete_darboux(p, max(j - 1, 0), j + k)
+    if Om @ Om > 0.0:
+        om[0] = Om @ F[1]
+        om[1] = Om @ F[2]
+        om[2] = Om @ F[0]
+        c = _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0)
+        if c < best:
+            best = c
+            om_out[:] = om
+    _arc_toward(x, F, tgt[k - 1], sig[k - 1], om)
+    if _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0) < best:
+        om_out[:] = om
+    tangent = np.zeros(3)
+    weight = 0.0
+    end = j + k
+    if end < m - 1:
+        _vertex_tangent(p, end, tangent)
+        d = p[end + 1] - p[end]
+        weight = tangent_weight * np.sqrt(d @ d)
+    _fit_element(x, F_out, om_out, sig, tgt, free_frame, 10, eta, cap, tangent, weight)
+    _element_residual(x, F_out, om_out, sig, tgt, res, _NO_TANGENT, 0.0)
+    worst = 0.0
+    for i in range(k):
+        worst = max(worst, res[3 * i] ** 2 + res[3 * i + 1] ** 2 + res[3 * i + 2] ** 2)
+    return np.sqrt(worst)
+
+
+@jit
+def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangent_weight):
+    """Elements chosen along the strand, each as long as it can be: from where the previous one ended,
+    the most vertices one helix fits within ``within`` (m) at their arc lengths ``s``, found by doubling
+    then bisection. Each element ends at a vertex, so the fitted length is the polyline's estimated arc
+    length. Writes ``F0`` (the root frame, its tangent fitted with the first element) and the first rows
+    of ``omega`` (M-1, 3) and ``length`` (M-1,); returns the element count."""
+    m = p.shape[0]
+    _initial_frame(p, up, F0)
+    x = root.copy()
+    F = F0.copy()
+    x_next = np.empty(3)
+    F_next = np.empty((3, 3))
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    om_prev = np.zeros(3)
+    om_ok = np.empty(3)
+    F_ok = np.empty((3, 3))
+    om_t = np.empty(3)
+    F_t = np.empty((3, 3))
+    j = 0
+    n = 0
+    while j < m - 1:
+        first = n == 0
+        left = m - 1 - j
+        k_ok = 1
+        _element_trial(x, F, p, s, j, 1, om_prev, first, eta, cap, om_ok, F_ok, tangent_weight)
+        k_bad = left + 1
+        k = 2
+        while k <= left:
+            if _element_trial(x, F, p, s, j, k, om_prev, first, eta, cap, om_t, F_t, tangent_weight) <= within:
+                k_ok = k
+                om_ok[:] = om_t
+                F_ok[:, :] = F_t
+                if k == left:
+                    break
+                k = min(2 * k, left)
+            else:
+                k_bad = k
+                break
+        while k_bad - k_ok > 1:
+            k = (k_ok + k_bad) // 2
+            if _element_trial(x, F, p, s, j, k, om_prev, first, eta, cap, om_t, F_t, tangent_weight) <= within:
+                k_ok = k
+                om_ok[:] = om_t
+                F_ok[:, :] = F_t
+            else:
+                k_bad = k
+        ell = s[j + k_ok] - s[j]
+        omega[n] = om_ok
+        length[n] = ell
+        if first:
+            F0[:, :] = F_ok
+        _advance(x, F_ok, om_ok, ell, x_next, F_next, R, P, Q)
+        x[:] = x_next
+        F[:, :] = F_next
+        om_prev[:] = om_ok
+        j += k_ok
+        n += 1
+    return n
+
+
+@jit
 def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta, cap):
     """Element-by-element initial guess (see the module docstring).
 
@@ -727,23 +923,8 @@ def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta, cap):
         if extra == 1:
             sig[k - 1] = ell_e
             tgt[k - 1] = target
-        # circular arc aimed at the end point: chord angle theta, curvature 2 theta / ell
-        c = target - x
-        cn = np.sqrt(c @ c)
         om = np.zeros(3)
-        if cn > 0.0:
-            c = c / cn
-            ax = np.empty(3)
-            ax[0] = F[0, 1] * c[2] - F[0, 2] * c[1]
-            ax[1] = F[0, 2] * c[0] - F[0, 0] * c[2]
-            ax[2] = F[0, 0] * c[1] - F[0, 1] * c[0]
-            sn = np.sqrt(ax @ ax)
-            if sn > 1e-14:
-                theta = np.arctan2(sn, F[0] @ c)
-                kappa = 2.0 * theta / ell_e
-                ax = ax * (kappa / sn)
-                om[0] = ax @ F[1]
-                om[1] = ax @ F[2]
+        _arc_toward(x, F, target, ell_e, om)
         # second start: the polyline's own screw rotation over the element;
         # keep the start that fits better (it wins on multi-turn curls)
         Om = _discrete_darboux(p, j0 - 1, j1)
@@ -753,9 +934,10 @@ def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta, cap):
             om2[1] = Om @ F[2]
             om2[2] = Om @ F[0]
             res = np.empty(3 * k)
-            if _element_residual(x, F, om2, sig, tgt, res) < _element_residual(x, F, om, sig, tgt, res):
+            if (_element_residual(x, F, om2, sig, tgt, res, _NO_TANGENT, 0.0)
+                    < _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0)):
                 om[:] = om2
-        _fit_element(x, F, om, sig, tgt, e == 0, 10, eta, cap)
+        _fit_element(x, F, om, sig, tgt, e == 0, 10, eta, cap, _NO_TANGENT, 0.0)
         if e == 0:
             F0[:, :] = F
         omega[e] = om
@@ -805,6 +987,15 @@ def _arc_lengths(p, s):
     turning angle at the chord's two ends, the estimate is exact to O(h^4)
     instead of O(h^2), which places the first element joints where the
     curve's own joints are. Angles are capped at 90 degrees (kinks).
+
+    Where the curve is not planar (a coil), the chords turn about a screw
+    axis: three consecutive chords ``d0, d1, d2`` of a helix sampled evenly
+    are taken one to the next by the same rotation, of axis along
+    ``(d1 - d0) x (d2 - d1)`` and angle ``phi``. A chord at angle ``beta`` to
+    that axis covers the arc ``chord sqrt(cos^2 beta + sin^2 beta
+    ((phi/2) / sin(phi/2))^2)``: exact on a helix (the circle's factor when
+    ``beta`` is 90 degrees), where the plain circle factor with the smaller
+    turning angle between chords underestimates a coil's length.
     """
     m = p.shape[0]
     s[0] = 0.0
@@ -824,8 +1015,50 @@ def _arc_lengths(p, s):
             alpha = 0.5 * (turn[j - 1] + turn[j])
         half = 0.5 * alpha
         factor = half / np.sin(half) if half > 1e-8 else 1.0 + half * half / 6.0
+        if m >= 4 and chord > 0.0:
+            # chords c0-1, c0, c0+1 around this one (chord j-1), kept inside the polyline
+            c0 = min(max(j - 1, 1), m - 3)
+            factor = _screw_factor(p[c0 - 1], p[c0], p[c0 + 1], p[c0 + 2], d / chord, factor)
         s[j] = s[j - 1] + chord * factor
 
+
+@jit
+def _screw_factor(a, b, c, e, direction, fallback):
+    """Arc over chord of a chord with unit ``direction`` on the helix through the chords a-b, b-c, c-e (see
+    :func:`_arc_lengths`); ``fallback`` where they are planar, straight or degenerate."""
+    d0 = b - a
+    d1 = c - b
+    d2 = e - c
+    l0 = np.sqrt(d0 @ d0)
+    l1 = np.sqrt(d1 @ d1)
+    l2 = np.sqrt(d2 @ d2)
+    if l0 == 0.0 or l1 == 0.0 or l2 == 0.0:
+        return fallback
+    d0 = d0 / l0
+    d1 = d1 / l1
+    d2 = d2 / l2
+    u = d1 - d0
+    v = d2 - d1
+    axis = np.empty(3)
+    axis[0] = u[1] * v[2] - u[2] * v[1]
+    axis[1] = u[2] * v[0] - u[0] * v[2]
+    axis[2] = u[0] * v[1] - u[1] * v[0]
+    na = np.sqrt(axis @ axis)
+    # planar (u, v parallel: a circle's axis is its normal, the circle factor), straight or an inflection
+    if na <= 1e-3 * np.sqrt(u @ u) * np.sqrt(v @ v) or na == 0.0:
+        return fallback
+    axis = axis / na
+    w0 = d0 - (d0 @ axis) * axis
+    w1 = d1 - (d1 @ axis) * axis
+    n0 = np.sqrt(w0 @ w0)
+    n1 = np.sqrt(w1 @ w1)
+    if n0 == 0.0 or n1 == 0.0:
+        return fallback
+    phi = min(np.arccos(min(1.0, max(-1.0, (w0 @ w1) / (n0 * n1)))), 0.5 * np.pi)
+    half = 0.5 * phi
+    q = half / np.sin(half) if half > 1e-8 else 1.0 + half * half / 6.0
+    cb = direction @ axis
+    return np.sqrt(cb * cb + (1.0 - cb * cb) * q * q)
 
 @jit
 def _vertex_errors(root, F0, omega, length, s, p, err):
@@ -866,16 +1099,13 @@ def _start(root, F0, p, s, up, length, omega, eta, bend_cap, err):
 
 @jit
 def element_cap(p, n_max):
-    """The most elements the adaptive fit gives a polyline (M, 3): ``n_max``, or two per turn of the
-    polyline where it curls more (its discrete turning angles add up to the turns), but never more than
-    its vertices determine: ``3 n + 3`` parameters (each element's omega, the root tangent and the
-    length) for the ``2 (M - 1)`` distances of the vertices to the curve."""
+    """The most elements the adaptive fit gives a polyline (M, 3): as many as its vertices determine,
+    ``3 n + 3`` parameters (each element's omega, the root tangent and the length) for the ``2 (M - 1)``
+    distances of the vertices to the curve, so ``n <= (2 M - 5) / 3``; and at most ``n_max`` when it is
+    above 0."""
     m = p.shape[0]
-    turn = np.empty(m)
-    span = np.empty(m)
-    _turning_angles(p, turn, span)
-    wanted = max(n_max, int(np.ceil(turn.sum() / np.pi)))
-    return max(1, min(wanted, (2 * m - 5) // 3))
+    determined = max(1, (2 * m - 5) // 3)
+    return min(n_max, determined) if n_max > 0 else determined
 
 
 @jit
@@ -930,8 +1160,8 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     up : (3,) float64, world up (fixes the roll of the root frame)
     tolerance : float64, m, target for the largest vertex distance
     fixed : int64, a fixed element count (equal lengths), or 0 for adaptive
-    n_min, n_max : int64, bounds of the adaptive count; a curly strand may have more than ``n_max``, up to
-        :func:`element_cap`
+    n_min, n_max : int64, bounds of the adaptive count (``n_max`` 0: as many as the vertices determine,
+        :func:`element_cap`)
     max_iter : int64, Levenberg-Marquardt iterations per refinement
     F0 : (3, 3) float64, out, root frame
     omega_out : (K, 3) float64, out, first ``n`` rows used; K at least ``element_cap(p, n_max)``, or
@@ -946,22 +1176,42 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     s = np.zeros(m)
     _arc_lengths(p, s)
     cap = element_cap(p, n_max)
-    # Start with at least one element per half turn of the polyline: an
-    # element that has to wind through several turns of a curl starts far
-    # from the data and the refinement can settle on loops between vertices.
-    turn = np.empty(m)
-    span = np.empty(m)
-    _turning_angles(p, turn, span)
-    n_start = max(n_min, int(np.ceil(turn.sum() / np.pi)))
-    n = min(fixed, m - 1) if fixed > 0 else min(max(n_start, 1), cap)
     root = p[0].copy()
     err = np.zeros(m)
     eta = _PRIOR_OF_TOLERANCE * tolerance
     bend_cap = _CAP_FACTOR * _max_discrete_curvature(p)
-    length = np.full(n, s[m - 1] / n)
-    omega = np.zeros((n, 3))
-    _start(root, F0, p, s, up, length, omega, eta, bend_cap, err)
-    from_init = True
+    if fixed > 0:
+        n = min(fixed, m - 1)
+        length = np.full(n, s[m - 1] / n)
+        omega = np.zeros((n, 3))
+        _start(root, F0, p, s, up, length, omega, eta, bend_cap, err)
+        from_init = True
+    else:
+        # Elements as long as one helix fits the vertices within the tolerance; where that takes more
+        # elements than the strand may carry (noise, kinks), that distance is doubled until it does not.
+        omega_g = np.zeros((m - 1, 3))
+        length_g = np.zeros(m - 1)
+        within = max(tolerance, 1e-9 * s[m - 1])
+        n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT)
+        for _ in range(40):
+            if n <= cap:
+                break
+            within *= 2.0
+            n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT)
+        if n < n_min and m - 1 >= n_min:
+            # fewer than asked for: split the longest until there are n_min
+            while n < n_min:
+                longest = np.argmax(length_g[:n])
+                for e in range(n, longest + 1, -1):
+                    length_g[e] = length_g[e - 1]
+                    omega_g[e] = omega_g[e - 1]
+                length_g[longest] *= 0.5
+                length_g[longest + 1] = length_g[longest]
+                omega_g[longest + 1] = omega_g[longest]
+                n += 1
+        omega = omega_g[:n].copy()
+        length = length_g[:n].copy()
+        from_init = _vertex_errors(root, F0, omega, length, s.copy(), p, err) > tolerance
     while True:
         # Vertices first keep their fraction of the length (robust from a
         # rough start); the orthogonal-distance phase runs only if that is
@@ -1035,7 +1285,7 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         n += count
         omega = new_omega
         length = new_length
-    if fixed == 0 and worst > tolerance and n < cap:
+    if fixed == 0 and worst > tolerance:
         # Splitting stalled in a local minimum: refit from scratch with the
         # largest allowed count of equal elements and keep the better fit.
         F_u = np.empty((3, 3))
@@ -1088,8 +1338,9 @@ def fit_batch(points, offsets, up, tolerance, fixed, n_min, n_max, max_iter,
 def closest_distances(points, offsets, roots, frames, helix_offsets, omega, length, out_mean, out_max):
     """Distance from every input vertex to the fitted centerline.
 
-    For each vertex the curve is scanned at 8 points per element (a global
-    start, so no far local minimum is taken), then Newton's method on the arc
+    For each vertex the curve is scanned at 8 points per element, more on an
+    element that turns by more than half a turn (16 per turn: a global start,
+    so no far local minimum is taken), then Newton's method on the arc
     length polishes the nearest one (stationarity ``t . (x - p) = 0``,
     derivative ``1 + (Om x t) . (x - p)``). Writes the per-strand mean and
     max, m.
@@ -1111,14 +1362,20 @@ def closest_distances(points, offsets, roots, frames, helix_offsets, omega, leng
         R = np.empty((3, 3))
         P = np.empty(3)
         Q = np.empty(3)
-        k = n * scan_per_element + 1
+        # at least 8 points per element, and one per 1/16 turn of an element that winds (a coil)
+        counts = np.empty(n, dtype=np.int64)
+        for e in range(n):
+            turning = np.sqrt(om[e, 0] ** 2 + om[e, 1] ** 2 + om[e, 2] ** 2) * ln[e]
+            counts[e] = max(scan_per_element, int(np.ceil(turning / (np.pi / 8.0))))
+        k = counts.sum() + 1
         scan_s = np.empty(k)
         scan_x = np.empty((k, 3))
+        idx = 0
         for e in range(n):
-            for h in range(scan_per_element):
-                idx = e * scan_per_element + h
-                scan_s[idx] = starts[e] + ln[e] * h / scan_per_element
+            for h in range(counts[e]):
+                scan_s[idx] = starts[e] + ln[e] * h / counts[e]
                 _advance(xs[e], Fs[e], om[e], scan_s[idx] - starts[e], scan_x[idx], F, R, P, Q)
+                idx += 1
         scan_s[k - 1] = total
         scan_x[k - 1] = xs[n]
         acc = 0.0
