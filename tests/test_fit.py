@@ -412,3 +412,22 @@ def test_sampling_figures_closed_forms():
     h = 2 * R * np.sin(a / 2)
     assert sag[0] == pytest.approx(h * a / 8, rel=1e-9)
     assert smooth[0] == pytest.approx((k - 3) / (k - 2) * np.cos(a), rel=1e-9)
+
+
+@pytest.mark.parametrize("points_per_turn", [5, 6, 8])
+def test_arc_lengths_are_exact_on_a_helix_and_a_circle(points_per_turn):
+    """The vertices' arc lengths from the polyline alone: on a helix sampled evenly (radius 2 mm, pitch
+    1.5 mm per radian) sqrt(R^2 + c^2) t, and on a circle R t, to round-off; the circle formula alone
+    (turning angle between chords) would miss a coil's length by percents."""
+    step = 2 * np.pi / points_per_turn
+    t = np.arange(0, 8 * points_per_turn + 1) * step
+    R, c = 0.002, 0.0015
+    helix = np.ascontiguousarray(np.stack([R * np.cos(t), R * np.sin(t), c * t], axis=1))
+    s = np.zeros(len(t))
+    fitting._arc_lengths(helix, s)
+    np.testing.assert_allclose(s, np.hypot(R, c) * t, rtol=1e-12, atol=1e-15)
+    circle = np.ascontiguousarray(np.stack([R * np.cos(t[:points_per_turn]), R * np.sin(t[:points_per_turn]),
+                                            np.zeros(points_per_turn)], axis=1))
+    s = np.zeros(points_per_turn)
+    fitting._arc_lengths(circle, s)
+    np.testing.assert_allclose(s, R * t[:points_per_turn], rtol=1e-12, atol=1e-15)
