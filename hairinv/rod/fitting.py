@@ -80,6 +80,9 @@ _LOOK_AHEAD = 0.5
 # weighs like a vertex off by delta times this fraction of the next segment's length.
 _TANGENT_WEIGHT = 0.5
 _NO_TANGENT = np.zeros(3)
+# Each element chosen along the strand fits its vertices within this fraction of the tolerance: the
+# largest distance meets the tolerance with room, and the mean stays near a quarter of it.
+_GREEDY_WITHIN = 0.5
 
 
 @jit
@@ -1191,7 +1194,7 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         # elements than the strand may carry (noise, kinks), that distance is doubled until it does not.
         omega_g = np.zeros((m - 1, 3))
         length_g = np.zeros(m - 1)
-        within = max(tolerance, 1e-9 * s[m - 1])
+        within = max(_GREEDY_WITHIN * tolerance, 1e-9 * s[m - 1])
         n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT)
         for _ in range(40):
             if n <= cap:
