@@ -34,7 +34,7 @@ else:
 sys.path.insert(0, str(ROOT))
 
 import fit_grooms  # noqa: E402
-from fit_bench import SINTEL, SOURCES  # noqa: E402  (the same real files as the main fit benchmark)
+from fit_bench import SINTEL, SOURCES, element_range  # noqa: E402  (the same real files as the main fit benchmark)
 
 from hairinv._parallel import worker_count  # noqa: E402
 from hairinv.config import FitSettings, ImportSettings  # noqa: E402
@@ -144,7 +144,7 @@ def run() -> str:
         f"## {TITLE}",
         "",
         "`bench/fit_any_bench.py`. The fit (`hairinv.fit.fit_groom`, default `FitSettings()`: tolerance "
-        f"{tol_mm:g} mm on the largest vertex distance, {settings.min_elements}-{settings.max_elements} elements) "
+        f"{tol_mm:g} mm on the largest vertex distance, {element_range(settings)}) "
         "on strands of kinds it finds hard, made by `bench/fit_grooms.py` over the test mannequin of "
         "`bench/grooms.py` (roots on its scalp, strands 10-40 cm long draped over it): straight hair with the "
         "corners a kinematic drape leaves where points were pushed out of the body (`kinks`), waves across the "

@@ -322,9 +322,16 @@ def peer_fit(p: np.ndarray, up: np.ndarray, length: np.ndarray, tolerance: float
     return root, _rotate(F0, sol.x[0], sol.x[1]), np.ascontiguousarray(sol.x[2:].reshape(n, 3)), sol.nfev
 
 
+def element_range(fs: FitSettings) -> str:
+    """The element counts the settings allow, in words."""
+    if fs.max_elements > 0:
+        return f"{fs.min_elements} to {fs.max_elements} elements"
+    return f"at least {fs.min_elements} elements and at most what the vertices determine ((2M-5)/3 for M vertices)"
+
+
 def ours_fit(p: np.ndarray, up: np.ndarray, settings: FitSettings):
     """One strand through the fitter's batch kernel (single-threaded, no Python work around it)."""
-    n_max = settings.max_elements
+    n_max = settings.elements if settings.elements > 0 else fitting.element_cap(p, settings.max_elements)
     out_n, out_status = np.zeros(1, np.int64), np.zeros(1, np.int64)
     out_frame, out_omega = np.zeros((1, 3, 3)), np.zeros((1, n_max, 3))
     out_length, out_worst = np.zeros((1, n_max)), np.zeros(1)
@@ -551,7 +558,7 @@ def render(groom, info, comp, main, single, peer, sweep, others) -> str:
     out = [f"## {TITLE}", ""]
     out.append(
         f"`hairinv.fit.fit_groom` with the default `FitSettings`: tolerance {tol_mm:g} mm on the largest "
-        f"vertex distance, {fs.min_elements} to {fs.max_elements} elements per strand, "
+        f"vertex distance, {element_range(fs)} per strand, "
         f"{fs.max_iterations} Levenberg-Marquardt iterations per element count. "
         "Times are wall clock and are medians of repeated runs in one process, after a warm-up run, with the "
         "numba kernels already compiled (the compile time is measured separately below). Before each timed run "
