@@ -100,13 +100,12 @@ class FitReport:
                 lines.append(
                     f"  {int(coarse.sum())} are sampled too coarsely for it: between their vertices a smooth curve "
                     f"may pass up to {1e3 * self.sagitta[coarse].max():.2f} mm from the chords, so the vertices do "
-                    "not determine it to the tolerance; their fit is the smoothest through them. Resample them "
-                    "more finely, or raise fit.tolerance")
+                    "not determine it to the tolerance. Resample them more finely, or raise fit.tolerance")
             if rough.any():
                 need = 1e3 * self.fit_error[rough, 1].max()
                 lines.append(
                     f"  {int(rough.sum())} have vertices that scatter about a smooth curve (noise) or bend "
-                    "sharper (kinks) than a smooth rod follows within it; their fit is the smoothest near them. "
+                    "sharper (kinks) than a smooth rod follows within it. "
                     f"Smooth them, or raise fit.tolerance to {need:.2g} mm")
         listed = ", ".join(f"{k} ({1e3 * e:.3f} mm, length ratio {r:.3f})"
                            for k, e, r in self.worst() if e > self.tolerance)
