@@ -823,7 +823,7 @@ def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_ou
 def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangent_weight):
     """Elements chosen along the strand, each as long as it can be: from where the previous one ended,
     the most vertices one helix fits within ``within`` (m) at their arc lengths ``s``, found by doubling
-    then bisection. Each element ends at a vertex, so the fitted length is the polyline's estimated arc
+    from the previous element's count, then bisection. Each element ends at a vertex, so the fitted length is the polyline's estimated arc
     length. Writes ``F0`` (the root frame, its tangent fitted with the first element) and the first rows
     of ``omega`` (M-1, 3) and ``length`` (M-1,); returns the element count."""
     m = p.shape[0]
@@ -842,14 +842,15 @@ def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangen
     F_t = np.empty((3, 3))
     j = 0
     n = 0
+    k_prev = 2
     while j < m - 1:
         first = n == 0
         left = m - 1 - j
-        k_ok = 1
-        _element_trial(x, F, p, s, j, 1, om_prev, first, eta, cap, om_ok, F_ok, tangent_weight)
+        # the search starts at the previous element's vertex count (a curl keeps its pace)
+        k_ok = 0
         k_bad = left + 1
-        k = 2
-        while k <= left:
+        k = min(max(k_prev, 2), left)
+        while True:
             if _element_trial(x, F, p, s, j, k, om_prev, first, eta, cap, om_t, F_t, tangent_weight) <= within:
                 k_ok = k
                 om_ok[:] = om_t
@@ -868,6 +869,11 @@ def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangen
                 F_ok[:, :] = F_t
             else:
                 k_bad = k
+        if k_ok == 0:
+            # not even the next vertex within the distance: an element to it, as near as it comes
+            _element_trial(x, F, p, s, j, 1, om_prev, first, eta, cap, om_ok, F_ok, tangent_weight)
+            k_ok = 1
+        k_prev = k_ok
         ell = s[j + k_ok] - s[j]
         omega[n] = om_ok
         length[n] = ell
