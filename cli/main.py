@@ -792,9 +792,11 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
     scene = run["scene"]
     run_seconds = scene.seconds if seconds is None else seconds
     run_fps = scene.fps if fps is None else fps
-    run["record"] = command_record("verify", [model, run["body"]], run["settings"], ("body", "contacts", "dynamics"),
-                                   {"init": init, "seconds": run_seconds, "fps": run_fps, "tolerance_m": tolerance,
-                                    "full": full})
+    if output is not None:  # what the frames file records, and what --if-stale compares (inputs hashed once)
+        run["record"] = command_record("verify", [model, run["body"]], run["settings"],
+                                       ("body", "contacts", "dynamics"),
+                                       {"init": init, "seconds": run_seconds, "fps": run_fps,
+                                        "tolerance_m": tolerance, "full": full})
     if output is not None and _up_to_date(obj, if_stale, output, run["record"]):
         verdict = _recorded_verdict(output, tolerance, run_seconds)
         notes.append(f"the verdict recorded in {output}")
