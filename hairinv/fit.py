@@ -17,6 +17,7 @@ from .errors import InputError
 from ._parallel import run_chunks
 from .groom import Groom, strand_lengths
 from .model import Helices
+from .rod import fitting
 from .rod.fitting import FIT_TOLERANCE_NOT_MET, closest_distances, element_caps, fit_batch, sampling_figures
 
 __all__ = ["Helices", "FitReport", "fit_groom"]
@@ -26,9 +27,10 @@ __all__ = ["Helices", "FitReport", "fit_groom"]
 OVERLONG = 1.02
 # Strands listed by name in the report, worst first.
 LISTED = 5
-# Below this correlation of consecutive second differences, a strand's vertices scatter about a smooth
-# curve (white noise gives -2/3; a smooth curve, however coarsely sampled, near 1).
-SCATTERED = 0.3
+# Below this correlation of consecutive deviations from the chords, a strand's vertices scatter about a
+# smooth curve: noise dominates them (white noise gives -2/3; a smooth curve, however coarsely or unevenly
+# sampled, near 1; a coil at n points per turn cos(2 pi / n)). The fit uses the same bound.
+SCATTERED = float(fitting._NOISE_GATE)
 
 
 @dataclass
@@ -53,8 +55,11 @@ class FitReport:
     missed: np.ndarray | None = None
     """(S,) bool, the strands farther than the tolerance from a vertex"""
     smooth: np.ndarray | None = None
-    """(S,) the correlation of consecutive second differences of the vertices: near 1 on a smooth curve,
-    below :data:`SCATTERED` where the vertices scatter about one (noise)"""
+    """(S,) the correlation of consecutive deviations of the vertices from their chords: near 1 on a smooth
+    curve, below :data:`SCATTERED` where the vertices scatter about one (noise)"""
+    noise: np.ndarray | None = None
+    """(S,) m, where the vertices scatter (``smooth`` below :data:`SCATTERED`), the noise's estimated
+    standard deviation per coordinate (:func:`hairinv.rod.fitting._scatter`), else 0"""
 
     def worst(self, count: int = LISTED) -> list[tuple[int, float, float]]:
         """The strands farthest from their vertices: (index, largest distance m, length ratio)."""
@@ -101,11 +106,20 @@ class FitReport:
                     f"  {int(coarse.sum())} are sampled too coarsely for it: between their vertices a smooth curve "
                     f"may pass up to {1e3 * self.sagitta[coarse].max():.2f} mm from the chords, so the vertices do "
                     "not determine it to the tolerance. Resample them more finely, or raise fit.tolerance")
-            if rough.any():
-                need = 1e3 * self.fit_error[rough, 1].max()
+            noisy = rough & (self.noise > 0) if self.noise is not None else np.zeros_like(rough)
+            kinked = rough & ~noisy
+            if noisy.any():
+                need = 1e3 * self.fit_error[noisy, 1].max()
+                sigma = 1e3 * self.noise[noisy]
                 lines.append(
-                    f"  {int(rough.sum())} have vertices that scatter about a smooth curve (noise) or bend "
-                    "sharper (kinks) than a smooth rod follows within it. "
+                    f"  {int(noisy.sum())} have vertices that scatter about a smooth curve (noise of about "
+                    f"{np.median(sigma):.2g} mm per coordinate, up to {sigma.max():.2g} mm): they are fitted by "
+                    "the smooth curve, not the noise. "
+                    f"Smooth them, or raise fit.tolerance to {need:.2g} mm")
+            if kinked.any():
+                need = 1e3 * self.fit_error[kinked, 1].max()
+                lines.append(
+                    f"  {int(kinked.sum())} bend sharper (kinks) than a smooth rod follows within it. "
                     f"Smooth them, or raise fit.tolerance to {need:.2g} mm")
         listed = ", ".join(f"{k} ({1e3 * e:.3f} mm, length ratio {r:.3f})"
                            for k, e, r in self.worst() if e > self.tolerance)
@@ -175,10 +189,10 @@ def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 3
     helices = Helices(roots, out_frame, helix_offsets, length, omega, fit_error)
     missed = (out_status == FIT_TOLERANCE_NOT_MET) if settings.elements == 0 else np.zeros(count, bool)
     fitted_length = np.add.reduceat(length, helix_offsets[:-1]) if count else np.zeros(0)
-    arc, sagitta, smooth = np.zeros(count), np.zeros(count), np.zeros(count)
-    sampling_figures(points, offsets, arc, sagitta, smooth)
+    arc, sagitta, smooth, noise = np.zeros(count), np.zeros(count), np.zeros(count), np.zeros(count)
+    sampling_figures(points, offsets, arc, sagitta, smooth, noise)
     overlong = int((fitted_length > OVERLONG * arc).sum())
     report = FitReport(count, out_n, fit_error, int(missed.sum()), time.perf_counter() - start, overlong,
                        float(settings.tolerance), fitted_length / strand_lengths(points, offsets), sagitta, missed,
-                       smooth)
+                       smooth, noise)
     return helices, report

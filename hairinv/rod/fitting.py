@@ -26,6 +26,9 @@ parallel with deterministic results):
    element ``e`` moves everything downstream rigidly about the end of ``e``,
    which also lets the normal equations be summed without forming it
    (:func:`_normal_equations`, O(M + n^2) instead of O(M n^2)).
+   Where the vertices need more elements than the strand may carry and noise dominates them (a
+   capture's scatter, :func:`_scatter`), the elements aim at what the noise leaves instead, and one
+   least-squares solve over the strand puts the curve through the middle of the noise.
 3. Adaptive size, if the tolerance is still not met: elements holding a
    vertex farther than the tolerance are split in two. A split element with
    unchanged omega is the same curve, so each refinement starts from the
@@ -83,6 +86,16 @@ _NO_TANGENT = np.zeros(3)
 # Each element chosen along the strand fits its vertices within this fraction of the tolerance: the
 # largest distance meets the tolerance with room, and the mean stays near a quarter of it.
 _GREEDY_WITHIN = 0.5
+# Vertices that scatter about a smooth curve (a capture's noise): below this correlation of consecutive
+# deviations from the chords (:func:`_scatter`: about -2/3 for white noise, cos(2 pi / n) on a coil at n
+# points per turn), noise dominates, and the fit follows the smooth curve instead of the noise: its
+# elements may pass sigma * sqrt(2 ln M + _NOISE_MARGIN) from a vertex (the largest of M Rayleigh
+# distances is sigma sqrt(2 ln M) on average; the margin leaves about one strand in eight over it).
+_NOISE_GATE = 0.0
+_NOISE_MARGIN = 4.0
+# There the least-squares fit stops once a step lowers the cost by less than this fraction: the curve then
+# moves by far less than the noise.
+_NOISY_DECREASE = 1e-4
 
 
 @jit
@@ -350,6 +363,37 @@ def _normal_equations(root, omega, length, s, p, xs, Fs, starts, r, tang, odr, N
 
 
 @jit
+def _solve_spd(A, b, out):
+    """Solve ``A out = b`` for a small symmetric positive definite ``A`` by Cholesky (lower triangle of
+    ``A`` overwritten); returns False, with ``out`` untouched, if a pivot is not positive."""
+    n = b.shape[0]
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= A[j, k] * A[j, k]
+        if not d > 0.0:
+            return False
+        d = np.sqrt(d)
+        A[j, j] = d
+        for i in range(j + 1, n):
+            v = A[i, j]
+            for k in range(j):
+                v -= A[i, k] * A[j, k]
+            A[i, j] = v / d
+    for i in range(n):
+        v = b[i]
+        for k in range(i):
+            v -= A[i, k] * out[k]
+        out[i] = v / A[i, i]
+    for i in range(n - 1, -1, -1):
+        v = out[i]
+        for k in range(i + 1, n):
+            v -= A[k, i] * out[k]
+        out[i] = v / A[i, i]
+    return True
+
+
+@jit
 def _dot6(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
 
@@ -394,7 +438,7 @@ def _rotate_rows(F, th, out):
 
 
 @jit
-def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, eta, cap):
+def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, eta, cap, rel):
     """Refine ``F0`` (root tangent), ``omega`` and ``length`` (scaled as one) in place.
 
     ``s`` holds the vertices' matched arc lengths, in and out. With ``odr``
@@ -402,7 +446,8 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, e
     the curve: a robust first phase); with ``odr`` true they are projected on
     the curve (the exact orthogonal-distance fit). Stops early once every
     vertex residual is at most ``target`` (m). ``eta`` (m) and ``cap``
-    (1/m) set the priors. Returns the final cost. Damping follows the gain ratio (Nielsen 1999): it grows by
+    (1/m) set the priors; it stops when an accepted step lowers the cost by at most ``rel`` times
+    the cost. Returns the final cost. Damping follows the gain ratio (Nielsen 1999): it grows by
     ``nu`` on a rejected step and shrinks by ``max(1/3, 1 - (2 rho - 1)^3)``
     on an accepted one.
     """
@@ -475,7 +520,7 @@ def _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, odr, target, e
         r[:] = r_try
         tang[:, :] = tang_try
         cost = c_try
-        if decrease <= _RELATIVE_DECREASE * cost:
+        if decrease <= rel * cost:
             break
         worst2 = 0.0
         for j in range(m - 1):
@@ -602,6 +647,11 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, ta
     P = np.empty(3)
     Q = np.empty(3)
     D = np.empty(npar)
+    JtJ = np.empty((npar, npar))
+    A = np.empty((npar, npar))
+    g = np.empty(npar)
+    minus_g = np.empty(npar)
+    d = np.empty(npar)
     ell = 0.0
     for i in range(k):
         ell = max(ell, sig[i])
@@ -642,20 +692,35 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, ta
                     _cross_add(F[1 + c], t_end, col, tan_w)
                     for a in range(3):
                         Jl[3 * k + a, c] = col[a]
-        JtJ = Jl.T @ Jl
-        g = Jl.T @ res
+        for b in range(npar):
+            gb = 0.0
+            for r in range(rows):
+                gb += Jl[r, b] * res[r]
+            g[b] = gb
+            for c in range(b + 1):
+                v = 0.0
+                for r in range(rows):
+                    v += Jl[r, b] * Jl[r, c]
+                JtJ[b, c] = v
+                JtJ[c, b] = v
         _add_prior(JtJ, g, off, om, ell, eta, cap)
         dmax = 0.0
         for b in range(npar):
             dmax = max(dmax, JtJ[b, b])
         accepted = False
         c_try = cost
+        for b in range(npar):
+            minus_g[b] = -g[b]
         for _t in range(30):
-            A = JtJ.copy()
+            A[:, :] = JtJ
             for b in range(npar):
                 D[b] = max(JtJ[b, b], _DAMPING_FLOOR * dmax + 1e-300)
                 A[b, b] += lam * D[b]
-            d = np.linalg.solve(A, -g)
+            if not _solve_spd(A, minus_g, d):
+                A[:, :] = JtJ
+                for b in range(npar):
+                    A[b, b] += lam * D[b]
+                d[:] = np.linalg.solve(A, minus_g)
             for b in range(3):
                 om_try[b] = om[b] + d[off + b]
             if free_frame:
@@ -712,11 +777,27 @@ def _discrete_darboux(p, j0, j1):
         turning += np.arccos(min(1.0, max(-1.0, d0 @ d1)))
         h = 0.5 * (l0 + l1)
         h_mean += h
-        sm = 0.5 * h * (d0 + d1)
-        # rows of -[sm]_x: (Om' x sm) = -[sm]_x Om'
-        M = np.array([[0.0, sm[2], -sm[1]], [-sm[2], 0.0, sm[0]], [sm[1], -sm[0], 0.0]])
-        A += M.T @ M
-        b += M.T @ (d1 - d0)
+        # (Om' x sm) = M Om' with M = -[sm]_x, sm = h (d0 + d1) / 2: M^T M = |sm|^2 I - sm sm^T,
+        # M^T v = sm x v
+        sm0 = 0.5 * h * (d0[0] + d1[0])
+        sm1 = 0.5 * h * (d0[1] + d1[1])
+        sm2 = 0.5 * h * (d0[2] + d1[2])
+        ss = sm0 * sm0 + sm1 * sm1 + sm2 * sm2
+        A[0, 0] += ss - sm0 * sm0
+        A[1, 1] += ss - sm1 * sm1
+        A[2, 2] += ss - sm2 * sm2
+        A[0, 1] -= sm0 * sm1
+        A[1, 0] -= sm0 * sm1
+        A[0, 2] -= sm0 * sm2
+        A[2, 0] -= sm0 * sm2
+        A[1, 2] -= sm1 * sm2
+        A[2, 1] -= sm1 * sm2
+        v0 = d1[0] - d0[0]
+        v1 = d1[1] - d0[1]
+        v2 = d1[2] - d0[2]
+        b[0] += sm1 * v2 - sm2 * v1
+        b[1] += sm2 * v0 - sm0 * v2
+        b[2] += sm0 * v1 - sm1 * v0
     # Below a quarter turn the circular-arc start is good and the component
     # of Om along the chords (the torsion) is ill-conditioned here.
     if turning < 0.5 * np.pi:
@@ -820,12 +901,13 @@ def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_ou
 
 
 @jit
-def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangent_weight):
+def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangent_weight, limit):
     """Elements chosen along the strand, each as long as it can be: from where the previous one ended,
     the most vertices one helix fits within ``within`` (m) at their arc lengths ``s``, found by doubling
     from the previous element's count, then bisection. Each element ends at a vertex, so the fitted length is the polyline's estimated arc
     length. Writes ``F0`` (the root frame, its tangent fitted with the first element) and the first rows
-    of ``omega`` (M-1, 3) and ``length`` (M-1,); returns the element count."""
+    of ``omega`` (M-1, 3) and ``length`` (M-1,); returns the element count, or stops once it exceeds
+    ``limit`` and returns ``limit + 1``."""
     m = p.shape[0]
     _initial_frame(p, up, F0)
     x = root.copy()
@@ -885,6 +967,8 @@ def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangen
         om_prev[:] = om_ok
         j += k_ok
         n += 1
+        if n > limit:
+            break
     return n
 
 
@@ -1118,13 +1202,15 @@ def element_cap(p, n_max):
 
 
 @jit
-def sampling_figures(points, offsets, out_arc, out_sagitta, out_smooth):
+def sampling_figures(points, offsets, out_arc, out_sagitta, out_smooth, out_noise):
     """Per strand of a CSR polyline set: the arc length of a smooth curve through its vertices
     (:func:`_arc_lengths`, m); the largest distance such a curve may pass from a chord, half way between
     two vertices, ``h alpha / 8`` for a chord ``h`` with turning ``alpha`` at its ends (m): above the
-    tolerance, the vertices do not determine the curve between them to the tolerance; and how smooth the
-    vertices are, the correlation of consecutive second differences ``sum d_j . d_j+1 / sum |d_j|^2``:
-    near 1 on a smooth curve however coarsely sampled, near -2/3 where the vertices scatter (noise)."""
+    tolerance, the vertices do not determine the curve between them to the tolerance; how smooth the
+    vertices are, the correlation of consecutive deviations from the chords (:func:`_scatter`): near 1
+    on a smooth curve however coarsely or unevenly sampled, about -2/3 where the vertices scatter
+    (noise); and, where noise dominates (the correlation below zero), its estimated standard deviation
+    per coordinate (m, else 0)."""
     for i in range(offsets.shape[0] - 1):
         p = points[offsets[i]:offsets[i + 1]]
         m = p.shape[0]
@@ -1140,14 +1226,53 @@ def sampling_figures(points, offsets, out_arc, out_sagitta, out_smooth):
             alpha = min(max(turn[j - 1], turn[j] if j < m - 1 else 0.0), 0.5 * np.pi)
             worst = max(worst, np.sqrt(d @ d) * alpha / 8.0)
         out_sagitta[i] = worst
-        num = 0.0
-        den = 0.0
-        for j in range(1, m - 1):
-            a = p[j + 1] - 2.0 * p[j] + p[j - 1]
-            den += a @ a
-            if j < m - 2:
-                num += a @ (p[j + 2] - 2.0 * p[j + 1] + p[j])
-        out_smooth[i] = num / den if den > 0.0 else 1.0
+        out_smooth[i], out_noise[i] = _scatter(p)
+
+
+@jit
+def _scatter(p):
+    """How the vertices scatter about a smooth curve: ``(rho, sigma)``.
+
+    ``e_j = p_j - (w p_{j-1} + (1 - w) p_{j+1})``, the vertex's deviation from its chord at the chord
+    fraction of its arc length (zero on a straight line however unevenly sampled; about
+    ``kappa h_{j-1} h_j / 2`` on a curve). ``rho = sum e_j . e_{j+1} / sum |e_j|^2``: near 1 on a smooth
+    curve, ``cos(2 pi / n)`` on a coil at ``n`` points per turn, about -2/3 for white noise. Where
+    ``rho < _NOISE_GATE`` (noise dominates), ``sigma`` estimates the noise's standard deviation per
+    coordinate from ``e_j - e_{j+1}`` (a third difference, in which a smooth curve nearly cancels): for
+    noise ``n_j`` of deviation sigma it is ``(1 + w_{j+1}) n_j - w_j n_{j-1} - (2 - w_j) n_{j+1} +
+    (1 - w_{j+1}) n_{j+2}``, normal to the chords (the chord fractions absorb the tangential part), so
+    ``|e_j - e_{j+1}|^2 / (c_j sigma^2)`` (``c_j`` the sum of the squared weights) is chi-squared with 2
+    degrees of freedom, whose median is ``2 ln 2``: ``sigma^2`` is the median of
+    ``|e_j - e_{j+1}|^2 / c_j`` over ``2 ln 2`` (a median, so a few kinks do not count). Otherwise
+    ``sigma`` is 0. Strands of fewer than 6 vertices give ``(1, 0)``."""
+    m = p.shape[0]
+    if m < 6:
+        return 1.0, 0.0
+    e = np.empty((m - 2, 3))
+    w = np.empty(m - 2)
+    num = 0.0
+    den = 0.0
+    for j in range(1, m - 1):
+        a = p[j] - p[j - 1]
+        b = p[j + 1] - p[j]
+        la = np.sqrt(a @ a)
+        lb = np.sqrt(b @ b)
+        wj = lb / (la + lb) if la + lb > 0.0 else 0.5
+        w[j - 1] = wj
+        for c in range(3):
+            e[j - 1, c] = p[j, c] - (wj * p[j - 1, c] + (1.0 - wj) * p[j + 1, c])
+        den += e[j - 1] @ e[j - 1]
+        if j > 1:
+            num += e[j - 2] @ e[j - 1]
+    rho = num / den if den > 0.0 else 1.0
+    if not rho < _NOISE_GATE:
+        return rho, 0.0
+    q = np.empty(m - 3)
+    for j in range(m - 3):
+        c = (1.0 + w[j + 1]) ** 2 + w[j] ** 2 + (2.0 - w[j]) ** 2 + (1.0 - w[j + 1]) ** 2
+        d = e[j] - e[j + 1]
+        q[j] = (d @ d) / c
+    return rho, np.sqrt(np.median(q) / (2.0 * np.log(2.0)))
 
 
 @jit
@@ -1180,6 +1305,11 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     Returns
     -------
     n, worst, status : number of elements, largest vertex distance (m), FIT_*
+
+    Where the vertices need more elements than the strand may carry, noise dominates them
+    (:func:`_scatter`) and what it leaves exceeds the tolerance, the elements aim at
+    ``sigma sqrt(2 ln M + _NOISE_MARGIN)`` instead: the strand is fitted by the smooth curve and
+    reported off the tolerance.
     """
     m = p.shape[0]
     s = np.zeros(m)
@@ -1189,6 +1319,8 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
     err = np.zeros(m)
     eta = _PRIOR_OF_TOLERANCE * tolerance
     bend_cap = _CAP_FACTOR * _max_discrete_curvature(p)
+    target = tolerance
+    noisy = False
     if fixed > 0:
         n = min(fixed, m - 1)
         length = np.full(n, s[m - 1] / n)
@@ -1201,12 +1333,23 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         omega_g = np.zeros((m - 1, 3))
         length_g = np.zeros(m - 1)
         within = max(_GREEDY_WITHIN * tolerance, 1e-9 * s[m - 1])
-        n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT)
+        n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT, cap)
+        if n > cap:
+            # Where noise dominates the vertices, the elements follow the smooth curve through them: the
+            # distance they aim for is what the noise leaves, and no effort goes into following the noise.
+            noise = _scatter(p)[1]
+            if noise * np.sqrt(2.0 * np.log(m) + _NOISE_MARGIN) > tolerance:
+                target = noise * np.sqrt(2.0 * np.log(m) + _NOISE_MARGIN)
+                within = target
+                noisy = True
+                n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g,
+                                     _TANGENT_WEIGHT, cap)
         for _ in range(40):
             if n <= cap:
                 break
             within *= 2.0
-            n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT)
+            n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT,
+                                 cap)
         if n < n_min and m - 1 >= n_min:
             # fewer than asked for: split the longest until there are n_min
             while n < n_min:
@@ -1220,20 +1363,28 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
                 n += 1
         omega = omega_g[:n].copy()
         length = length_g[:n].copy()
-        from_init = _vertex_errors(root, F0, omega, length, s.copy(), p, err) > tolerance
+        from_init = _vertex_errors(root, F0, omega, length, s.copy(), p, err) > target
+    if noisy and n <= cap:
+        # least squares over the whole strand, the vertices at their arc lengths: the curve through the
+        # middle of the noise (elements laid one after the other drift by up to the distance they aim for)
+        _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False, 0.0, eta, bend_cap,
+                             _NOISY_DECREASE)
+        from_init = False
     while True:
         # Vertices first keep their fraction of the length (robust from a
         # rough start); the orthogonal-distance phase runs only if that is
         # not already within tolerance (fixed-fraction residuals bound the
         # true distances from above).
         if from_init:
-            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False, tolerance, eta, bend_cap)
+            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, False, target, eta, bend_cap,
+                                 _RELATIVE_DECREASE)
             from_init = False
         worst = _vertex_errors(root, F0, omega, length, s, p, err)
-        if worst > tolerance:
-            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, True, tolerance, eta, bend_cap)
+        if worst > target:
+            _levenberg_marquardt(root, F0, omega, length, s, p, max_iter, True, target, eta, bend_cap,
+                                 _RELATIVE_DECREASE)
             worst = _vertex_errors(root, F0, omega, length, s, p, err)
-        if fixed > 0 or worst <= tolerance or n >= cap:
+        if fixed > 0 or worst <= target or n >= cap or noisy:
             break
         # split the elements that hold a vertex beyond the tolerance, worst
         # first, between their middle vertices so each half keeps data
@@ -1249,7 +1400,7 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
                 first[e] = j
             count_in[e] += 1
         for j in range(1, m):
-            if err[j] > tolerance:
+            if err[j] > target:
                 e = np.searchsorted(starts, s[j], side="right") - 1
                 e = min(max(e, 0), n - 1)
                 badness[e] = max(badness[e], err[j])
@@ -1294,7 +1445,7 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         n += count
         omega = new_omega
         length = new_length
-    if fixed == 0 and worst > tolerance:
+    if fixed == 0 and worst > target and not noisy:
         # Splitting stalled in a local minimum: refit from scratch with the
         # largest allowed count of equal elements and keep the better fit.
         F_u = np.empty((3, 3))
@@ -1303,8 +1454,10 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         length_u = np.full(cap, s_u[m - 1] / cap)
         omega_u = np.zeros((cap, 3))
         _start(root, F_u, p, s_u, up, length_u, omega_u, eta, bend_cap, err)
-        _levenberg_marquardt(root, F_u, omega_u, length_u, s_u, p, max_iter, False, tolerance, eta, bend_cap)
-        _levenberg_marquardt(root, F_u, omega_u, length_u, s_u, p, max_iter, True, tolerance, eta, bend_cap)
+        _levenberg_marquardt(root, F_u, omega_u, length_u, s_u, p, max_iter, False, target, eta, bend_cap,
+                             _RELATIVE_DECREASE)
+        _levenberg_marquardt(root, F_u, omega_u, length_u, s_u, p, max_iter, True, target, eta, bend_cap,
+                             _RELATIVE_DECREASE)
         worst_u = _vertex_errors(root, F_u, omega_u, length_u, s_u, p, err)
         if worst_u < worst:
             worst = worst_u
