@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._dense import cholesky, cholesky_solve
 from .._jit import jit
 from .helix import _advance, chain, element_derivatives, element_step
 
@@ -363,37 +364,6 @@ def _normal_equations(root, omega, length, s, p, xs, Fs, starts, r, tang, odr, N
 
 
 @jit
-def _solve_spd(A, b, out):
-    """Solve ``A out = b`` for a small symmetric positive definite ``A`` by Cholesky (lower triangle of
-    ``A`` overwritten); returns False, with ``out`` untouched, if a pivot is not positive."""
-    n = b.shape[0]
-    for j in range(n):
-        d = A[j, j]
-        for k in range(j):
-            d -= A[j, k] * A[j, k]
-        if not d > 0.0:
-            return False
-        d = np.sqrt(d)
-        A[j, j] = d
-        for i in range(j + 1, n):
-            v = A[i, j]
-            for k in range(j):
-                v -= A[i, k] * A[j, k]
-            A[i, j] = v / d
-    for i in range(n):
-        v = b[i]
-        for k in range(i):
-            v -= A[i, k] * out[k]
-        out[i] = v / A[i, i]
-    for i in range(n - 1, -1, -1):
-        v = out[i]
-        for k in range(i + 1, n):
-            v -= A[k, i] * out[k]
-        out[i] = v / A[i, i]
-    return True
-
-
-@jit
 def _dot6(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
 
@@ -649,6 +619,7 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, ta
     D = np.empty(npar)
     JtJ = np.empty((npar, npar))
     A = np.empty((npar, npar))
+    L = np.empty((npar, npar))
     g = np.empty(npar)
     minus_g = np.empty(npar)
     d = np.empty(npar)
@@ -716,10 +687,9 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, ta
             for b in range(npar):
                 D[b] = max(JtJ[b, b], _DAMPING_FLOOR * dmax + 1e-300)
                 A[b, b] += lam * D[b]
-            if not _solve_spd(A, minus_g, d):
-                A[:, :] = JtJ
-                for b in range(npar):
-                    A[b, b] += lam * D[b]
+            if cholesky(A, L):
+                cholesky_solve(L, minus_g, d)
+            else:
                 d[:] = np.linalg.solve(A, minus_g)
             for b in range(3):
                 om_try[b] = om[b] + d[off + b]
