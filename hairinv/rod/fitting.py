@@ -362,7 +362,6 @@ def _normal_equations(root, omega, length, s, p, xs, Fs, starts, r, tang, odr, N
         g[c] = gc
 
 
-
 @jit
 def _dot6(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
