@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit
-from .local import LOCAL_TOL, NUMERICAL_ERROR, _fb_coulomb, _nat, solve_contact
+from .local import LOCAL_TOL, NUMERICAL_ERROR, _fb_coulomb, _nat, _proj, solve_contact
 from .rows import ContactRows
 
 __all__ = ["strand_blocks"]
@@ -235,14 +235,27 @@ def _group_merit(W, n, q, rho, mu, x, u, phi, G, Jr, Ju, jac, desaxce, velocity)
 
 
 @jit(error_model="numpy")
+def _projected_worst(W, n, q, rho, mu, x, xp, u, phi, G, Jr, Ju, desaxce, velocity):
+    """``xp = P_K(x)`` contact by contact (scaled forces: the cones are scale-free) and the largest
+    natural-map residual there (see :func:`_group_merit`): the Newton iterates meet the cones only in the
+    limit, and what is stored, and measured against the target, is the admissible point."""
+    for a in range(n // 3):
+        k = 3 * a
+        xp[k], xp[k + 1], xp[k + 2] = _proj(x[k], x[k + 1], x[k + 2], mu[a])
+    _, worst = _group_merit(W, n, q, rho, mu, xp, u, phi, G, Jr, Ju, False, desaxce, velocity)
+    return worst
+
+
+@jit(error_model="numpy")
 def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, Wd, r, f, target,
                   max_iter, desaxce, velocity, g_lo, g_hi, done):
     """Each group's cone problem ``K ∋ r_g ⟂ u_g`` (with ``desaxce`` the De Saxce one, ``u~_g``) solved
     at once, the other groups frozen: nonsmooth Newton on the stacked FB function of the scaled forces
     ``x_i = rho_i r_i`` (``rho_i = trace W_ii / 3``, so that ``x`` and ``u`` share velocity units), with
     Armijo steps on ``|phi|^2 / 2`` and steepest descent where the Newton direction does not descend.
-    A group keeps the iterate whose largest natural-map residual (velocity units with ``velocity``,
-    else force units) is smallest, the start included; ``done[g]``: whether it meets ``target``.
+    A group keeps the iterate whose projection onto the cones has the smallest largest natural-map
+    residual (velocity units with ``velocity``, else force units), the start included, and stores that
+    projection; ``done[g]``: whether it meets ``target``.
     ``f = Z^T r`` is kept up to date (rows ``Z`` without a weight)."""
     big = 0
     for g in range(g_lo, g_hi):
@@ -258,6 +271,9 @@ def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, 
     x = np.empty(nb)
     xt = np.empty(nb)
     xbest = np.empty(nb)
+    xp = np.empty(nb)
+    up = np.empty(nb)
+    phip = np.empty(nb)
     u = np.empty(nb)
     phi = np.empty(nb)
     phit = np.empty(nb)
@@ -298,10 +314,10 @@ def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, 
                 acc += W[a, c] * x[c] / rho[c // 3]
             q[a] -= acc
         merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True, desaxce, velocity)
-        best = worst
+        best = _projected_worst(W, n, q, rho, mug, x, xbest, up, phip, Gt, Jr, Ju, desaxce, velocity)
         improved = False
         for a in range(n):
-            xbest[a] = x[a]
+            improved = improved or xbest[a] != x[a]  # the start was off the cones: store its projection
         for _ in range(max_iter):
             if best <= target or not np.isfinite(merit):
                 break
@@ -363,11 +379,12 @@ def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, 
                         for ra in range(3):
                             x[k + ra] = rho[a] * rk[ra]
                 merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True, desaxce, velocity)
-            if worst < best:
-                best = worst
+            projected = _projected_worst(W, n, q, rho, mug, x, xp, up, phip, Gt, Jr, Ju, desaxce, velocity)
+            if projected < best:
+                best = projected
                 improved = True
                 for a in range(n):
-                    xbest[a] = x[a]
+                    xbest[a] = xp[a]
         done[g] = best <= target
         if not improved:
             continue  # r untouched, bit for bit

@@ -375,6 +375,9 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     Wd = np.empty((n_contacts, 3, 3))
     diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, gamma, Wd)
     order, halves, bounds = sweep_plan(strand, n_strands, s, part_of)
+    # the start in the cones, as every point whose residual is measured: the local solves meet the cones
+    # only to about eps^(3/4), and the forces returned are exactly admissible
+    _extrapolate(r, r, 0.0, mu, r)
     f = np.empty(rows.n_dofs)
     _accumulate_f(rows.ptr, rows.cols, rows.vals, d, r, f)
     per_contact = np.empty(n_contacts)
@@ -388,17 +391,21 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     failures = 0
 
     f_check = np.empty(rows.n_dofs)
+    # the point of the last residual check, projected onto the cones: what the solver returns, so that the
+    # status and the residual it reports are those of the forces it returns
+    checked = np.empty((n_contacts, 3))
 
     def _check(point: np.ndarray) -> float:
+        _extrapolate(point, point, 0.0, mu, checked)
         # f rebuilt from the point itself, so round-off of the incremental updates cannot accumulate
-        _accumulate_f(rows.ptr, rows.cols, rows.vals, d, point, f_check)
-        return natural_residuals(rows.ptr, rows.cols, rows.vals, f_check, gamma, Wd, b, mu, point, desaxce,
+        _accumulate_f(rows.ptr, rows.cols, rows.vals, d, checked, f_check)
+        return natural_residuals(rows.ptr, rows.cols, rows.vals, f_check, gamma, Wd, b, mu, checked, desaxce,
                                  velocity, per_contact)
 
     def sweep_colour(lo: int, hi: int) -> tuple[int, int]:
         return _sweep(order, lo, hi, rows.ptr, rows.cols, rows.vals, d, gamma, Wd, b, mu, r, f, local_tol, desaxce)
 
-    residual = natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, desaxce, velocity, per_contact)
+    residual = _check(r)
     history.append((0, float(residual)))
     if residual <= target:
         status = CONVERGED
@@ -474,10 +481,10 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
                     break
     if accelerate:
         r = x
-    # local solves meet the cone to about eps^(3/4); make every force exactly admissible
-    _extrapolate(r, r, 0.0, mu, r)
-    if history[-1][0] != sweeps:
+    if history[-1][0] != sweeps:  # (stopped by a numerical error before its check)
         residual = _check(r)
         history.append((sweeps, float(residual)))
+    # the forces the last check measured: the last iterate, projected onto the cones
+    r = checked.copy()
     return SolverResult(r, status, sweeps, float(residual), float(residual / force_scale), history,
                         time.perf_counter() - started, len(bounds) - 1, failures, restarts)
