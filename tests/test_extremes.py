@@ -199,6 +199,54 @@ def test_body_contacts_solved_together_report_the_residual_of_the_forces_returne
     assert report.result.status == "CONVERGED" and report.result.sweeps == 0
 
 
+@hyp
+@given(exponent=st.floats(6.0, 12.0))
+def test_youngs_modulus_from_1e6_to_1e12(exponent):
+    """A soft rod's ``H K^-2 H^T`` reaches 1e20 where gamma is 1e-3: the blocks of ``W`` are singular to
+    working precision (gamma lost in the sum; before the fix the local solve refused them as not positive
+    definite, and a Young's modulus of 1e8 Pa ended the inversion with NUMERICAL_ERROR)."""
+    helices, contacts = two_strand_scene()
+    mat = material(youngs_modulus=10.0 ** exponent)
+    model, report = checked_inversion(helices, contacts, mat)
+    assert report.result.status == "CONVERGED"
+
+
+@pytest.mark.parametrize("exponent", [6.0, 8.0])
+def test_soft_rods_with_stabilisation_off(exponent):
+    helices, contacts = two_strand_scene()
+    _, report = checked_inversion(helices, contacts, material(youngs_modulus=10.0 ** exponent), stabilize="off")
+    assert report.result.status == "CONVERGED" and report.unstable > 0
+
+
+def test_a_block_singular_to_working_precision_is_solved_not_refused():
+    """``W = Z^T Z + gamma I`` with ``Z`` two rows of 1e10 (a contact point that moves in two directions
+    only) and gamma 1e-3: in floating point the sum is not positive definite (its Cholesky fails), gamma
+    being lost next to 1e20. The local solve takes it as the semidefinite matrix it is to working
+    precision (it used to refuse it as NUMERICAL_ERROR) and returns the solution of the contact law,
+    checked from the definitions: r in the cone, u in the dual cone, r . u = 0, relative to the data."""
+    for seed in (1, 2, 3):
+        Z = np.random.default_rng(seed).normal(size=(2, 3)) * 1e10
+        W = Z.T @ Z + 1e-3 * np.eye(3)
+        with pytest.raises(np.linalg.LinAlgError):
+            np.linalg.cholesky(W)
+        for mu in (0.0, 0.3, 2.0, np.inf):
+            for b in (np.array([-1.0, 0.2, 0.1]), np.array([-1.0, 3.0, -2.0]), np.array([2.0, 0.0, 0.0])):
+                b = Z.T @ (Z @ b) / 1e10  # a load the point can feel (in the range of W, as H D (...) is)
+                r = np.zeros(3)
+                status, res = solve_contact(W, b, mu, r, 1e-12, 50, False)
+                assert status == OK and np.isfinite(res) and np.all(np.isfinite(r))
+                u = W @ r + b
+                size_u = np.abs(b).max()
+                size_r = max(np.abs(r).max(), 1e-300)
+                assert r[0] >= 0 and (mu == np.inf or np.hypot(r[1], r[2]) <= mu * r[0] * (1 + 1e-12))
+                assert u[0] >= -1e-9 * size_u
+                if mu < np.inf:
+                    assert mu * np.hypot(u[1], u[2]) <= u[0] + 1e-9 * size_u * (1 + mu)
+                else:
+                    assert np.hypot(u[1], u[2]) <= 1e-9 * size_u
+                assert abs(r @ u) <= 1e-9 * size_r * size_u
+
+
 def _floor(width=4.0):
     """A flat floor (a box as the body) whose top face is 1 mm below the plane y = 0."""
     import trimesh

@@ -83,6 +83,12 @@ _INV_SQRT2 = 0.7071067811865476
 _FB_ZERO = 1.0 - _INV_SQRT2  # generalized Jacobian element of phi at x = y = 0
 _ARMIJO = 1e-4
 _HALVINGS = 30
+# W / rho (trace 3) whose smallest eigenvalue is above -_SEMIDEFINITE is positive semidefinite to
+# working precision: its entries carry round-off of a few eps per term summed (H D H^T over a strand's
+# columns); the local problem is then solved with that eigenvalue raised to _SHIFT, which moves the
+# relative residual by at most _SHIFT, far below LOCAL_TOL
+_SEMIDEFINITE = 1e-10
+_SHIFT = 64.0 * float(np.finfo(np.float64).eps)
 
 
 # --------------------------------------------------------------------------- cone
@@ -712,6 +718,38 @@ def _slide_failsafe(W, b, bnorm, mu, desaxce, best):
     return best_res
 
 
+@jit(error_model="numpy", inline="always")
+def _cholesky3(W, rho, shift):
+    """Cholesky factor of ``W / rho + shift I`` (lower triangle of W): ``(ok, l00, l10, l20, l11, l21, l22)``,
+    ``ok`` False where a pivot is not positive."""
+    l00 = W[0, 0] / rho + shift
+    if not (l00 > 0.0):
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    l00 = np.sqrt(l00)
+    l10 = W[1, 0] / rho / l00
+    l20 = W[2, 0] / rho / l00
+    l11 = W[1, 1] / rho + shift - l10 * l10
+    if not (l11 > 0.0):
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    l11 = np.sqrt(l11)
+    l21 = (W[2, 1] / rho - l20 * l10) / l11
+    l22 = W[2, 2] / rho + shift - l20 * l20 - l21 * l21
+    if not (l22 > 0.0):
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return True, l00, l10, l20, l11, l21, np.sqrt(l22)
+
+
+@jit(error_model="numpy")
+def _scaled_lower(W, rho):
+    """``W / rho`` made symmetric from its lower triangle (what the Cholesky reads)."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(i + 1):
+            out[i, j] = W[i, j] / rho
+            out[j, i] = out[i, j]
+    return out
+
+
 @jit(error_model="numpy")
 def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
     """Solve one contact's cone complementarity problem ``K_mu ∋ r ⟂ W r + b ∈ K*_mu``.
@@ -728,7 +766,11 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
     Parameters
     ----------
     W : (3, 3) float64, symmetric positive definite (symmetry is not checked: the
-        Cholesky reads the lower triangle, products use all of W)
+        Cholesky reads the lower triangle, products use all of W). Positive semidefinite to
+        working precision is accepted (a smallest eigenvalue of ``W / rho`` above -1e-10, as
+        when a regularisation below the round-off of the rest is lost in the sum): the
+        problem is then solved with that eigenvalue raised to 64 eps of ``rho``, and the
+        residual returned is that problem's (it differs from W's by at most 64 eps)
     b : (3,) float64
     mu : float64 >= 0, ``inf`` allowed
     r : (3,) float64, in: warm start (ignored if not finite); out: the solution
@@ -762,21 +804,19 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
     sb = max(abs(b[0]), max(abs(b[1]), abs(b[2])))
     ds = desaxce and mu < np.inf
     # Cholesky of W / rho = L L' (the positive-definiteness check, before anything else)
-    l00 = W[0, 0] / rho
-    if not (l00 > 0.0):
-        return NUMERICAL_ERROR, np.inf
-    l00 = np.sqrt(l00)
-    l10 = W[1, 0] / rho / l00
-    l20 = W[2, 0] / rho / l00
-    l11 = W[1, 1] / rho - l10 * l10
-    if not (l11 > 0.0):
-        return NUMERICAL_ERROR, np.inf
-    l11 = np.sqrt(l11)
-    l21 = (W[2, 1] / rho - l20 * l10) / l11
-    l22 = W[2, 2] / rho - l20 * l20 - l21 * l21
-    if not (l22 > 0.0):
-        return NUMERICAL_ERROR, np.inf
-    l22 = np.sqrt(l22)
+    shift = 0.0
+    ok, l00, l10, l20, l11, l21, l22 = _cholesky3(W, rho, shift)
+    if not ok:
+        # semidefinite to working precision (W = H D H^T + gamma I with gamma under the round-off of
+        # H D H^T: a soft rod's 1e20 against 1e-3): solved with the smallest eigenvalue of W / rho
+        # raised to _SHIFT; a W indefinite beyond round-off is an error
+        lam = np.linalg.eigvalsh(_scaled_lower(W, rho))[0]
+        if not (lam >= -_SEMIDEFINITE):
+            return NUMERICAL_ERROR, np.inf
+        shift = _SHIFT - lam
+        ok, l00, l10, l20, l11, l21, l22 = _cholesky3(W, rho, shift)
+        if not ok:
+            return NUMERICAL_ERROR, np.inf
     # take-off: b in the dual cone (De Saxce: b~ in K* iff b_N >= 0; mu = inf: the ray b_T = 0)
     bt = np.hypot(b[1], b[2])
     if mu == np.inf:
@@ -797,6 +837,7 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
     for i in range(3):
         for j in range(3):
             Wh[i, j] = W[i, j] / rho
+        Wh[i, i] += shift
     bh = V[5]
     for i in range(3):
         bh[i] = b[i] / sb
