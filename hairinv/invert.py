@@ -164,7 +164,7 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
         else:
             r = np.asarray(force, dtype=np.float64)
             tangential = np.hypot(r[:, 1], r[:, 2])
-            edge = loaded & (tangential >= SLIDING * contacts.mu * r[:, 0])
+            edge = loaded & _on_cone_edge(tangential, contacts.mu, r[:, 0])
             slip_kind[edge] = np.where(tangential[edge] > 0.0, 1, 2)  # 2: frictionless, both tangents free
             moving = edge & (tangential > 0.0)
             slip_dir[moving] = r[moving, 1:] / tangential[moving, None]
@@ -195,6 +195,15 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
 _NEGATIVE = UNSTABLE_MARGIN
 # a contact whose friction force is at least this fraction of mu r_N is on the edge of its cone: sliding
 SLIDING = 1.0 - 1e-4
+
+
+def _on_cone_edge(tangential: np.ndarray, mu: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Which contacts' friction force ``tangential`` (C,) is on the edge of its cone, ``SLIDING mu r_N``
+    or more. Infinite friction (the half-space ``r_N >= 0``) never slides: no edge, and no ``inf * 0``."""
+    mu = np.asarray(mu, dtype=np.float64)
+    finite = np.isfinite(mu)
+    bound = SLIDING * np.where(finite, mu, 0.0) * np.asarray(normal, dtype=np.float64)
+    return finite & (tangential >= bound)
 
 
 @jit
@@ -311,7 +320,7 @@ def group_margins(helices: Helices, material: Material, stiff: np.ndarray, rows:
     counts = np.diff(helices.offsets)
     world = np.einsum("cji,cj->ci", contacts.frame, np.asarray(force, dtype=np.float64))
     tangential = np.hypot(force[:, 1], force[:, 2])
-    edge = np.asarray(carrying, bool) & (tangential >= SLIDING * contacts.mu * force[:, 0])
+    edge = np.asarray(carrying, bool) & _on_cone_edge(tangential, contacts.mu, force[:, 0])
     checked, lams, too_large = [], [], 0
     for g in members:
         dofs = 3 * int(counts[g].sum())

@@ -167,6 +167,29 @@ def checked_inversion(helices, contacts, mat, tolerance=1e-8, max_sweeps=20000, 
     return model, report
 
 
+@pytest.mark.parametrize("mu", [0.0, 2.0, np.inf])
+@pytest.mark.parametrize("scene", ["resting", "two strands"])
+def test_friction_zero_two_and_infinite(mu, scene):
+    """mu = 0 carries no friction at all, mu = inf any (the half-space r_N >= 0)."""
+    if scene == "resting":
+        helices = strands([horizontal_strand(curl=4.0)])
+        tilted = UP + np.array([0.4, 0.0, 0.3])
+        contacts = make_contacts(helices, [(0, s, -1, 0.0, tilted, mu) for s in (0.05, 0.08, 0.115)])
+    else:
+        helices, contacts = two_strand_scene(mu=mu)
+    model, report = checked_inversion(helices, contacts, material())
+    assert report.result.status == "CONVERGED" and report.carrying > 0
+    if mu == 0.0:
+        assert np.all(model.force[:, 1:] == 0.0)
+    if mu == np.inf:
+        # infinite friction holds more than any finite one: the rest shape is at least as close to the input
+        finite, _ = checked_inversion(helices, dataclasses.replace(contacts, mu=np.full(contacts.n_contacts, 2.0)),
+                                      material())
+        drift = np.sum((model.omega_rest - helices.omega) ** 2)
+        sag = np.abs(generalized_gravity(helices, material()).ravel() / stiffness(helices, material())).max()
+        assert drift <= np.sum((finite.omega_rest - helices.omega) ** 2) * (1 + 1e-6) + (1e-6 * sag) ** 2
+
+
 def test_the_status_is_that_of_the_forces_returned():
     """The local solves meet the cones to about 1e-12 of the force, and the forces are projected onto them
     before they are returned. The status used to be decided, and the residual reported, before that
@@ -245,6 +268,21 @@ def test_a_block_singular_to_working_precision_is_solved_not_refused():
                 else:
                     assert np.hypot(u[1], u[2]) <= 1e-9 * size_u
                 assert abs(r @ u) <= 1e-9 * size_r * size_u
+
+
+def test_contacts_at_element_ends_and_at_the_root():
+    """Contacts exactly at every element end, the root (s = 0: the clamped point, whose rows of H are zero
+    and whose force only gamma fixes: zero) and the tip."""
+    helices = strands([horizontal_strand(n=4, total=0.12, curl=2.0)])
+    ends = [0.0, 0.03, 0.06, 0.09, 0.12]
+    for mu in (0.0, 0.3, np.inf):
+        contacts = make_contacts(helices, [(0, s, -1, 0.0, UP, mu) for s in ends])
+        model, report = checked_inversion(helices, contacts, material())
+        assert report.result.status == "CONVERGED"
+        assert np.all(model.force[0] == 0.0)
+        root_only = make_contacts(helices, [(0, 0.0, -1, 0.0, UP, mu)])
+        model, report = checked_inversion(helices, root_only, material())
+        assert report.result.status == "CONVERGED" and np.all(model.force == 0.0)
 
 
 def _floor(width=4.0):
