@@ -70,6 +70,14 @@ def generalized_gravity(helices: Helices, material: Material) -> np.ndarray:
     return out
 
 
+def tolerance_gravity(material: Material) -> float:
+    """m/s^2: the gravity of the weight the solver's tolerance is relative to: the material's, or, in a scene
+    without gravity (where every weight is zero and no residual could meet a tolerance relative to one),
+    the default 9.81 m/s^2."""
+    g = float(np.linalg.norm(material.gravity))
+    return g if g > 0.0 else MaterialSettings().gravity
+
+
 def target_shape(helices: Helices, target: str) -> np.ndarray:
     """The rest shape ``t`` the inversion draws ``q0`` towards, (E, 3).
 
@@ -597,7 +605,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     F_g = generalized_gravity(helices, material).ravel()
     rows = contact_rows(helices, contacts, run=lambda work, count: run_chunks(work, count, 2048))
     strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
-    force_scale = material.linear_density * np.linalg.norm(material.gravity) * float(strand_length.max())
+    force_scale = material.linear_density * tolerance_gravity(material) * float(strand_length.max())
     r0 = None
     warm = start is not None and contacts.n_contacts > 0  # a start for no contacts has nothing to start
     if warm:
@@ -723,6 +731,9 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     report.unstable_groups = unstable_groups
     report.unchecked_together = too_large
     report.stable_under = settings.stable_under
+    if not np.linalg.norm(material.gravity) > 0.0 and contacts.n_contacts:
+        report.notes.append(f"the scene has no gravity: the solver's tolerance is relative to the heaviest strand's "
+                            f"weight under {tolerance_gravity(material):g} m/s^2 ({force_scale:.3g} N)")
     if warm:
         report.notes.append(f"the solver started from the given forces (after {prior} earlier sweeps), at relative "
                             f"residual {first_residual / force_scale:.2g}")

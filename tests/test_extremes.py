@@ -308,6 +308,27 @@ def _coils(count):
                    np.tile(omega_e, (n * count, 1)), np.zeros((count, 2)))
 
 
+@pytest.mark.parametrize("target", ["actual", "zero"])
+def test_no_gravity(target):
+    """Without gravity the input shape is its own rest shape with no force (target actual); drawn towards
+    straight (target zero), the contacts hold what they can. The tolerance is relative to the strands'
+    weight at 9.81 m/s^2 (every weight is zero, and a residual relative to zero was 0/0)."""
+    mat = Material.from_settings(MaterialSettings(), UP)
+    mat = dataclasses.replace(mat, gravity=np.zeros(3))
+    helices = strands([horizontal_strand(n=5, total=0.1, curl=-20.0),
+                       horizontal_strand(n=4, total=0.08, curl=5.0, root=(0.0, 0.0, 0.001))])
+    contacts = make_contacts(helices, [(0, 0.08, -1, 0.0, UP, 0.3), (0, 0.05, 1, 0.05, -UP, 0.3),
+                                       (1, 0.07, -1, 0.0, UP, 0.3)])
+    model, report = checked_inversion(helices, contacts, mat, target=target)
+    assert report.result.status == "CONVERGED"
+    assert report.result.relative_residual == report.result.residual / weight_of(helices, mat)
+    assert any("no gravity" in line for line in report.lines())
+    if target == "actual":
+        assert np.all(model.force == 0.0) and np.array_equal(model.omega_rest, helices.omega)
+    else:
+        assert report.carrying > 0
+
+
 # ------------------------------------------------------------------------------------------ units
 
 
@@ -318,3 +339,35 @@ def _write_obj_mesh(path, vertices, faces):
 
 
 # ------------------------------------------------------------------------------------------ dynamics
+
+
+@pytest.mark.parametrize("case", ["mu 0", "mu inf", "E 1e6", "E 1e12", "no gravity"])
+def test_a_still_step_from_an_inverted_strand_on_a_floor_at_the_extremes(case):
+    """A strand lying on a floor (a box), its contacts detected, inverted, and simulated from the model
+    with the inversion's forces as the first impulses: the groom stays still (without gravity the
+    simulation used to divide by zero in its contact tolerance)."""
+    from hairinv.config import Settings
+    from hairinv.contacts import detect_contacts
+    from hairinv.dynamics.simulate import Motion, Simulation
+
+    body = _floor(1.0)
+    helices = strands([horizontal_strand(n=6, total=0.12, curl=3.0 if case == "no gravity" else 0.0)])
+    settings = Settings()
+    contacts, _ = detect_contacts(helices, body, settings.contacts)
+    assert contacts.n_body >= 3
+    mat = material(youngs_modulus={"E 1e6": 1e6, "E 1e12": 1e12}.get(case, 4e9))
+    solver = {}
+    if case.startswith("mu"):
+        contacts = dataclasses.replace(contacts, mu=np.full(contacts.n_contacts, 0.0 if case == "mu 0" else np.inf))
+    if case == "no gravity":
+        mat = dataclasses.replace(mat, gravity=np.zeros(3))
+        solver = {"target": "zero"}
+    model, report = checked_inversion(helices, contacts, mat, tolerance=1e-6, **solver)
+    assert report.result.status == "CONVERGED" and report.carrying > 0
+    sim = Simulation(helices, model.rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
+                     initial_force=model.force, stiffening=model.stiffening)
+    for _ in range(3):
+        step = sim.step(Motion.still(mat.gravity))
+        assert step.status == "CONVERGED"
+    # the free velocity is of order h g / length ~ 1 1/(m s); what is left is round-off
+    assert np.all(np.isfinite(sim.q)) and np.abs(sim.v).max() < 1e-8

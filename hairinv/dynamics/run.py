@@ -180,7 +180,8 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
     n_frames = int(round(seconds * fps)) + 1
     pivot = scene.pivot_point(helices.root) if helices.n_strands else np.zeros(3)
     world_gravity = material.gravity
-    up = -world_gravity / np.linalg.norm(world_gravity)
+    # without gravity there is no up axis (zero): a moving scene, which needs one, says so
+    up = -world_gravity / max(np.linalg.norm(world_gravity), 1e-300)
     start_points = _samples(helices, sim.q)
 
     def state(t: float):

@@ -36,6 +36,7 @@ from ..contacts.body import BodyMesh
 from ..contacts.detect import COINCIDENT, contact_frames, detect_contacts
 from ..rod.helix import chain, point_at
 from ..errors import InputError
+from ..invert import tolerance_gravity
 from ..model import Contacts, Helices, Material, stiffness
 from ..rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from ..solver.gauss_seidel import NUMERICAL, split_strands
@@ -444,8 +445,9 @@ class Simulation:
         weight = material.linear_density * np.linalg.norm(material.gravity)
         lengths = np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements else np.zeros(0)
         self.strand_weight = float(weight * lengths.max()) if len(lengths) else 1.0
-        # contact velocities are measured against the speed gravity adds in one step, g h
-        self.velocity_scale = float(np.linalg.norm(material.gravity))
+        # contact velocities are measured against the speed gravity adds in one step, g h (in a scene without
+        # gravity, that of the default 9.81 m/s^2: a tolerance relative to zero could never be met)
+        self.velocity_scale = tolerance_gravity(material)
         # new contacts come from the fixed distances: the hair layer and the wisps describe the input groom
         # (the model's own contacts of those rules persist at their distances, see _persist)
         self._detect_settings = dataclasses.replace(contacts, layer=False, wisp=False)
