@@ -73,6 +73,62 @@ def kernel_step(omega, sigma, F0):
     return F0.T @ P, R.T @ F0
 
 
+def test_straight_element_is_a_straight_line_and_its_derivatives_are_the_closed_forms():
+    """Curvature exactly 0: the line ``sigma t``, the frame unchanged, bit for bit; the derivatives are
+    those of a clamped straight rod: ``dx/dkappa1 = -sigma^2/2 n2``, ``dx/dkappa2 = sigma^2/2 n1``,
+    ``dx/dtau = 0``, and the frame turns by ``sigma`` about ``n1``, ``n2`` and ``t``."""
+    F0 = random_frame(1)
+    for sigma in (1e-6, 1e-3, 0.3, 1.0, 2.0):
+        x, F = kernel_step(np.zeros(3), sigma, F0)
+        np.testing.assert_array_equal(x, sigma * F0[0])
+        np.testing.assert_array_equal(F, F0)
+        dx, dth = np.empty((3, 3)), np.empty((3, 3))
+        element_derivatives(np.zeros(3), sigma, F0, dx, dth)
+        expected_dx = np.array([-0.5 * sigma ** 2 * F0[2], 0.5 * sigma ** 2 * F0[1], np.zeros(3)])
+        expected_dth = sigma * np.array([F0[1], F0[2], F0[0]])
+        np.testing.assert_allclose(dx, expected_dx, rtol=0, atol=4 * EPS * sigma ** 2)
+        np.testing.assert_allclose(dth, expected_dth, rtol=0, atol=4 * EPS * sigma)
+
+
+@hyp
+@given(curvature=st.one_of(st.just(1e4), st.floats(0.0, 4.0).map(lambda e: 10.0 ** e)), sigma=log10,
+       seed=st.integers(0, 2 ** 16))
+def test_element_step_and_its_derivatives_match_the_rotation_about_the_darboux_axis(curvature, sigma, seed):
+    """Curvatures 1 to 1e4 1/m (exactly 1e4 among them) over 1 um to 1 m: up to 1e4 rad in one
+    element. Position and frame against Rodrigues' formula, the derivatives against its complex step
+    where that is accurate (from 0.1 rad: below, ``sigma - sin(x) / a`` cancels in the reference, and
+    tests/test_helix.py checks small angles against the frame ODE)."""
+    sigma = 10.0 ** sigma
+    rng = np.random.default_rng(seed)
+    omega = rng.normal(size=3)
+    omega *= curvature / np.linalg.norm(omega)
+    F0 = random_frame(seed)
+    angle = curvature * sigma
+    x, F = kernel_step(omega, sigma, F0)
+    x_ref, F_ref = rodrigues(omega, sigma, F0)
+    assert np.all(np.isfinite(x)) and np.all(np.isfinite(F))
+    # the reference loses eps * angle in its own trigonometric arguments
+    tol = 8 * EPS * max(1.0, angle)
+    np.testing.assert_allclose(x, x_ref, rtol=0, atol=tol * max(sigma, 1.0 / curvature) + EPS * sigma)
+    np.testing.assert_allclose(F, F_ref, rtol=0, atol=tol)
+    np.testing.assert_allclose(F @ F.T, np.eye(3), rtol=0, atol=8 * EPS)
+    dx, dth = np.empty((3, 3)), np.empty((3, 3))
+    element_derivatives(omega, sigma, F0, dx, dth)
+    assert np.all(np.isfinite(dx)) and np.all(np.isfinite(dth))
+    if angle < 0.1:
+        return
+    h = 1e-30
+    for k in range(3):
+        w = omega.astype(complex)
+        w[k] += 1j * h
+        xc, Fc = rodrigues(w, sigma, F0.astype(complex))
+        S = (Fc.imag / h).T @ F_ref  # d(F^T) F = [dth]x in world coordinates
+        dth_ref = np.array([S[2, 1], S[0, 2], S[1, 0]])
+        scale_x = np.abs(xc.imag / h).max()
+        np.testing.assert_allclose(dx[k], xc.imag / h, rtol=0, atol=1e-13 * max(1.0, angle) * max(scale_x, sigma ** 2))
+        np.testing.assert_allclose(dth[k], dth_ref, rtol=0, atol=1e-13 * max(1.0, angle) * sigma)
+
+
 def circular_helix(radius, pitch):
     """The coil of ``radius`` rising ``pitch`` per turn about +z: its material Darboux components in the
     Frenet frame (kappa1 = 0, kappa2 = curvature, tau = torsion) and its closed-form point and frame."""
@@ -87,6 +143,80 @@ def circular_helix(radius, pitch):
         return x, np.stack([t, n, np.cross(t, n)], axis=-2)
 
     return np.array([0.0, radius / c ** 2, h / c ** 2]), at
+
+
+@pytest.mark.parametrize("pitch", [0.0, 1e-3, 5e-3])
+def test_a_one_millimetre_coil_follows_the_circular_helix(pitch):
+    """A coil of 1 mm radius (curvature 1000 1/m), 30 turns in elements of uneven lengths, some of
+    them 1 um long: points and frames along the chain against the circular helix."""
+    omega_e, at = circular_helix(1e-3, pitch)
+    c = np.hypot(1e-3, pitch / (2 * np.pi))
+    total = 30 * 2 * np.pi * c
+    rng = np.random.default_rng(5)
+    cuts = np.sort(np.concatenate([rng.uniform(0, total, 25), [0.3 * total + 1e-6, 0.6 * total + 2e-6]]))
+    cuts = np.concatenate([cuts, [0.3 * total, 0.6 * total, 0.6 * total + 1e-6]])
+    edges = np.unique(np.concatenate([[0.0], np.sort(cuts), [total]]))
+    length = np.diff(edges)
+    assert length.min() < 2e-6
+    omega = np.tile(omega_e, (len(length), 1))
+    x0, F0 = at(0.0)
+    s = np.concatenate([edges, np.linspace(0.0, total, 997)])
+    x, F = np.empty((len(s), 3)), np.empty((len(s), 3, 3))
+    frames_at(x0, F0, omega, length, s, x, F)
+    x_ref, F_ref = at(s)
+    # round-off grows with the number of elements and the turns made
+    np.testing.assert_allclose(x, x_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(F, F_ref, rtol=0, atol=1e-10)
+    xs, Fs = np.empty((len(length) + 1, 3)), np.empty((len(length) + 1, 3, 3))
+    chain(x0, F0, omega, length, xs, Fs)
+    np.testing.assert_allclose(xs, at(edges)[0], rtol=0, atol=1e-12)
+
+
+def test_point_jacobian_of_a_strand_of_curvature_1e4_matches_finite_differences():
+    """Three 1 mm elements at 1e4 1/m (10 rad each) and a 1 um one: the derivatives of a point at the tip,
+    at an element end and at the root against central differences of the points themselves."""
+    rng = np.random.default_rng(11)
+    omega = rng.normal(size=(4, 3))
+    omega *= 1e4 / np.linalg.norm(omega, axis=1, keepdims=True)
+    length = np.array([1e-3, 1e-6, 1e-3, 1e-3])
+    root, frame0 = np.zeros(3), random_frame(2)
+    for s in (0.0, 1e-3, 1e-3 + 1e-6, length.sum()):
+        J = np.empty((4, 3, 3))
+        point_jacobian(root, frame0, omega, length, s, J)
+        assert np.all(np.isfinite(J))
+        fd = np.zeros_like(J)
+        h = 1e-6 * 1e4
+        for e in range(4):
+            for k in range(3):
+                pts = []
+                for sign in (1.0, -1.0):
+                    w = omega.copy()
+                    w[e, k] += sign * h
+                    p = np.empty((1, 3))
+                    points_at(root, frame0, w, length, np.array([s]), p)
+                    pts.append(p[0])
+                fd[e, k] = (pts[0] - pts[1]) / (2 * h)
+        if s == 0.0:
+            assert np.all(J == 0.0)  # nothing moves the clamped root
+        np.testing.assert_allclose(J, fd, rtol=0, atol=FINITE_DIFFERENCE * max(np.abs(fd).max(), 1e-300))
+
+
+@hyp
+@given(exponents=st.lists(log10, min_size=1, max_size=6))
+def test_gravity_on_a_horizontal_cantilever_of_any_element_lengths(exponents):
+    """Elements from 1 um to 1 m (strands up to 6 m): the bending force of every element is the gravity
+    moment of the rod beyond each of its points, integrated over it: ``-lam g ((L-a)^3 - (L-b)^3) / 6``."""
+    length = 10.0 ** np.array(exponents)
+    n = len(length)
+    lam, g = 1e-5, np.array([0.0, -9.81, 0.0])
+    force = np.empty((n, 3))
+    gravity_forces(np.zeros(3), np.eye(3), np.zeros((n, 3)), length, lam, g, force)
+    L = length.sum()
+    b = np.cumsum(length)
+    a = b - length
+    expected = -lam * 9.81 * ((L - a) ** 3 - (L - b) ** 3) / 6.0
+    np.testing.assert_allclose(force[:, 1], expected, rtol=1e-12, atol=1e-14 * lam * 9.81 * L ** 3)
+    assert np.all(force[:, [0, 2]] == 0.0)
 
 
 # ------------------------------------------------------------------------------------------ inversion
@@ -222,6 +352,13 @@ def test_body_contacts_solved_together_report_the_residual_of_the_forces_returne
     assert report.result.status == "CONVERGED" and report.result.sweeps == 0
 
 
+@pytest.mark.parametrize("gamma", [1e-12, 1e-9, 1e-6, 1e-3, 1.0, 1e3, 1e6, 1e9])
+def test_gamma_from_1e_minus_12_to_1e9(gamma):
+    helices, contacts = two_strand_scene()
+    model, report = checked_inversion(helices, contacts, material(), gamma=gamma)
+    assert report.result.status == "CONVERGED"
+
+
 @hyp
 @given(exponent=st.floats(6.0, 12.0))
 def test_youngs_modulus_from_1e6_to_1e12(exponent):
@@ -285,6 +422,60 @@ def test_contacts_at_element_ends_and_at_the_root():
         assert report.result.status == "CONVERGED" and np.all(model.force == 0.0)
 
 
+@pytest.mark.parametrize("mu", [0.0, 0.3, np.inf])
+def test_two_identical_contacts_act_as_one(mu):
+    """Two identical contacts: W has two equal block rows, and only the sum of their forces is felt. The
+    pair holds the strand as the one contact does (the same rest shape and total force); with gamma of
+    the order of W's diagonal, which then decides the split, they share the load equally."""
+    helices = strands([horizontal_strand(n=4, total=0.12, curl=3.0)])
+    contacts = make_contacts(helices, [(0, 0.1, -1, 0.0, UP, mu)] * 2 + [(0, 0.06, -1, 0.0, UP, mu)])
+    single_contacts = contacts.subset([0, 2])
+    mat = material()
+    for gamma in (1e-3, None):
+        if gamma is None:
+            probe, _ = checked_inversion(helices, contacts, mat, max_sweeps=1)
+            W, *_ = dense_problem(helices, contacts, mat, probe)
+            gamma = float(np.mean(np.diag(W)))
+        # (W is singular to working precision along the pair's difference: the rest shapes agree to
+        # what the tolerance resolves, 6e-8 here at 1e-10, 5e-6 at 1e-8)
+        model, report = checked_inversion(helices, contacts, mat, gamma=gamma, tolerance=1e-10)
+        single, _ = checked_inversion(helices, single_contacts, mat, gamma=gamma, tolerance=1e-10)
+        assert report.result.status == "CONVERGED" and report.carrying > 0
+        sag = np.abs(single.omega_rest - helices.omega).max()
+        if gamma < 1.0:  # gamma negligible: the pair is the one contact
+            np.testing.assert_allclose(model.omega_rest, single.omega_rest, rtol=0, atol=1e-6 * sag)
+            np.testing.assert_allclose(model.force[0] + model.force[1], single.force[0], rtol=0,
+                                       atol=1e-6 * np.abs(single.force).max())
+        else:
+            np.testing.assert_allclose(model.force[0], model.force[1], rtol=0, atol=1e-6 * np.abs(model.force).max())
+
+
+def test_two_strands_lying_exactly_on_each_other():
+    """Two identical strands, one on the other (the same centre line, from the same root): hair-hair
+    contacts at equal arc lengths, at the root (both sides clamped: zero rows) and at element ends; the
+    lower strand on the body."""
+    helices = strands([horizontal_strand(n=4, total=0.1, curl=3.0), horizontal_strand(n=4, total=0.1, curl=3.0)])
+    specs = [(0, s, -1, 0.0, UP, 0.3) for s in (0.05, 0.09)]
+    specs += [(0, s, 1, s, -UP, 0.3) for s in (0.0, 0.03, 0.05, 0.075, 0.1)]
+    contacts = make_contacts(helices, specs)
+    model, report = checked_inversion(helices, contacts, material())
+    assert report.result.status == "CONVERGED" and report.carrying > 0
+
+
+def test_a_strand_lying_entirely_along_the_body():
+    """A support at every element end and midpoint, the root included: the body carries the weight, and
+    the rest shape stays far closer to the input than the gravity-only one."""
+    n = 8
+    helices = strands([horizontal_strand(n=n, total=0.16)])
+    contacts = make_contacts(helices, [(0, s, -1, 0.0, UP, 0.3) for s in np.linspace(0.0, 0.16, 2 * n + 1)])
+    mat = material()
+    model, report = checked_inversion(helices, contacts, mat, tolerance=1e-5)
+    baseline, _ = checked_inversion(helices, None, mat, target="gravity-only")
+    assert report.result.status == "CONVERGED"
+    assert np.abs(model.omega_rest - helices.omega).max() < 2e-3 * np.abs(baseline.omega_rest - helices.omega).max()
+    assert model.force[:, 0].sum() == pytest.approx(mat.linear_density * 9.81 * 0.16, rel=0.1)
+
+
 def _floor(width=4.0):
     """A flat floor (a box as the body) whose top face is 1 mm below the plane y = 0."""
     import trimesh
@@ -306,6 +497,71 @@ def _coils(count):
     return Helices(np.array([[0.0, 0.0, 1.5e-3 * k] for k in range(count)]), np.stack([F0 @ Rw.T] * count),
                    np.arange(0, n * count + 1, n, dtype=np.int64), np.full(n * count, total / n),
                    np.tile(omega_e, (n * count, 1)), np.zeros((count, 2)))
+
+
+@pytest.mark.parametrize("case", ["coincident", "coincident straight", "on the body", "elements of 1 um",
+                                  "two metres", "coils"])
+def test_detected_contacts_at_the_extremes(case):
+    """Contacts detected (not built by hand) on a flat floor: two strands with the same centre line
+    (the distance between them is zero, so their normal comes from the geometry), a strand whose centre
+    line lies on the body's surface, elements of 1 um, a 2 m strand, two 1 mm coils touching each other.
+    Every contact is finite with an orthonormal frame, and the inversion passes every check."""
+    from hairinv.config import Settings
+    from hairinv.contacts import detect_contacts
+
+    helices = {
+        "coincident": lambda: strands([horizontal_strand(n=4, total=0.1, curl=3.0)] * 2),
+        "coincident straight": lambda: strands([horizontal_strand(n=4, total=0.1)] * 2),
+        "on the body": lambda: strands([horizontal_strand(n=4, total=0.1, root=(0.0, -1e-3, 0.0))]),
+        "elements of 1 um": lambda: strands([(np.zeros(3), (1.0, 0.0, 0.0), np.zeros((4, 3)),
+                                              np.array([1e-6, 0.05, 1e-6, 0.05]))]),
+        "two metres": lambda: strands([horizontal_strand(n=8, total=2.0)]),
+        "coils": lambda: _coils(2),
+    }[case]()
+    contacts, _ = detect_contacts(helices, _floor(), Settings().contacts)
+    assert contacts.n_body > 0 and (contacts.n_hair > 0) == (helices.n_strands > 1)
+    for name in ("s", "point", "frame", "gap"):
+        assert np.all(np.isfinite(getattr(contacts, name))), name
+    np.testing.assert_allclose(np.einsum("cij,ckj->cik", contacts.frame, contacts.frame),
+                               np.broadcast_to(np.eye(3), (contacts.n_contacts, 3, 3)), rtol=0, atol=1e-12)
+    model, report = checked_inversion(helices, contacts, material(), tolerance=1e-6)
+    assert report.result.status == "CONVERGED" and report.carrying > 0
+
+
+@pytest.mark.parametrize("total, n", [(1e-3, 1), (1e-3, 4), (2.0, 2), (2.0, 20)])
+def test_strands_of_one_millimetre_and_two_metres(total, n):
+    helices = strands([horizontal_strand(n=n, total=total, curl=1.0 / total)])
+    contacts = make_contacts(helices, [(0, f * total, -1, 0.0, UP, 0.3) for f in (0.5, 0.8, 1.0)])
+    model, report = checked_inversion(helices, contacts, material())
+    assert report.result.status == "CONVERGED" and report.carrying > 0
+
+
+@hyp
+@given(exponents=st.lists(log10, min_size=1, max_size=5), curl=st.floats(-50.0, 50.0),
+       where=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=4))
+def test_elements_from_one_micrometre_to_one_metre(exponents, curl, where):
+    """Element lengths drawn from 1 um to 1 m, supports at every element end and at random places."""
+    length = 10.0 ** np.array(exponents)
+    total = length.sum()
+    omega = np.zeros((len(length), 3))
+    omega[:, 1] = curl
+    helices = strands([(np.zeros(3), (1.0, 0.0, 0.0), omega, length)])
+    places = np.concatenate([np.cumsum(length), np.array(where) * total])
+    contacts = make_contacts(helices, [(0, s, -1, 0.0, UP, 0.3) for s in places])
+    checked_inversion(helices, contacts, material(), max_sweeps=2000)
+
+
+def test_a_one_millimetre_coil_resting_on_supports():
+    """A 1 mm coil (curvature 1000 1/m), 20 turns lying along +x on supports under its lowest points."""
+    helices = _coils(1)
+    s = np.linspace(0.0, helices.length.sum(), 4001)
+    pts = np.empty((len(s), 3))
+    points_at(helices.root[0], helices.frame0[0], helices.omega, helices.length, s, pts)
+    lows = [s[k] for k in range(1, len(s) - 1) if pts[k, 1] <= pts[k - 1, 1] and pts[k, 1] <= pts[k + 1, 1]]
+    assert len(lows) >= 19
+    contacts = make_contacts(helices, [(0, sl, -1, 0.0, UP, 0.3) for sl in lows])
+    model, report = checked_inversion(helices, contacts, material(), tolerance=1e-6)
+    assert report.result.status == "CONVERGED" and report.carrying > 0
 
 
 @pytest.mark.parametrize("target", ["actual", "zero"])
@@ -336,6 +592,70 @@ def _write_obj_mesh(path, vertices, faces):
     lines = [f"v {x!r} {y!r} {z!r}\n" for x, y, z in vertices.tolist()]
     lines += [f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces.tolist()]
     path.write_text("".join(lines))
+
+
+def test_one_groom_in_metres_centimetres_millimetres_and_inches(tmp_path):
+    """A small groom on a box head, written in m, cm, mm and inches (hair and body alike) and read with
+    the matching ``import.units``: the imported points are the same in metres to round-off, and what is
+    computed from them (fit, contacts, inversion) agrees to its own accuracy. (The fit is not invariant
+    to round-off: its iterations stop at a tolerance, so the 1-ulp differences of the converted input
+    move the fitted centre lines by about 4e-11 m and curvatures by 3e-6 1/m.)"""
+    import trimesh
+
+    from hairinv import config
+    from hairinv.formats import write_curves
+    from hairinv.pipeline import prepare
+    from hairinv.rod.helix import points_at as centre_points
+
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
+    box.apply_translation((0.0, -0.1, 0.0))
+    grooms = []
+    for k, z in enumerate((-0.03, 0.0, 0.03)):
+        top = [(-0.05 + t, 0.0015 + 0.002 * np.sin(40 * t + k), z + 0.003 * np.sin(30 * t))
+               for t in np.linspace(0.0, 0.15, 16)]
+        side = [(0.1015, 0.0015 - t, z) for t in np.linspace(0.01, 0.08, 8)]
+        grooms.append(np.array(top + side))
+    points = np.concatenate(grooms)
+    offsets = np.cumsum([0] + [len(g) for g in grooms])
+    results = {}
+    for unit, metres in config.UNITS.items():
+        write_curves(tmp_path / f"hair_{unit}.obj", points / metres, offsets)
+        _write_obj_mesh(tmp_path / f"body_{unit}.obj", np.asarray(box.vertices) / metres, np.asarray(box.faces))
+        settings = config.apply(config.resolve(), {"import": {"units": unit}})
+        scene = prepare(tmp_path / f"hair_{unit}.obj", tmp_path / f"body_{unit}.obj", settings)
+        mat = Material.from_settings(settings.material, scene.up)
+        model, report = invert(scene.helices, scene.contacts, mat, settings.solver)
+        results[unit] = scene, model, report
+
+    def centre_lines(helices):
+        out = []
+        for k in range(helices.n_strands):
+            a, z = helices.offsets[k], helices.offsets[k + 1]
+            s = np.linspace(0.0, helices.length[a:z].sum(), 200)
+            p = np.empty((len(s), 3))
+            centre_points(helices.root[k], helices.frame0[k], helices.omega[a:z], helices.length[a:z], s, p)
+            out.append(p)
+        return np.concatenate(out)
+
+    scene_m, model_m, report_m = results["m"]
+    assert scene_m.contacts.n_body > 0 and report_m.carrying > 0
+    for unit, (scene, model, report) in results.items():
+        curves = scene.groups["curves"]
+        assert curves.attrs["scale_to_m"] == config.UNITS[unit]
+        np.testing.assert_allclose(curves["points"], scene_m.groups["curves"]["points"], rtol=4 * EPS, atol=0)
+        h, hm = scene.helices, scene_m.helices
+        assert np.array_equal(h.offsets, hm.offsets)
+        np.testing.assert_allclose(centre_lines(h), centre_lines(hm), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(h.fit_error, hm.fit_error, rtol=0, atol=1e-9)
+        c, cm = scene.contacts, scene_m.contacts
+        assert np.array_equal(c.strand, cm.strand)
+        np.testing.assert_allclose(c.s, cm.s, rtol=0, atol=1e-9)
+        # (the normals; the tangents are a choice in the normal plane, and a normal within round-off of an
+        # axis may get them turned)
+        np.testing.assert_allclose(c.frame[:, 0], cm.frame[:, 0], rtol=0, atol=1e-6)
+        assert report.result.status == report_m.result.status and np.all(np.isfinite(model.force))
+        sag, sag_m = h.omega - model.omega_rest, hm.omega - model_m.omega_rest
+        np.testing.assert_allclose(sag, sag_m, rtol=0, atol=1e-5 * np.abs(sag_m).max())
 
 
 # ------------------------------------------------------------------------------------------ dynamics
