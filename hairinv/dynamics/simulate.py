@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._dense import cholesky
 from .._jit import jit
 from .._parallel import run_chunks
 from ..config import ContactSettings, DynamicsSettings
@@ -149,25 +150,6 @@ _FUTILE_CAP = 4.0
 
 
 @jit
-def _cholesky(A, L):
-    """Lower Cholesky factor of the symmetric ``A`` into ``L``; False if ``A`` is not positive definite."""
-    n = A.shape[0]
-    for j in range(n):
-        d = A[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if not d > 0.0:
-            return False
-        L[j, j] = np.sqrt(d)
-        for i in range(j + 1, n):
-            acc = A[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            L[i, j] = acc / L[j, j]
-    return True
-
-
-@jit
 def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, air, h, motion, gx, gw, chol, v_free,
                     hess, mass, fresh, factored_h, held):
     """The free velocity of one strand and the Cholesky factor of its step matrix.
@@ -248,7 +230,7 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
             Mt[r, r] += h * damping * stiff[r]
             for c in range(nd):
                 Mt[r, c] += h * h * S[r, c]
-        if not _cholesky(Mt, L):
+        if not cholesky(Mt, L):
             lam_s, V = np.linalg.eigh(S)
             for k in range(nd):
                 lam_s[k] = max(lam_s[k], 0.0)
@@ -258,7 +240,7 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
                 Mt[r, r] += h * damping * stiff[r]
                 for c in range(nd):
                     Mt[r, c] += h * h * S[r, c]
-            if not _cholesky(Mt, L):
+            if not cholesky(Mt, L):
                 for r in range(nd):
                     v_free[r // 3, r % 3] = np.nan
                 return np.nan
