@@ -98,7 +98,9 @@ class FitReport:
                  f"({tol_mm:.3g} mm) from some vertex, with the most elements their vertices determine:"]
         if self.sagitta is not None:
             coarse = missed & (self.sagitta > self.tolerance)
-            if self.smooth is not None:
+            if self.noise is not None:
+                coarse &= self.noise == 0
+            elif self.smooth is not None:
                 coarse &= self.smooth >= SCATTERED
             rough = missed & ~coarse
             if coarse.any():

@@ -445,6 +445,22 @@ def test_the_noise_of_scattered_vertices_is_estimated(sigma, spacing):
     assert smooth_sigma < 1e-12
 
 
+def test_a_coarse_wiggle_is_not_taken_for_noise():
+    """A 16-point guide every 10 mm with a wiggle of 3.3 cm period (as some real guides have): its
+    deviations from the chords anticorrelate like noise, but 16 vertices cannot tell a wiggle from noise,
+    so no noise is estimated, the fit is not loosened to one (it stays within 2 tolerances of every
+    vertex), and the report calls the strand too coarse, not noisy."""
+    s = np.arange(16) * 0.01
+    wiggle = np.ascontiguousarray(np.stack([0.003 * np.sin(2 * np.pi * s / 0.033), -s,
+                                            0.002 * np.cos(2 * np.pi * s / 0.07)], axis=1))
+    rho, sigma = fitting._scatter(wiggle)
+    assert rho < 0.0 and sigma == 0.0
+    helices, report = fit_groom(_groom_of(wiggle), FitSettings())
+    assert report.noise[0] == 0.0 and helices.fit_error[0, 1] < 2 * 2e-4
+    text = "\n".join(report.lines())
+    assert "1 are sampled too coarsely" in text and "noise" not in text
+
+
 def test_a_noisy_strand_is_fitted_by_the_curve_under_the_noise():
     """A wave (2 cm amplitude) sampled every 3 mm with 0.3 mm of noise per coordinate: the vertices cannot
     be followed within 0.2 mm by a rod with the elements they determine, so the fit aims at the curve under

@@ -94,6 +94,10 @@ _GREEDY_WITHIN = 0.5
 # distances is sigma sqrt(2 ln M) on average; the margin leaves about one strand in eight over it).
 _NOISE_GATE = 0.0
 _NOISE_MARGIN = 4.0
+# Noise is told from shape only on strands of at least this many vertices: on a coarse guide of 16 (10 mm
+# chords), a wiggle's deviations from the chords anticorrelate too, and a median of a dozen third
+# differences estimates the wiggle, not a noise.
+_NOISE_MIN_VERTICES = 24
 # There the least-squares fit stops once a step lowers the cost by less than this fraction: the curve then
 # moves by far less than the noise.
 _NOISY_DECREASE = 1e-4
@@ -1213,7 +1217,8 @@ def _scatter(p):
     ``|e_j - e_{j+1}|^2 / (c_j sigma^2)`` (``c_j`` the sum of the squared weights) is chi-squared with 2
     degrees of freedom, whose median is ``2 ln 2``: ``sigma^2`` is the median of
     ``|e_j - e_{j+1}|^2 / c_j`` over ``2 ln 2`` (a median, so a few kinks do not count). Otherwise
-    ``sigma`` is 0. Strands of fewer than 6 vertices give ``(1, 0)``."""
+    ``sigma`` is 0, and so it is on strands of fewer than ``_NOISE_MIN_VERTICES`` vertices. Strands of
+    fewer than 6 vertices give ``(1, 0)``."""
     m = p.shape[0]
     if m < 6:
         return 1.0, 0.0
@@ -1234,7 +1239,7 @@ def _scatter(p):
         if j > 1:
             num += e[j - 2] @ e[j - 1]
     rho = num / den if den > 0.0 else 1.0
-    if not rho < _NOISE_GATE:
+    if not rho < _NOISE_GATE or m < _NOISE_MIN_VERTICES:
         return rho, 0.0
     q = np.empty(m - 3)
     for j in range(m - 3):
