@@ -573,12 +573,7 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
     import dataclasses
 
     from hairinv import config, stages
-    from hairinv.contacts import Contacts
-    from hairinv.dynamics.scene import Scene
-    from hairinv.dynamics.simulate import validate_settings
     from hairinv.errors import InputError
-    from hairinv.fit import Helices
-    from hairinv.groom import load_body, simulation_body
 
     if not model.exists():
         raise InputError("no such file", model)
@@ -586,10 +581,17 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
         raise InputError("no such file", body)
     if not stages.is_stage_file(model):
         raise InputError("is not a hairinv stage file: run `hairinv invert` on the hairstyle first", model)
-    stage = stages.read_stage(model)
+    stage = stages.read_stage(model)  # checked whole before the numerical code is even imported
     for name in (stages.CURVES, stages.HELICES, stages.MODEL):
         if name not in stage:
             raise InputError(f"has no /{name} group: run `hairinv invert` on it first", model)
+
+    from hairinv.contacts import Contacts
+    from hairinv.dynamics.scene import Scene
+    from hairinv.dynamics.simulate import validate_settings
+    from hairinv.fit import Helices
+    from hairinv.groom import load_body, simulation_body
+
     scene = Scene.load(scene_name)
     if output is not None:
         stages.check_output_path(output, inputs=[model, body])
@@ -830,7 +832,10 @@ def _recorded_verdict(path: Path, tolerance: float, seconds: float):
     from hairinv.dynamics.verify import judge_displacements
     from hairinv.errors import InputError
 
-    group = stages.read_stage(path)[stages.FRAMES]
+    stage = stages.read_stage(path)
+    if stages.FRAMES not in stage:
+        raise InputError("holds no /frames group to read a verdict from; run verify without --if-stale", path)
+    group = stage[stages.FRAMES]
     if "strand_displacement" not in group.datasets:
         raise InputError("holds no per-strand displacements (written by an older hairinv); run verify without "
                          "--if-stale", path)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,39 +31,117 @@ MODEL = "model"
 FRAMES = "frames"
 PIPELINE = (CURVES, HELICES, CONTACTS, MODEL, FRAMES)
 
-# Required datasets of each group: name -> (dtype kind, trailing shape).
-# The leading dimension is checked against the group's own counts on read.
-SCHEMA = {
-    CURVES: {"points": ("f", (3,)), "offsets": ("i", ())},
+# The datasets of each group: name -> (dtype kind, shape). A shape is a tuple of fixed sizes and of
+# counts the reader resolves from the file (check_consistency): S strands, P points of /curves,
+# E elements of /helices, C contacts, F frames, Ef elements of the frames' strands (E unless a trim
+# scene stored its own layout), n any. Datasets of REQUIRED must be there; the others are checked
+# where present.
+LAYOUT = {
+    CURVES: {"points": ("f", ("P", 3)), "offsets": ("i", ("S+1",))},
     HELICES: {
-        "root": ("f", (3,)),
-        "frame0": ("f", (3, 3)),
-        "offsets": ("i", ()),
-        "length": ("f", ()),
-        "omega": ("f", (3,)),
-        "fit_error": ("f", (2,)),
+        "root": ("f", ("S", 3)),
+        "frame0": ("f", ("S", 3, 3)),
+        "offsets": ("i", ("S+1",)),
+        "length": ("f", ("E",)),
+        "omega": ("f", ("E", 3)),
+        "fit_error": ("f", ("S", 2)),
     },
     CONTACTS: {
-        "strand": ("i", (2,)),
-        "s": ("f", (2,)),
-        "point": ("f", (3,)),
-        "frame": ("f", (3, 3)),
-        "mu": ("f", ()),
+        "strand": ("i", ("C", 2)),
+        "s": ("f", ("C", 2)),
+        "point": ("f", ("C", 3)),
+        "frame": ("f", ("C", 3, 3)),
+        "mu": ("f", ("C",)),
+        "gap": ("f", ("C",)),
     },
     MODEL: {
-        "omega_rest": ("f", (3,)),
-        "omega_target": ("f", (3,)),
-        "target_weight": ("f", ()),
-        "force": ("f", (3,)),
+        "omega_rest": ("f", ("E", 3)),
+        "omega_target": ("f", ("E", 3)),
+        "target_weight": ("f", ("E",)),
+        "force": ("f", ("C", 3)),
+        "residual_history": ("f", ("n", 2)),
+        "stiffening": ("f", ("S",)),
+        "omega_rest_stiffened": ("f", ("E", 3)),
+        "stability_margin": ("f", ("S",)),
     },
     FRAMES: {
-        "time": ("f", ()),
-        "omega": ("f", (None, 3)),
-        "root": ("f", (None, 3)),
-        "frame0": ("f", (None, 3, 3)),
-        "body_transform": ("f", (4, 4)),
+        "time": ("f", ("F",)),
+        "omega": ("f", ("F", "Ef", 3)),
+        "root": ("f", ("F", "S", 3)),
+        "frame0": ("f", ("F", "S", 3, 3)),
+        "body_transform": ("f", ("F", 4, 4)),
+        "displacement": ("f", ("F",)),
+        "strand_displacement": ("f", ("F", "S")),
+        "kinetic_energy": ("f", ("F",)),
+        "elastic_energy": ("f", ("F",)),
+        "contact_count": ("i", ("F",)),
+        "solver_residual": ("f", ("F",)),
+        "frame_seconds": ("f", ("F",)),
+        "offsets": ("i", ("S+1",)),
+        "length": ("f", ("Ef",)),
     },
 }
+
+REQUIRED = {
+    CURVES: ("points", "offsets"),
+    HELICES: ("root", "frame0", "offsets", "length", "omega", "fit_error"),
+    CONTACTS: ("strand", "s", "point", "frame", "mu"),
+    MODEL: ("omega_rest", "omega_target", "target_weight", "force"),
+    FRAMES: ("time", "omega", "root", "frame0", "body_transform"),
+}
+
+#: The groups a group is defined against: a model and frames are sized by the fitted strands' elements.
+#: Contacts name strands and arc lengths of /helices too, but a file may hold them without it (``invert``
+#: then fits the curves again and detects the contacts again): their strands are then those of /curves.
+NEEDS = {MODEL: HELICES, FRAMES: HELICES}
+
+#: The inversion targets a /model records (docs/stage-files.md).
+MODEL_TARGETS = ("actual", "zero", "uniform", "tip", "gravity-only")
+
+# The attributes hairinv reads: name -> (kind, required). Kinds: "positive" and "nonnegative" (a finite
+# number), "count" (an integer >= 0), "vector" (3 finite numbers, not all 0), "str", "bool", or a tuple of
+# the strings allowed.
+ATTRS = {
+    CURVES: {"up": ("vector", False), "scale_to_m": ("positive", False), "source": ("str", False)},
+    HELICES: {"seconds": ("nonnegative", False)},
+    CONTACTS: {"seconds": ("nonnegative", False)},
+    MODEL: {
+        "youngs_modulus": ("positive", True),
+        "shear_modulus": ("nonnegative", True),
+        "density": ("positive", True),
+        "radius": ("positive", True),
+        "gravity": ("vector", True),
+        "gamma": ("positive", True),
+        "target": (MODEL_TARGETS, False),
+        "iterations": ("count", False),
+        "prior_sweeps": ("count", False),
+        "residual": ("nonnegative", False),
+        "relative_residual": ("nonnegative", False),
+        "seconds": ("nonnegative", False),
+        "carrying_threshold": ("nonnegative", False),
+        "status": ("str", False),
+        "stable_under": (("forces", "supports"), False),
+    },
+    FRAMES: {
+        "time_step": ("positive", False),
+        "steps_per_frame": ("count", False),
+        "fps": ("positive", False),
+        "init": (("inverted", "naive", "gravity-only"), False),
+        "scene": ("str", False),
+        "body_removed": ("bool", False),
+        "trimmed": ("bool", False),
+        "stopped": ("bool", False),
+        "seconds": ("nonnegative", False),
+    },
+}
+
+#: Largest deviation of a frame's rows from orthonormal (|R R^T - I|, elementwise) a reader accepts: the
+#: writers' frames are orthonormal to round-off (1e-15); 1e-6 leaves room for files from other tools.
+FRAME_TOLERANCE = 1e-6
+#: How far past either end of its strand a contact's arc length may lie: 1e-6 m plus 1e-9 of the strand's
+#: length (the round-off of summing element lengths).
+ARC_TOLERANCE_M = 1e-6
+ARC_TOLERANCE_RELATIVE = 1e-9
 
 
 @dataclass
@@ -187,20 +267,36 @@ def write_stage(path, groups: list[Group], command: str, record: dict | None = N
 
 def _attr(value):
     if isinstance(value, bytes):
-        return value.decode()
+        return value.decode(errors="replace")
     if isinstance(value, np.generic):
         return value.item()
     return value
 
 
+def _memory_bytes() -> int | None:
+    """This machine's physical memory in bytes, or None where the system does not say."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
 def read_stage(path) -> StageFile:
     """Read and validate a stage file.
+
+    Every reader of a stage file goes through here, so a file that breaks the contract of
+    docs/stage-files.md is refused before any computation, with one sentence naming the file and what
+    is wrong (:func:`check_consistency` lists the checks).
 
     Raises
     ------
     InputError
-        If the file is not a hairinv stage file, has a newer schema, or a
-        group lacks a required dataset or has one of the wrong shape.
+        If the file is not a hairinv stage file, has a newer schema, lacks a dataset or attribute hairinv
+        needs, has one of the wrong type or shape, or holds groups inconsistent with one another.
     """
     path = Path(path)
     try:
@@ -208,44 +304,400 @@ def read_stage(path) -> StageFile:
     except (OSError, ValueError):
         raise InputError("is not a readable HDF5 file", path) from None
     with fh:
-        if _attr(fh.attrs.get("format")) != FORMAT:
-            raise InputError("is an HDF5 file but not a hairinv stage file", path)
-        version = int(_attr(fh.attrs.get("schema_version", 0)))
-        if version > SCHEMA_VERSION:
-            raise InputError(
-                f"was written with stage-file schema {version}; this hairinv reads schema {SCHEMA_VERSION} "
-                "(upgrade hairinv)",
-                path,
-            )
-        groups = {}
-        for name in PIPELINE:
-            if name not in fh:
-                continue
-            h5 = fh[name]
-            datasets = {key: h5[key][()] for key in h5.keys()}
-            attrs = {key: _attr(h5.attrs[key]) for key in h5.attrs.keys() if key not in ("config", "inputs")}
-            config = json.loads(_attr(h5.attrs.get("config", "{}")))
-            inputs = json.loads(_attr(h5.attrs.get("inputs", "[]")))
-            _validate_group(path, name, datasets)
-            groups[name] = Group(name, datasets, attrs, config, inputs)
-        if not groups:
-            raise InputError("holds no hairinv stage group", path)
-        return StageFile(path, groups, _attr(fh.attrs.get("producer", "")), version)
+        try:
+            stage = _read(fh, path)
+        except InputError:
+            raise
+        except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:  # h5py on a damaged file
+            raise InputError(f"cannot be read, the HDF5 file is damaged ({_one_line(exc)})", path) from None
+    check_consistency(stage)
+    return stage
 
 
-def _validate_group(path: Path, name: str, datasets: dict) -> None:
-    for key, (kind, trailing) in SCHEMA[name].items():
-        if key not in datasets:
+def _schema_version(value, path: Path) -> int:
+    value = _attr(value)
+    if isinstance(value, str):
+        value = value.strip()
+        if value.isdigit():
+            return int(value)
+    elif isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        return int(value)
+    raise InputError(f"has a schema_version attribute that is not an integer ({value!r})", path)
+
+
+def _json_attr(h5, key: str, default: str, path: Path, where: str):
+    text = _attr(h5.attrs.get(key, default))
+    try:
+        return json.loads(text)
+    except (TypeError, ValueError):
+        raise InputError(f"{where} attribute {key} is not JSON", path) from None
+
+
+def _read(fh, path: Path) -> StageFile:
+    if _attr(fh.attrs.get("format")) != FORMAT:
+        raise InputError("is an HDF5 file but not a hairinv stage file", path)
+    version = _schema_version(fh.attrs.get("schema_version", 0), path)
+    if version > SCHEMA_VERSION:
+        raise InputError(
+            f"was written with stage-file schema {version}; this hairinv reads schema {SCHEMA_VERSION} "
+            "(upgrade hairinv)",
+            path,
+        )
+    if "command" in fh.attrs:
+        check_command_record(_json_attr(fh, "command", "{}", path, "the root"), path)
+    members = {}
+    for name in PIPELINE:
+        if name not in fh:
+            continue
+        h5 = fh[name]
+        if not isinstance(h5, h5py.Group):
+            raise InputError(f"/{name} is not an HDF5 group", path)
+        members[name] = _group_members(h5, name, path)
+    if not members:
+        raise InputError("holds no hairinv stage group", path)
+    # refuse what would not fit in memory before reading any of it (a dataset may declare any size and
+    # store nothing: HDF5 fills it in on read)
+    declared = {f"/{name}/{key}": (0 if d.shape is None else math.prod(d.shape)) * d.dtype.itemsize
+                for name, datasets in members.items() for key, d in datasets.items()}
+    memory = _memory_bytes()
+    if memory is not None and sum(declared.values()) > memory:
+        largest = max(declared, key=declared.get)
+        raise InputError(f"would take {sum(declared.values()) / 1e9:.3g} GB of memory to read (its {largest} "
+                         f"declares {declared[largest] / 1e9:.3g} GB), more than this machine's "
+                         f"{memory / 1e9:.3g} GB", path)
+    groups = {}
+    for name, datasets in members.items():
+        h5 = fh[name]
+        data = {key: _normalise(name, key, d[()], path) for key, d in datasets.items()}
+        attrs = {key: _attr(h5.attrs[key]) for key in h5.attrs.keys() if key not in ("config", "inputs")}
+        config = _json_attr(h5, "config", "{}", path, f"/{name}")
+        inputs = _json_attr(h5, "inputs", "[]", path, f"/{name}")
+        _check_provenance(name, config, inputs, path)
+        groups[name] = Group(name, data, attrs, config, inputs)
+    return StageFile(path, groups, str(_attr(fh.attrs.get("producer", ""))), version)
+
+
+def _group_members(h5, name: str, path: Path) -> dict:
+    """The datasets of one group (h5py objects, not read yet), their dtype and dimensions checked against
+    :data:`LAYOUT`."""
+    found = {}
+    for key in h5.keys():
+        obj = h5.get(key)
+        if isinstance(obj, h5py.Dataset):
+            found[key] = obj
+        elif key in LAYOUT[name]:
+            raise InputError(f"/{name}/{key} is not a dataset", path)
+    for key in REQUIRED[name]:
+        if key not in found:
             raise InputError(f"group /{name} lacks the dataset {key!r}", path)
-        value = datasets[key]
-        if value.dtype.kind not in (kind, "u" if kind == "i" else kind):
-            raise InputError(f"/{name}/{key} has dtype {value.dtype}, expected {'float' if kind == 'f' else 'integer'}", path)
-        shape = value.shape[1:]
-        if len(shape) != len(trailing) or any(t is not None and t != s for t, s in zip(trailing, shape)):
-            raise InputError(f"/{name}/{key} has shape {value.shape}, expected (n, {', '.join(str(t) for t in trailing)})", path)
-        if not np.all(np.isfinite(value)) if kind == "f" else False:
-            raise InputError(f"/{name}/{key} contains NaN or Inf", path)
-    if "offsets" in datasets:
-        offsets = datasets["offsets"]
-        if len(offsets) < 1 or offsets[0] != 0 or np.any(np.diff(offsets) < 0):
-            raise InputError(f"/{name}/offsets is not a valid CSR offset array", path)
+    for key, (kind, dims) in LAYOUT[name].items():
+        if key not in found:
+            continue
+        d = found[key]
+        if d.shape is None:
+            raise InputError(f"/{name}/{key} holds no data (an HDF5 null dataspace)", path)
+        if d.dtype.kind not in ((kind, "u") if kind == "i" else (kind,)):
+            raise InputError(f"/{name}/{key} has dtype {d.dtype}, expected {'float' if kind == 'f' else 'integer'}",
+                             path)
+        if len(d.shape) != len(dims) or any(isinstance(w, int) and w != s for w, s in zip(dims, d.shape)):
+            raise InputError(f"/{name}/{key} has shape {d.shape}, expected ({', '.join(map(str, dims))})", path)
+    return found
+
+
+def _normalise(name: str, key: str, value: np.ndarray, path: Path) -> np.ndarray:
+    """A dataset of :data:`LAYOUT` as the code uses it: native float64, or int64 (values checked to fit)."""
+    if key not in LAYOUT[name]:
+        return value
+    if LAYOUT[name][key][0] == "f":
+        return np.ascontiguousarray(value, dtype=np.float64)
+    if value.dtype.kind == "u" and value.size and int(value.max()) > np.iinfo(np.int64).max:
+        raise InputError(f"/{name}/{key} holds {int(value.max())}, too large for an index", path)
+    return np.ascontiguousarray(value, dtype=np.int64)
+
+
+def _check_provenance(name: str, config, inputs, path: Path) -> None:
+    if not isinstance(config, dict):
+        raise InputError(f"/{name} attribute config is not a JSON object", path)
+    if not isinstance(inputs, list) or not all(isinstance(r, dict) for r in inputs):
+        raise InputError(f"/{name} attribute inputs is not a JSON list of records", path)
+    for record in inputs:
+        for key in ("name", "path", "abspath", "sha256"):
+            if key in record and not isinstance(record[key], str):
+                raise InputError(f"/{name} attribute inputs has a {key} that is not a string", path)
+
+
+def check_command_record(record, path) -> None:
+    """Refuse a root ``command`` record (docs/stage-files.md) that is not shaped as hairinv writes it."""
+    problem = None
+    if not isinstance(record, dict) or not isinstance(record.get("subcommand"), str):
+        problem = "is not a JSON object with a subcommand"
+    elif not isinstance(record.get("inputs", []), list) or not all(
+            r is None or (isinstance(r, dict) and isinstance(r.get("name"), str) and isinstance(r.get("sha256"), str))
+            for r in record.get("inputs", [])):
+        problem = "has inputs that are not records with a name and a sha256"
+    elif not isinstance(record.get("settings", {}), dict) or not all(
+            isinstance(v, dict) for v in record.get("settings", {}).values()):
+        problem = "has settings that are not sections of values"
+    elif not isinstance(record.get("options", {}), dict):
+        problem = "has options that are not a JSON object"
+    if problem:
+        raise InputError(f"has a command attribute that {problem}", path)
+
+
+# --------------------------------------------------------------------------- consistency
+
+
+def check_consistency(stage: StageFile) -> None:
+    """Refuse a stage file whose groups disagree with one another or with docs/stage-files.md.
+
+    Run by :func:`read_stage` on every file hairinv reads, before any computation. It checks that:
+
+    - the groups a group refers to are there (``/model`` and ``/frames`` need ``/helices``, ``/contacts``
+      needs ``/helices`` or ``/curves``);
+    - offsets are CSR (start at 0, never decrease) and end at the length of the arrays they index; every
+      strand has 2 points or more in ``/curves`` and an element or more in ``/helices``;
+    - ``/curves`` and ``/helices`` hold the same number of strands, and every dataset has the size of the
+      counts it is defined by (strands, points, elements, contacts, frames: :data:`LAYOUT`);
+    - float datasets are finite (``/model/stability_margin`` may be ``+inf``, as documented);
+    - element lengths are > 0; frames are orthonormal (:data:`FRAME_TOLERANCE`), rod frames right-handed;
+      ``/frames/body_transform`` is rigid; ``/frames/time`` increases;
+    - contacts: side A is a strand in ``[0, S)``; side B is ``-1`` (the body) or a strand in ``(A, S)``
+      (A is the lower index); arc lengths lie on their strands of ``/helices`` (within
+      :data:`ARC_TOLERANCE_M` plus :data:`ARC_TOLERANCE_RELATIVE` of the length; not checked in a file
+      without ``/helices``), and are 0 on the body's side; ``mu >= 0``;
+    - ``/model``: weights >= 0, stiffening factors > 0, and the attributes hairinv reads (:data:`ATTRS`)
+      of the right type and range.
+    """
+    path, groups = stage.path, stage.groups
+    for name, needed in NEEDS.items():
+        if name in groups and needed not in groups:
+            raise InputError(f"has a /{name} group but no /{needed}: its arrays are sized by the elements of "
+                             f"/{needed}", path)
+    if CONTACTS in groups and HELICES not in groups and CURVES not in groups:
+        raise InputError("has a /contacts group but neither /helices nor /curves: its strand indices refer to their "
+                         "strands", path)
+    for name, group in groups.items():
+        _check_attrs(path, name, group.attrs)
+        for key, value in group.datasets.items():
+            if key in LAYOUT[name] and LAYOUT[name][key][0] == "f":
+                _check_finite(path, name, key, value)
+    counts = {}
+    if CURVES in groups:
+        offsets = groups[CURVES]["offsets"]
+        _check_offsets(path, CURVES, offsets, len(groups[CURVES]["points"]), "points", "point", 2)
+        counts["S"] = (len(offsets) - 1, "strands (/curves/offsets)")
+        counts["P"] = (int(offsets[-1]), "points (/curves/offsets)")
+    if HELICES in groups:
+        h = groups[HELICES]
+        _check_offsets(path, HELICES, h["offsets"], len(h["length"]), "length", "element", 1)
+        strands = len(h["offsets"]) - 1
+        if "S" in counts and counts["S"][0] != strands:
+            raise InputError(f"holds {counts['S'][0]} strands in /curves but {strands} in /helices", path)
+        counts["S"] = (strands, "strands (/helices/offsets)")
+        counts["E"] = (int(h["offsets"][-1]), "elements (/helices/offsets)")
+    if CONTACTS in groups:
+        counts["C"] = (len(groups[CONTACTS]["strand"]), "contacts (/contacts/strand)")
+    else:
+        counts["C"] = (0, "contacts (the file has no /contacts group)")
+    if FRAMES in groups:
+        f = groups[FRAMES]
+        counts["F"] = (len(f["time"]), "frames (/frames/time)")
+        counts["Ef"] = counts["E"]
+        if ("offsets" in f.datasets) != ("length" in f.datasets):
+            raise InputError("/frames holds one of offsets and length without the other (a trimmed run stores both)",
+                             path)
+        if "offsets" in f.datasets:
+            _check_offsets(path, FRAMES, f["offsets"], len(f["length"]), "length", "element", 1)
+            counts["Ef"] = (int(f["offsets"][-1]), "elements of the frames' strands (/frames/offsets)")
+        if isinstance(f.attrs.get("trimmed"), bool) and f.attrs["trimmed"] != ("offsets" in f.datasets):
+            raise InputError(f"/frames says trimmed = {f.attrs['trimmed']} but "
+                             f"{'holds no' if f.attrs['trimmed'] else 'holds its own'} offsets and length", path)
+    for name, group in groups.items():
+        for key, value in group.datasets.items():
+            if key in LAYOUT[name]:
+                _check_size(path, name, key, value.shape, LAYOUT[name][key][1], counts)
+    if HELICES in groups:
+        h = groups[HELICES]
+        _check_positive(path, HELICES, "length", h["length"], "element lengths")
+        _check_frames(path, HELICES, "frame0", h["frame0"], right_handed=True)
+        if np.any(h["fit_error"] < 0):
+            raise InputError("/helices/fit_error holds a negative distance", path)
+    if CONTACTS in groups:
+        _check_contacts(path, groups[CONTACTS], groups.get(HELICES), counts["S"][0])
+    if MODEL in groups:
+        _check_model(path, groups[MODEL])
+    if FRAMES in groups:
+        _check_run(path, groups[FRAMES])
+
+
+def _check_offsets(path, name, offsets, rows: int, indexed: str, unit: str, least: int) -> None:
+    if len(offsets) < 1 or offsets[0] != 0 or np.any(np.diff(offsets) < 0):
+        raise InputError(f"/{name}/offsets is not a valid CSR offset array (it must start at 0 and never decrease)",
+                         path)
+    if offsets[-1] != rows:
+        raise InputError(f"/{name}/offsets ends at {int(offsets[-1])}, but /{name}/{indexed} has {rows} rows", path)
+    counts = np.diff(offsets)
+    if np.any(counts < least):
+        k = int(np.flatnonzero(counts < least)[0])
+        n = int(counts[k])
+        raise InputError(f"strand {k} has {n} {unit}{'' if n == 1 else 's'} by /{name}/offsets; a strand needs at "
+                         f"least {least}", path)
+
+
+def _check_size(path, name, key, shape, dims, counts) -> None:
+    expected = []
+    why = []
+    for size, dim in zip(shape, dims):
+        if isinstance(dim, int) or dim == "n":
+            expected.append(str(size) if dim == "n" else str(dim))
+            continue
+        symbol, plus = (dim[:-2], 1) if dim.endswith("+1") else (dim, 0)
+        count, what = counts[symbol]
+        expected.append(str(count + plus))
+        if size != count + plus:
+            why.append(f"{symbol} = {count} {what}")
+    if why:
+        raise InputError(f"/{name}/{key} has shape {tuple(shape)}, expected ({', '.join(expected)}"
+                         f"{',' if len(expected) == 1 else ''}): {'; '.join(why)}", path)
+
+
+def _check_finite(path, name, key, value) -> None:
+    if name == MODEL and key == "stability_margin":  # inf where no motion is left (docs/stage-files.md)
+        bad = np.isnan(value) | (value == -np.inf)
+    else:
+        bad = ~np.isfinite(value)
+    if np.any(bad):
+        where = np.unravel_index(int(np.flatnonzero(bad.ravel())[0]), value.shape)
+        raise InputError(f"/{name}/{key}{list(map(int, where))} is {value[where]}: the dataset must hold "
+                         f"{'no NaN and no -inf' if key == 'stability_margin' else 'finite numbers'}", path)
+
+
+def _check_positive(path, name, key, value, what: str) -> None:
+    if np.any(value <= 0):
+        k = int(np.flatnonzero(value <= 0)[0])
+        raise InputError(f"/{name}/{key}[{k}] is {value[k]:g}: {what} must be > 0", path)
+
+
+def _check_frames(path, name, key, frames, right_handed: bool) -> None:
+    """Every 3x3 of ``frames`` (..., 3, 3) has orthonormal rows; with ``right_handed``, determinant +1."""
+    R = frames.reshape(-1, 3, 3)
+    if not len(R):
+        return
+    error = np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))
+    bad = np.flatnonzero(error > FRAME_TOLERANCE)
+    if len(bad):
+        where = list(map(int, np.unravel_index(int(bad[0]), frames.shape[:-2])))
+        raise InputError(f"/{name}/{key}{where} is not an orthonormal frame (its rows are off by {error[bad[0]]:.2g}, "
+                         f"more than {FRAME_TOLERANCE:g})", path)
+    if right_handed:
+        bad = np.flatnonzero(np.linalg.det(R) < 0)
+        if len(bad):
+            where = list(map(int, np.unravel_index(int(bad[0]), frames.shape[:-2])))
+            raise InputError(f"/{name}/{key}{where} is a left-handed frame (rows t, n1, n2 need t x n1 = n2)", path)
+
+
+def _check_contacts(path, contacts: Group, helices: Group | None, n_strands: int) -> None:
+    strand, s = contacts["strand"], contacts["s"]
+    where = f"/{HELICES}" if helices is not None else f"/{CURVES}"
+    if len(strand) == 0:
+        return
+    a, b = strand[:, 0], strand[:, 1]
+    bad = np.flatnonzero((a < 0) | (a >= n_strands))
+    if len(bad):
+        i = int(bad[0])
+        raise InputError(f"/contacts/strand[{i}, 0] is {int(a[i])}, not a strand of the file: side A must be in "
+                         f"[0, {n_strands}) ({n_strands} strands in {where})", path)
+    bad = np.flatnonzero((b < -1) | (b >= n_strands))
+    if len(bad):
+        i = int(bad[0])
+        raise InputError(f"/contacts/strand[{i}, 1] is {int(b[i])}: side B must be -1 (the body) or a strand in "
+                         f"[0, {n_strands}) ({n_strands} strands in {where})", path)
+    bad = np.flatnonzero((b >= 0) & (b <= a))
+    if len(bad):
+        i = int(bad[0])
+        raise InputError(f"/contacts/strand[{i}] is ({int(a[i])}, {int(b[i])}): a hair-hair contact names the lower "
+                         "strand on side A and another strand on side B", path)
+    _check_frames(path, CONTACTS, "frame", contacts["frame"], right_handed=False)
+    if np.any(contacts["mu"] < 0):
+        i = int(np.flatnonzero(contacts["mu"] < 0)[0])
+        raise InputError(f"/contacts/mu[{i}] is {contacts['mu'][i]:g}: a friction coefficient must be >= 0", path)
+    if helices is None:  # the arc lengths belong to helices that are not in the file
+        return
+    offsets = helices["offsets"]
+    total = np.add.reduceat(helices["length"], offsets[:-1]) if len(helices["length"]) else np.zeros(n_strands)
+    for side, on in ((0, a), (1, b)):
+        hair = on >= 0
+        length = np.where(hair, total[np.where(hair, on, 0)], 0.0)
+        tol = ARC_TOLERANCE_M + ARC_TOLERANCE_RELATIVE * length
+        bad = np.flatnonzero((s[:, side] < -tol) | (s[:, side] > length + tol))
+        if len(bad):
+            i = int(bad[0])
+            if not hair[i]:
+                raise InputError(f"/contacts/s[{i}, 1] is {s[i, 1]:.6g} m on a body contact, where it must be 0",
+                                 path)
+            raise InputError(f"/contacts/s[{i}, {side}] is {s[i, side]:.6g} m, off strand {int(on[i])}, which runs "
+                             f"from 0 to {length[i]:.6g} m along /helices", path)
+
+
+def _check_model(path, model: Group) -> None:
+    weight = model["target_weight"]
+    if np.any(weight < 0):
+        i = int(np.flatnonzero(weight < 0)[0])
+        raise InputError(f"/model/target_weight[{i}] is {weight[i]:g}: weights must be >= 0", path)
+    if "stiffening" in model.datasets:
+        _check_positive(path, MODEL, "stiffening", model["stiffening"], "stiffening factors")
+    if ("stiffening" in model.datasets) != ("omega_rest_stiffened" in model.datasets):
+        raise InputError("/model holds one of stiffening and omega_rest_stiffened without the other", path)
+
+
+def _check_run(path, frames: Group) -> None:
+    time = frames["time"]
+    if np.any(np.diff(time) <= 0):
+        i = int(np.flatnonzero(np.diff(time) <= 0)[0]) + 1
+        raise InputError(f"/frames/time[{i}] is {time[i]:g} s, not after the frame before ({time[i - 1]:g} s)", path)
+    if "length" in frames.datasets:
+        _check_positive(path, FRAMES, "length", frames["length"], "element lengths")
+    _check_frames(path, FRAMES, "frame0", frames["frame0"], right_handed=True)
+    T = frames["body_transform"]
+    if len(T):
+        bottom = np.abs(T[:, 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=1)
+        if np.any(bottom > 0):
+            i = int(np.flatnonzero(bottom > 0)[0])
+            raise InputError(f"/frames/body_transform[{i}] is not a rigid transform (its last row must be 0 0 0 1)",
+                             path)
+        _check_frames(path, FRAMES, "body_transform[:, :3, :3]", np.ascontiguousarray(T[:, :3, :3]),
+                      right_handed=True)
+    for key in ("displacement", "strand_displacement", "contact_count"):
+        if key in frames.datasets and np.any(frames[key] < 0):
+            raise InputError(f"/frames/{key} holds a negative value", path)
+
+
+def _check_attrs(path, name, attrs: dict) -> None:
+    for key, (kind, required) in ATTRS[name].items():
+        if key not in attrs:
+            if required:
+                raise InputError(f"/{name} lacks the attribute {key!r}", path)
+            continue
+        value = attrs[key]
+        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+        if kind == "positive":
+            ok, want = number and np.isfinite(value) and value > 0, "a finite number > 0"
+        elif kind == "nonnegative":
+            ok, want = number and np.isfinite(value) and value >= 0, "a finite number >= 0"
+        elif kind == "count":
+            ok, want = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0, \
+                "an integer >= 0"
+        elif kind == "vector":
+            v = np.asarray(value)
+            ok = (v.shape == (3,) and v.dtype.kind in "iuf" and bool(np.all(np.isfinite(v)))
+                  and bool(np.any(v != 0)))
+            want = "3 finite numbers, not all 0"
+        elif kind == "str":
+            ok, want = isinstance(value, str), "a string"
+        elif kind == "bool":
+            ok, want = isinstance(value, (bool, np.bool_)), "true or false"
+        else:
+            ok, want = isinstance(value, str) and value in kind, f"one of {', '.join(kind)}"
+        if not ok:
+            shown = np.asarray(value).tolist() if isinstance(value, np.ndarray) else value
+            raise InputError(f"/{name} attribute {key} is {shown!r}; it must be {want}", path)

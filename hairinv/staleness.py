@@ -61,9 +61,11 @@ def recorded_command(path) -> dict | None:
     if text is None:
         return None
     try:
-        return json.loads(text.decode() if isinstance(text, bytes) else str(text))
+        record = json.loads(text.decode(errors="replace") if isinstance(text, bytes) else str(text))
     except json.JSONDecodeError:
         raise InputError(f"has a {COMMAND_ATTR} attribute that is not JSON", path) from None
+    stages.check_command_record(record, path)
+    return record
 
 
 def differences(recorded: dict, wanted: dict) -> list[str]:
@@ -180,6 +182,7 @@ def status(path, given_inputs=(), settings: Settings | None = None) -> tuple[boo
         raise InputError("no such file", path)
     reasons = []
     if stages.is_stage_file(path):
+        stages.read_stage(path)  # refuses a file that breaks the stage-file contract, as every reader does
         recorded = recorded_command(path)
         if recorded is None:
             raise InputError("records no command (written by an older hairinv): its currency cannot be told; "
