@@ -570,13 +570,10 @@ def _initial_frame(p, up, F0):
 
 
 @jit
-def _element_residual(x, F, om, sig, tgt, res, tan_tgt, tan_w):
+def _element_residual(x, F, om, sig, tgt, res, tan_tgt, tan_w, R, P, Q):
     """Residuals of one element started at (x, F) against targets; returns the cost. With ``tan_w > 0``,
     three more rows ``tan_w (t(ell) - tan_tgt)``: the tangent at the element's end (``ell``, the largest
-    ``sig``) against a unit target."""
-    R = np.empty((3, 3))
-    P = np.empty(3)
-    Q = np.empty(3)
+    ``sig``) against a unit target. ``R``, ``P``, ``Q``: scratch (3, 3), (3,), (3,)."""
     cost = 0.0
     k = sig.shape[0]
     ell = 0.0
@@ -632,7 +629,7 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, ta
     ell_a = np.full(1, ell)
     om_a = np.empty((1, 3))
     om_a[0] = om
-    cost = _element_residual(x, F, om, sig, tgt, res, tan_tgt, tan_w) + _prior_cost(om_a, ell_a, eta, cap)
+    cost = _element_residual(x, F, om, sig, tgt, res, tan_tgt, tan_w, R, P, Q) + _prior_cost(om_a, ell_a, eta, cap)
     lam = 1e-4
     nu = 2.0
     for _ in range(max_iter):
@@ -703,7 +700,7 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, ta
             else:
                 F_try[:, :] = F
             om_a[0] = om_try
-            c_try = (_element_residual(x, F_try, om_try, sig, tgt, res_try, tan_tgt, tan_w)
+            c_try = (_element_residual(x, F_try, om_try, sig, tgt, res_try, tan_tgt, tan_w, R, P, Q)
                      + _prior_cost(om_a, ell_a, eta, cap))
             accepted, lam, nu = _gain_ratio(cost, c_try, d, D, g, lam, nu)
             if accepted:
@@ -738,15 +735,19 @@ def _discrete_darboux(p, j0, j1):
     b = np.zeros(3)
     h_mean = 0.0
     turning = 0.0
+    d0 = np.empty(3)
+    d1 = np.empty(3)
     for j in range(j0, j1 - 1):
-        d0 = p[j + 1] - p[j]
-        d1 = p[j + 2] - p[j + 1]
+        for c in range(3):
+            d0[c] = p[j + 1, c] - p[j, c]
+            d1[c] = p[j + 2, c] - p[j + 1, c]
         l0 = np.sqrt(d0 @ d0)
         l1 = np.sqrt(d1 @ d1)
         if l0 == 0.0 or l1 == 0.0:
             continue
-        d0 = d0 / l0
-        d1 = d1 / l1
+        for c in range(3):
+            d0[c] /= l0
+            d1[c] /= l1
         turning += np.arccos(min(1.0, max(-1.0, d0 @ d1)))
         h = 0.5 * (l0 + l1)
         h_mean += h
@@ -842,21 +843,24 @@ def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_ou
         sig[i] = s[j + 1 + i] - s[j]
         tgt[i] = p[j + 1 + i]
     res = np.empty(3 * k + 3)
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
     F_out[:, :] = F
     om_out[:] = om_prev
-    best = _element_residual(x, F, om_out, sig, tgt, res, _NO_TANGENT, 0.0)
+    best = _element_residual(x, F, om_out, sig, tgt, res, _NO_TANGENT, 0.0, R, P, Q)
     om = np.empty(3)
     Om = _discrete_darboux(p, max(j - 1, 0), j + k)
     if Om @ Om > 0.0:
         om[0] = Om @ F[1]
         om[1] = Om @ F[2]
         om[2] = Om @ F[0]
-        c = _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0)
+        c = _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0, R, P, Q)
         if c < best:
             best = c
             om_out[:] = om
     _arc_toward(x, F, tgt[k - 1], sig[k - 1], om)
-    if _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0) < best:
+    if _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0, R, P, Q) < best:
         om_out[:] = om
     tangent = np.zeros(3)
     weight = 0.0
@@ -866,7 +870,7 @@ def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_ou
         d = p[end + 1] - p[end]
         weight = tangent_weight * np.sqrt(d @ d)
     _fit_element(x, F_out, om_out, sig, tgt, free_frame, 10, eta, cap, tangent, weight)
-    _element_residual(x, F_out, om_out, sig, tgt, res, _NO_TANGENT, 0.0)
+    _element_residual(x, F_out, om_out, sig, tgt, res, _NO_TANGENT, 0.0, R, P, Q)
     worst = 0.0
     for i in range(k):
         worst = max(worst, res[3 * i] ** 2 + res[3 * i + 1] ** 2 + res[3 * i + 2] ** 2)
@@ -1000,8 +1004,8 @@ def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta, cap):
             om2[1] = Om @ F[2]
             om2[2] = Om @ F[0]
             res = np.empty(3 * k)
-            if (_element_residual(x, F, om2, sig, tgt, res, _NO_TANGENT, 0.0)
-                    < _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0)):
+            if (_element_residual(x, F, om2, sig, tgt, res, _NO_TANGENT, 0.0, R, P, Q)
+                    < _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0, R, P, Q)):
                 om[:] = om2
         _fit_element(x, F, om, sig, tgt, e == 0, 10, eta, cap, _NO_TANGENT, 0.0)
         if e == 0:
