@@ -452,10 +452,11 @@ def check_consistency(stage: StageFile) -> None:
 
     Run by :func:`read_stage` on every file hairinv reads, before any computation. It checks that:
 
-    - the groups a group refers to are there (``/model`` and ``/frames`` need ``/helices``, ``/contacts``
-      needs ``/helices`` or ``/curves``);
+    - the groups a group refers to are there (``/model`` and ``/frames`` need ``/helices``; the strand
+      indices of ``/contacts`` are checked against ``/helices`` or ``/curves`` where the file has them);
     - offsets are CSR (start at 0, never decrease) and end at the length of the arrays they index; every
-      strand has 2 points or more in ``/curves`` and an element or more in ``/helices``;
+      strand has an element or more in ``/helices`` (a strand of ``/curves`` with fewer than 2 points is
+      dropped, and counted, where the groom is read);
     - ``/curves`` and ``/helices`` hold the same number of strands, and every dataset has the size of the
       counts it is defined by (strands, points, elements, contacts, frames: :data:`LAYOUT`);
     - float datasets are finite (``/model/stability_margin`` may be ``+inf``, as documented);
@@ -473,9 +474,6 @@ def check_consistency(stage: StageFile) -> None:
         if name in groups and needed not in groups:
             raise InputError(f"has a /{name} group but no /{needed}: its arrays are sized by the elements of "
                              f"/{needed}", path)
-    if CONTACTS in groups and HELICES not in groups and CURVES not in groups:
-        raise InputError("has a /contacts group but neither /helices nor /curves: its strand indices refer to their "
-                         "strands", path)
     for name, group in groups.items():
         _check_attrs(path, name, group.attrs)
         for key, value in group.datasets.items():
@@ -484,7 +482,8 @@ def check_consistency(stage: StageFile) -> None:
     counts = {}
     if CURVES in groups:
         offsets = groups[CURVES]["offsets"]
-        _check_offsets(path, CURVES, offsets, len(groups[CURVES]["points"]), "points", "point", 2)
+        # strands of fewer than 2 points are kept: reading a groom drops them and says so
+        _check_offsets(path, CURVES, offsets, len(groups[CURVES]["points"]), "points", "point", 0)
         counts["S"] = (len(offsets) - 1, "strands (/curves/offsets)")
         counts["P"] = (int(offsets[-1]), "points (/curves/offsets)")
     if HELICES in groups:
@@ -523,7 +522,10 @@ def check_consistency(stage: StageFile) -> None:
         if np.any(h["fit_error"] < 0):
             raise InputError("/helices/fit_error holds a negative distance", path)
     if CONTACTS in groups:
-        _check_contacts(path, groups[CONTACTS], groups.get(HELICES), counts["S"][0])
+        # a /contacts group alone (written for another file's strands) is checked for everything but its
+        # strands' count
+        strands = counts["S"][0] if "S" in counts else np.iinfo(np.int64).max
+        _check_contacts(path, groups[CONTACTS], groups.get(HELICES), strands)
     if MODEL in groups:
         _check_model(path, groups[MODEL])
     if FRAMES in groups:
