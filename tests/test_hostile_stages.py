@@ -264,8 +264,6 @@ CASES = {
     "left-handed root frame": (
         "model.h5", edit("helices/frame0", setitem(4, np.diag([1.0, 1.0, -1.0]))), ["simulate"],
         ["/helices/frame0[4] is a left-handed frame"]),
-    "one-point curve": (
-        "model.h5", edit("curves/offsets", setitem(1, 1)), ["fit"], ["strand 0 has 1 point by /curves/offsets"]),
     # model
     "omega_rest of another groom": (
         "model.h5", edit("model/omega_rest", lambda a: a[:100]), ["status"], ["/model/omega_rest has shape"]),
