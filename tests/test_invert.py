@@ -89,6 +89,18 @@ def horizontal_strand(n=6, total=0.12, curl=0.0, root=(0.0, 0.0, 0.0)):
     return (np.array(root, float), (1.0, 0.0, 0.0), omega, np.full(n, total / n))
 
 
+def three_strands_on_the_body(mu):
+    """Three horizontal strands (straight, curled, curled the other way) resting on 3-4 body contacts
+    each, with upright and tilted normals, friction ``mu``: (helices, contacts)."""
+    tilted = UP + np.array([0.3, 0.0, 0.2])
+    helices = strands([horizontal_strand(curl=c, root=(0.0, 0.0, z)) for c, z in ((0.0, 0.0), (2.0, 0.05),
+                                                                                  (-4.0, 0.1))])
+    specs = [(0, s, -1, 0.0, UP, mu) for s in (0.06, 0.08, 0.1)]
+    specs += [(1, s, -1, 0.0, tilted / np.linalg.norm(tilted), mu) for s in (0.05, 0.07, 0.09, 0.11)]
+    specs += [(2, s, -1, 0.0, UP, mu) for s in (0.07, 0.09, 0.115)]
+    return helices, make_contacts(helices, specs)
+
+
 def resting_scene(mu=0.3, n_contacts=3):
     """One horizontal strand on point supports below it (a body pushing up)."""
     helices = strands([horizontal_strand()])
@@ -246,13 +258,7 @@ def test_body_contacts_only_are_solved_strand_by_strand_at_once(mu, monkeypatch)
     the sweeps Gauss-Seidel needs from zero forces (165 to 3,465 here)."""
     import hairinv.invert as inverse
 
-    tilted = UP + np.array([0.3, 0.0, 0.2])
-    helices = strands([horizontal_strand(curl=c, root=(0.0, 0.0, z)) for c, z in ((0.0, 0.0), (2.0, 0.05),
-                                                                                  (-4.0, 0.1))])
-    specs = [(0, s, -1, 0.0, UP, mu) for s in (0.06, 0.08, 0.1)]
-    specs += [(1, s, -1, 0.0, tilted / np.linalg.norm(tilted), mu) for s in (0.05, 0.07, 0.09, 0.11)]
-    specs += [(2, s, -1, 0.0, UP, mu) for s in (0.07, 0.09, 0.115)]
-    contacts = make_contacts(helices, specs)
+    helices, contacts = three_strands_on_the_body(mu)
     mat = material()
     _, loose = solve(helices, contacts, mat, tolerance=1e-6)
     assert loose.result.status == "CONVERGED" and loose.result.sweeps == 0
