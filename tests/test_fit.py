@@ -151,13 +151,13 @@ def test_straight_polyline_gives_zero_curvature():
     assert ln.sum() == pytest.approx(0.3, rel=1e-14)
 
 
-@pytest.mark.parametrize("curl", [15.0, 1500.0])
-def test_fit_error_is_the_true_distance(rng, curl):
+@pytest.mark.parametrize("curl, n", [(15.0, 3), (1500.0, 3), (300.0, 30)])
+def test_fit_error_is_the_true_distance(rng, curl, n):
     """closest_distances against brute force on a dense sampling of the fitted curve; with |omega| ~ 1500
-    1/m each element winds about 12 turns (a coil followed by few elements)."""
-    n = 3
+    1/m each element winds about 12 turns (a coil followed by few elements); 30 elements of a curl that
+    comes back near itself, where the scan skips the elements it can rule out."""
     omega = rng.normal(size=(n, 3)) * curl
-    length = np.full(n, 0.05)
+    length = np.full(n, 0.15 / n)
     root = np.zeros(3)
     frame0 = np.eye(3)
     s_pts = np.linspace(0, 0.15, 25)
@@ -508,3 +508,33 @@ def test_arc_lengths_are_exact_on_a_helix_and_a_circle(points_per_turn):
     s = np.zeros(points_per_turn)
     fitting._arc_lengths(circle, s)
     np.testing.assert_allclose(s, R * t[:points_per_turn], rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("points_per_turn", [5, 6, 8, 12])
+def test_vertex_tangent_is_exact_on_a_helix(points_per_turn):
+    """The tangent an element aims its end at, from the polyline alone: on a helix sampled evenly
+    (radius 1 mm, pitch 3 mm) the helix's own tangent (-R sin t, R cos t, c) / |.| to round-off, where the
+    chords' average is degrees off (sin(phi)/phi across the axis); the estimate says the strand coils
+    there. On a circle the chords' average is exact and stays as it is; at a kink of a drape it is not
+    taken for a coil."""
+    step = 2 * np.pi / points_per_turn
+    t = np.arange(0, 3 * points_per_turn + 1) * step
+    R, c = 0.001, 0.003 / (2 * np.pi)
+    helix = np.ascontiguousarray(np.stack([R * np.cos(t), R * np.sin(t), c * t], axis=1))
+    out = np.zeros(3)
+    for i in range(1, len(t) - 1):
+        assert fitting._vertex_tangent(helix, i, out)
+        exact = np.array([-R * np.sin(t[i]), R * np.cos(t[i]), c]) / np.hypot(R, c)
+        np.testing.assert_allclose(out, exact, atol=1e-12)
+    # what the estimate corrects: the chords' average at the last vertex, over a degree off at 12 points
+    # per turn and more below
+    chords = helix[i + 1] - helix[i - 1]
+    assert np.degrees(np.arccos(chords @ exact / np.linalg.norm(chords))) > 1.0
+    circle = np.ascontiguousarray(np.stack([R * np.cos(t[:5]), R * np.sin(t[:5]), np.zeros(5)], axis=1))
+    fitting._vertex_tangent(circle, 2, out)
+    np.testing.assert_allclose(out, [-np.sin(t[2]), np.cos(t[2]), 0.0], atol=1e-12)
+    # a drape's corner: straight, a 20 degree turn, straight again (out of plane a little)
+    kink = np.array([[0, 0, 0], [4e-3, 0, 0], [8e-3, 0, 0], [8e-3 + 4e-3 * np.cos(0.35), 4e-3 * np.sin(0.35), 1e-4],
+                     [8e-3 + 8e-3 * np.cos(0.35), 8e-3 * np.sin(0.35), 3e-4]])
+    assert not fitting._vertex_tangent(np.ascontiguousarray(kink), 2, out)
+    assert not fitting._vertex_tangent(np.ascontiguousarray(kink), 1, out)

@@ -83,10 +83,21 @@ _LOOK_AHEAD = 0.5
 # Elements chosen along the strand hold their end tangent near the polyline's: a tangent off by delta
 # weighs like a vertex off by delta times this fraction of the next segment's length.
 _TANGENT_WEIGHT = 0.5
+# Where the strand coils (chords turning evenly by at least _COIL_TURN rad about a screw axis, the turns
+# at consecutive vertices within a factor _EVEN_TURNING), the tangent estimate is exact on a helix and the
+# end tangent sets the phase of the whole next element: it is held _COIL_TANGENT_GAIN times as firmly.
+_COIL_TURN = 0.35
+_EVEN_TURNING = 1.25
+_COIL_TANGENT_GAIN = 4.0
 _NO_TANGENT = np.zeros(3)
 # Each element chosen along the strand fits its vertices within this fraction of the tolerance: the
 # largest distance meets the tolerance with room, and the mean stays near a quarter of it.
 _GREEDY_WITHIN = 0.5
+# An element trial whose Levenberg-Marquardt still leaves a vertex beyond _GIVE_UP times the accepted
+# distance after _GIVE_UP_AFTER iterations is abandoned: trials that end within the distance were all
+# below 1.7 times it by their third iteration on the test grooms of bench/fit_grooms.py.
+_GIVE_UP = 2.0
+_GIVE_UP_AFTER = 3
 # Vertices that scatter about a smooth curve (a capture's noise): below this correlation of consecutive
 # deviations from the chords (:func:`_scatter`: about -2/3 for white noise, cos(2 pi / n) on a coil at n
 # points per turn), noise dominates, and the fit follows the smooth curve instead of the noise: its
@@ -594,10 +605,12 @@ def _element_residual(x, F, om, sig, tgt, res, tan_tgt, tan_w, R, P, Q):
 
 
 @jit
-def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, tan_w):
+def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, tan_w, give_up):
     """Levenberg-Marquardt on one element's omega (and, for the first element,
     the two angles of its start tangent); updates ``om`` and ``F`` in place.
-    ``tan_tgt``, ``tan_w``: an end-tangent target, as in :func:`_element_residual`."""
+    ``tan_tgt``, ``tan_w``: an end-tangent target, as in :func:`_element_residual`. From the
+    ``_GIVE_UP_AFTER``-th iteration on, it stops once a vertex stays farther than ``give_up`` (m; 0:
+    never), which a fit that ends within half that distance does not do."""
     k = sig.shape[0]
     rows = 3 * k + (3 if tan_w > 0.0 else 0)
     npar = 5 if free_frame else 3
@@ -632,7 +645,7 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, ta
     cost = _element_residual(x, F, om, sig, tgt, res, tan_tgt, tan_w, R, P, Q) + _prior_cost(om_a, ell_a, eta, cap)
     lam = 1e-4
     nu = 2.0
-    for _ in range(max_iter):
+    for it in range(max_iter):
         for i in range(k):
             element_derivatives(om, sig[i], F, dx, dth)
             for b in range(3):
@@ -714,6 +727,12 @@ def _fit_element(x, F, om, sig, tgt, free_frame, max_iter, eta, cap, tan_tgt, ta
         cost = c_try
         if rel < 1e-6:
             break
+        if give_up > 0.0 and it + 1 >= _GIVE_UP_AFTER:
+            worst = 0.0
+            for i in range(k):
+                worst = max(worst, res[3 * i] ** 2 + res[3 * i + 1] ** 2 + res[3 * i + 2] ** 2)
+            if worst > give_up * give_up:
+                break
     return cost
 
 
@@ -813,7 +832,13 @@ def _arc_toward(x, F, target, ell, om):
 @jit
 def _vertex_tangent(p, i, out):
     """Unit tangent estimate at interior vertex ``i``: the chords' directions averaged with the other
-    chord's length as weight, exact at the middle of three points evenly spaced on a circle or a helix."""
+    chord's length as weight, exact at the middle of three points evenly spaced on a circle. On a helix
+    that average turns too little about the axis: a helix turning phi about its axis per chord has
+    its central difference's component across the axis shortened by sin(phi)/phi. Where the strand
+    coils at ``i`` (the chords around it determine a screw axis, :func:`_screw_axis`, turn about it by
+    at least ``_COIL_TURN`` per chord, and turn evenly: the angles at consecutive vertices within a
+    factor ``_EVEN_TURNING``), the component along the axis is scaled by sin(phi)/phi, which makes the
+    estimate exact on evenly sampled helices, and the function returns True (False elsewhere)."""
     a = p[i] - p[i - 1]
     b = p[i + 1] - p[i]
     la = np.sqrt(a @ a)
@@ -824,18 +849,47 @@ def _vertex_tangent(p, i, out):
     if lb > 0.0:
         out += (la / lb) * b
     n = np.sqrt(out @ out)
-    if n > 0.0:
-        out /= n
+    if n == 0.0:
+        return False
+    out /= n
+    m = p.shape[0]
+    j = i - 1 if i + 2 <= m - 1 else i - 2
+    if j < 0:
+        return False
+    axis = np.empty(3)
+    phi = _screw_axis(p[j], p[j + 1], p[j + 2], p[j + 3], axis)
+    if phi < _COIL_TURN:
+        return False
+    t0 = _turn_at(p, j + 1)
+    t1 = _turn_at(p, j + 2)
+    if not (t1 < _EVEN_TURNING * t0 and t0 < _EVEN_TURNING * t1):
+        return False
+    along = out @ axis
+    out += (along * (np.sin(phi) / phi - 1.0)) * axis
+    out /= np.sqrt(out @ out)
+    return True
 
 
 @jit
-def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_out, tangent_weight):
+def _turn_at(p, i):
+    """Angle (rad) between the chords into and out of interior vertex ``i`` (0 at a repeated point)."""
+    ax, ay, az, na = _unit_chord(p[i - 1], p[i])
+    bx, by, bz, nb = _unit_chord(p[i], p[i + 1])
+    if na == 0.0 or nb == 0.0:
+        return 0.0
+    return np.arccos(min(1.0, max(-1.0, ax * bx + ay * by + az * bz)))
+
+
+@jit
+def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_out, tangent_weight, coil_gain,
+                   within):
     """One element from (x, F) through vertices ``j+1 .. j+k`` at their arc lengths (``s[j]`` at its start):
     the best of three starts (the previous element's omega, the polyline's screw rotation over those
     vertices, a circular arc aimed at the last), refined by Levenberg-Marquardt (with the start tangent
     when ``free_frame``), its end tangent held near the polyline's there (:func:`_vertex_tangent`) so
     that the next element starts along the strand. Writes ``om_out`` and ``F_out``; returns the largest
-    vertex distance, m."""
+    vertex distance, m. ``within``: the distance the caller accepts; a fit that stays far beyond it is cut
+    short (its result is then only an upper bound)."""
     m = p.shape[0]
     sig = np.empty(k)
     tgt = np.empty((k, 3))
@@ -866,10 +920,12 @@ def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_ou
     weight = 0.0
     end = j + k
     if end < m - 1:
-        _vertex_tangent(p, end, tangent)
+        coiling = _vertex_tangent(p, end, tangent)
         d = p[end + 1] - p[end]
         weight = tangent_weight * np.sqrt(d @ d)
-    _fit_element(x, F_out, om_out, sig, tgt, free_frame, 10, eta, cap, tangent, weight)
+        if coiling and k >= 2:
+            weight *= coil_gain
+    _fit_element(x, F_out, om_out, sig, tgt, free_frame, 10, eta, cap, tangent, weight, _GIVE_UP * within)
     _element_residual(x, F_out, om_out, sig, tgt, res, _NO_TANGENT, 0.0, R, P, Q)
     worst = 0.0
     for i in range(k):
@@ -880,9 +936,9 @@ def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_ou
 @jit
 def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangent_weight, limit):
     """Elements chosen along the strand, each as long as it can be: from where the previous one ended,
-    the most vertices one helix fits within ``within`` (m) at their arc lengths ``s``, found by doubling
-    from the previous element's count, then bisection. Each element ends at a vertex, so the fitted length is the polyline's estimated arc
-    length. Writes ``F0`` (the root frame, its tangent fitted with the first element) and the first rows
+    the most vertices one helix fits within ``within`` (m) at their arc lengths ``s``, found from the
+    previous element's count (a curl keeps its pace) by steps of 1, 2, 4, ... vertices, then bisection.
+    Each element ends at a vertex, so the fitted length is the polyline's estimated arc length. Writes ``F0`` (the root frame, its tangent fitted with the first element) and the first rows
     of ``omega`` (M-1, 3) and ``length`` (M-1,); returns the element count, or stops once it exceeds
     ``limit`` and returns ``limit + 1``."""
     m = p.shape[0]
@@ -909,20 +965,24 @@ def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangen
         k_ok = 0
         k_bad = left + 1
         k = min(max(k_prev, 2), left)
+        step = 1
+        # a chain that has lost the coil's phase (single-vertex elements) finds it again with the usual weight
+        gain = _COIL_TANGENT_GAIN if k_prev >= 2 else 1.0
         while True:
-            if _element_trial(x, F, p, s, j, k, om_prev, first, eta, cap, om_t, F_t, tangent_weight) <= within:
+            if _element_trial(x, F, p, s, j, k, om_prev, first, eta, cap, om_t, F_t, tangent_weight, gain, within) <= within:
                 k_ok = k
                 om_ok[:] = om_t
                 F_ok[:, :] = F_t
                 if k == left:
                     break
-                k = min(2 * k, left)
+                k = min(k + step, left)
+                step *= 2
             else:
                 k_bad = k
                 break
         while k_bad - k_ok > 1:
             k = (k_ok + k_bad) // 2
-            if _element_trial(x, F, p, s, j, k, om_prev, first, eta, cap, om_t, F_t, tangent_weight) <= within:
+            if _element_trial(x, F, p, s, j, k, om_prev, first, eta, cap, om_t, F_t, tangent_weight, gain, within) <= within:
                 k_ok = k
                 om_ok[:] = om_t
                 F_ok[:, :] = F_t
@@ -930,7 +990,7 @@ def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangen
                 k_bad = k
         if k_ok == 0:
             # not even the next vertex within the distance: an element to it, as near as it comes
-            _element_trial(x, F, p, s, j, 1, om_prev, first, eta, cap, om_ok, F_ok, tangent_weight)
+            _element_trial(x, F, p, s, j, 1, om_prev, first, eta, cap, om_ok, F_ok, tangent_weight, 1.0, 0.0)
             k_ok = 1
         k_prev = k_ok
         ell = s[j + k_ok] - s[j]
@@ -1007,7 +1067,7 @@ def _sequential_init(root, F0, p, s, length, omega, look_ahead, eta, cap):
             if (_element_residual(x, F, om2, sig, tgt, res, _NO_TANGENT, 0.0, R, P, Q)
                     < _element_residual(x, F, om, sig, tgt, res, _NO_TANGENT, 0.0, R, P, Q)):
                 om[:] = om2
-        _fit_element(x, F, om, sig, tgt, e == 0, 10, eta, cap, _NO_TANGENT, 0.0)
+        _fit_element(x, F, om, sig, tgt, e == 0, 10, eta, cap, _NO_TANGENT, 0.0, 0.0)
         if e == 0:
             F0[:, :] = F
         omega[e] = om
@@ -1025,13 +1085,11 @@ def _turning_angles(p, turn, span):
     turn[:] = 0.0
     span[:] = 0.0
     for j in range(1, m - 1):
-        a = p[j] - p[j - 1]
-        b = p[j + 1] - p[j]
-        na = np.sqrt(a @ a)
-        nb = np.sqrt(b @ b)
+        ax, ay, az, na = _unit_chord(p[j - 1], p[j])
+        bx, by, bz, nb = _unit_chord(p[j], p[j + 1])
         span[j] = 0.5 * (na + nb)
         if na > 0.0 and nb > 0.0:
-            turn[j] = np.arccos(min(1.0, max(-1.0, (a @ b) / (na * nb))))
+            turn[j] = np.arccos(min(1.0, max(-1.0, ax * bx + ay * by + az * bz)))
 
 
 @jit
@@ -1074,9 +1132,9 @@ def _arc_lengths(p, s):
     _turning_angles(p, turn, span)
     for j in range(m):
         turn[j] = min(turn[j], 0.5 * np.pi)
+    axis = np.empty(3)
     for j in range(1, m):
-        d = p[j] - p[j - 1]
-        chord = np.sqrt(d @ d)
+        dx, dy, dz, chord = _unit_chord(p[j - 1], p[j])
         if j == 1:
             alpha = turn[1] if m > 2 else 0.0
         elif j == m - 1:
@@ -1088,47 +1146,72 @@ def _arc_lengths(p, s):
         if m >= 4 and chord > 0.0:
             # chords c0-1, c0, c0+1 around this one (chord j-1), kept inside the polyline
             c0 = min(max(j - 1, 1), m - 3)
-            factor = _screw_factor(p[c0 - 1], p[c0], p[c0 + 1], p[c0 + 2], d / chord, factor)
+            factor = _screw_factor(p[c0 - 1], p[c0], p[c0 + 1], p[c0 + 2], dx, dy, dz, factor, axis)
         s[j] = s[j - 1] + chord * factor
 
 
 @jit
-def _screw_factor(a, b, c, e, direction, fallback):
-    """Arc over chord of a chord with unit ``direction`` on the helix through the chords a-b, b-c, c-e (see
-    :func:`_arc_lengths`); ``fallback`` where they are planar, straight or degenerate."""
-    d0 = b - a
-    d1 = c - b
-    d2 = e - c
-    l0 = np.sqrt(d0 @ d0)
-    l1 = np.sqrt(d1 @ d1)
-    l2 = np.sqrt(d2 @ d2)
+def _unit_chord(a, b):
+    """Unit direction and length of the chord from ``a`` to ``b`` (zeros where it has none), as scalars."""
+    x = b[0] - a[0]
+    y = b[1] - a[1]
+    z = b[2] - a[2]
+    n = np.sqrt(x * x + y * y + z * z)
+    if n == 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    return x / n, y / n, z / n, n
+
+
+@jit
+def _screw_axis(a, b, c, e, axis):
+    """Axis and turn per chord of the helix through the chords a-b, b-c, c-e: writes the unit axis into
+    ``axis`` and returns the angle (rad, at most pi/2) each chord turns about it, or -1 where the chords
+    are planar, straight or degenerate (a circle's axis is its normal, but its chords alone do not
+    tell a circle from an inflection)."""
+    x0, y0, z0, l0 = _unit_chord(a, b)
+    x1, y1, z1, l1 = _unit_chord(b, c)
+    x2, y2, z2, l2 = _unit_chord(c, e)
     if l0 == 0.0 or l1 == 0.0 or l2 == 0.0:
+        return -1.0
+    ux, uy, uz = x1 - x0, y1 - y0, z1 - z0
+    vx, vy, vz = x2 - x1, y2 - y1, z2 - z1
+    ax = uy * vz - uz * vy
+    ay = uz * vx - ux * vz
+    az = ux * vy - uy * vx
+    na = np.sqrt(ax * ax + ay * ay + az * az)
+    # planar (u, v parallel), straight or an inflection
+    if na <= 1e-3 * np.sqrt((ux * ux + uy * uy + uz * uz) * (vx * vx + vy * vy + vz * vz)) or na == 0.0:
+        return -1.0
+    ax /= na
+    ay /= na
+    az /= na
+    axis[0] = ax
+    axis[1] = ay
+    axis[2] = az
+    c0 = x0 * ax + y0 * ay + z0 * az
+    c1 = x1 * ax + y1 * ay + z1 * az
+    w0x, w0y, w0z = x0 - c0 * ax, y0 - c0 * ay, z0 - c0 * az
+    w1x, w1y, w1z = x1 - c1 * ax, y1 - c1 * ay, z1 - c1 * az
+    n = np.sqrt((w0x * w0x + w0y * w0y + w0z * w0z) * (w1x * w1x + w1y * w1y + w1z * w1z))
+    if n == 0.0:
+        return -1.0
+    cos_phi = (w0x * w1x + w0y * w1y + w0z * w1z) / n
+    return min(np.arccos(min(1.0, max(-1.0, cos_phi))), 0.5 * np.pi)
+
+
+@jit
+def _screw_factor(a, b, c, e, dx, dy, dz, fallback, axis):
+    """Arc over chord of a chord with unit direction (dx, dy, dz) on the helix through the chords a-b,
+    b-c, c-e (see :func:`_arc_lengths`, :func:`_screw_axis`; ``axis``: scratch (3,)); ``fallback`` where
+    they are planar, straight or degenerate."""
+    phi = _screw_axis(a, b, c, e, axis)
+    if phi < 0.0:
         return fallback
-    d0 = d0 / l0
-    d1 = d1 / l1
-    d2 = d2 / l2
-    u = d1 - d0
-    v = d2 - d1
-    axis = np.empty(3)
-    axis[0] = u[1] * v[2] - u[2] * v[1]
-    axis[1] = u[2] * v[0] - u[0] * v[2]
-    axis[2] = u[0] * v[1] - u[1] * v[0]
-    na = np.sqrt(axis @ axis)
-    # planar (u, v parallel: a circle's axis is its normal, the circle factor), straight or an inflection
-    if na <= 1e-3 * np.sqrt(u @ u) * np.sqrt(v @ v) or na == 0.0:
-        return fallback
-    axis = axis / na
-    w0 = d0 - (d0 @ axis) * axis
-    w1 = d1 - (d1 @ axis) * axis
-    n0 = np.sqrt(w0 @ w0)
-    n1 = np.sqrt(w1 @ w1)
-    if n0 == 0.0 or n1 == 0.0:
-        return fallback
-    phi = min(np.arccos(min(1.0, max(-1.0, (w0 @ w1) / (n0 * n1)))), 0.5 * np.pi)
     half = 0.5 * phi
     q = half / np.sin(half) if half > 1e-8 else 1.0 + half * half / 6.0
-    cb = direction @ axis
+    cb = dx * axis[0] + dy * axis[1] + dz * axis[2]
     return np.sqrt(cb * cb + (1.0 - cb * cb) * q * q)
+
 
 @jit
 def _vertex_errors(root, F0, omega, length, s, p, err):
@@ -1199,9 +1282,9 @@ def sampling_figures(points, offsets, out_arc, out_sagitta, out_smooth, out_nois
         _turning_angles(p, turn, span)
         worst = 0.0
         for j in range(1, m):
-            d = p[j] - p[j - 1]
+            chord = _unit_chord(p[j - 1], p[j])[3]
             alpha = min(max(turn[j - 1], turn[j] if j < m - 1 else 0.0), 0.5 * np.pi)
-            worst = max(worst, np.sqrt(d @ d) * alpha / 8.0)
+            worst = max(worst, chord * alpha / 8.0)
         out_sagitta[i] = worst
         out_smooth[i], out_noise[i] = _scatter(p)
 
@@ -1231,25 +1314,25 @@ def _scatter(p):
     num = 0.0
     den = 0.0
     for j in range(1, m - 1):
-        a = p[j] - p[j - 1]
-        b = p[j + 1] - p[j]
-        la = np.sqrt(a @ a)
-        lb = np.sqrt(b @ b)
+        la = _unit_chord(p[j - 1], p[j])[3]
+        lb = _unit_chord(p[j], p[j + 1])[3]
         wj = lb / (la + lb) if la + lb > 0.0 else 0.5
         w[j - 1] = wj
         for c in range(3):
             e[j - 1, c] = p[j, c] - (wj * p[j - 1, c] + (1.0 - wj) * p[j + 1, c])
-        den += e[j - 1] @ e[j - 1]
-        if j > 1:
-            num += e[j - 2] @ e[j - 1]
+            den += e[j - 1, c] * e[j - 1, c]
+            if j > 1:
+                num += e[j - 2, c] * e[j - 1, c]
     rho = num / den if den > 0.0 else 1.0
     if not rho < _NOISE_GATE or m < _NOISE_MIN_VERTICES:
         return rho, 0.0
     q = np.empty(m - 3)
     for j in range(m - 3):
         c = (1.0 + w[j + 1]) ** 2 + w[j] ** 2 + (2.0 - w[j]) ** 2 + (1.0 - w[j + 1]) ** 2
-        d = e[j] - e[j + 1]
-        q[j] = (d @ d) / c
+        dd = 0.0
+        for i in range(3):
+            dd += (e[j, i] - e[j + 1, i]) ** 2
+        q[j] = dd / c
     return rho, np.sqrt(np.median(q) / (2.0 * np.log(2.0)))
 
 
@@ -1482,8 +1565,11 @@ def closest_distances(points, offsets, roots, frames, helix_offsets, omega, leng
     element that turns by more than half a turn (16 per turn: a global start,
     so no far local minimum is taken), then Newton's method on the arc
     length polishes the nearest one (stationarity ``t . (x - p) = 0``,
-    derivative ``1 + (Om x t) . (x - p)``). Writes the per-strand mean and
-    max, m.
+    derivative ``1 + (Om x t) . (x - p)``). The scan skips the elements whose
+    scan points all lie, by a ball around them, farther than the nearest one
+    found so far (the element nearest the previous vertex is scanned first):
+    the same nearest scan point as a scan of them all. Writes the per-strand
+    mean and max, m.
     """
     scan_per_element = 8
     for i in range(offsets.shape[0] - 1):
@@ -1518,18 +1604,50 @@ def closest_distances(points, offsets, roots, frames, helix_offsets, omega, leng
                 idx += 1
         scan_s[k - 1] = total
         scan_x[k - 1] = xs[n]
+        # a ball around each element's scan points (its own and the next element's first): an element
+        # whose ball lies farther than the nearest scan point found so far holds no nearer one
+        first = np.empty(n + 1, dtype=np.int64)
+        first[0] = 0
+        for e in range(n):
+            first[e + 1] = first[e] + counts[e]
+        centre = np.zeros((n, 3))
+        radius = np.zeros(n)
+        for e in range(n):
+            for idx in range(first[e], first[e + 1] + 1):
+                for a in range(3):
+                    centre[e, a] += scan_x[idx, a]
+            for a in range(3):
+                centre[e, a] /= counts[e] + 1
+            for idx in range(first[e], first[e + 1] + 1):
+                d2 = 0.0
+                for a in range(3):
+                    d2 += (scan_x[idx, a] - centre[e, a]) ** 2
+                radius[e] = max(radius[e], np.sqrt(d2))
         acc = 0.0
         worst = 0.0
+        hint = 0
         for j in range(p.shape[0]):
             best = 1e300
             sig = 0.0
-            for idx in range(k):
-                d2 = 0.0
-                for a in range(3):
-                    d2 += (scan_x[idx, a] - p[j, a]) ** 2
-                if d2 < best:
-                    best = d2
-                    sig = scan_s[idx]
+            # the element nearest the previous vertex first (vertices follow the curve), then the others
+            for step in range(n + 1):
+                e = hint if step == 0 else step - 1
+                if step > 0:
+                    if e == hint:
+                        continue
+                    d2 = 0.0
+                    for a in range(3):
+                        d2 += (centre[e, a] - p[j, a]) ** 2
+                    gap = np.sqrt(d2) - radius[e]
+                    if gap > 0.0 and gap * gap >= best:
+                        continue
+                for idx in range(first[e], first[e + 1] + 1):
+                    d2 = 0.0
+                    for a in range(3):
+                        d2 += (scan_x[idx, a] - p[j, a]) ** 2
+                    if d2 < best:
+                        best = d2
+                        sig = scan_s[idx]
             best = np.sqrt(best)
             for _ in range(12):
                 e, local = _locate(starts, sig)
@@ -1537,10 +1655,11 @@ def closest_distances(points, offsets, roots, frames, helix_offsets, omega, leng
                 diff = x - p[j]
                 best = min(best, np.sqrt(diff @ diff))
                 new = min(max(sig - _projection_step(om[e], Fs[e], F, diff), 0.0), total)
-                if abs(new - sig) <= 1e-15 * (total + 1.0):
+                if abs(new - sig) <= 1e-12 * (total + 1.0):
                     break
                 sig = new
             acc += best
             worst = max(worst, best)
+            hint = _locate(starts, sig)[0]
         out_mean[i] = acc / p.shape[0]
         out_max[i] = worst
