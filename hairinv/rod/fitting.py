@@ -887,7 +887,8 @@ def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_ou
     the best of three starts (the previous element's omega, the polyline's screw rotation over those
     vertices, a circular arc aimed at the last), refined by Levenberg-Marquardt (with the start tangent
     when ``free_frame``), its end tangent held near the polyline's there (:func:`_vertex_tangent`) so
-    that the next element starts along the strand. Writes ``om_out`` and ``F_out``; returns the largest
+    that the next element starts along the strand, ``coil_gain`` times as firmly where the strand coils
+    there and the element holds at least 2 vertices. Writes ``om_out`` and ``F_out``; returns the largest
     vertex distance, m. ``within``: the distance the caller accepts; a fit that stays far beyond it is cut
     short (its result is then only an upper bound)."""
     m = p.shape[0]
@@ -934,13 +935,14 @@ def _element_trial(x, F, p, s, j, k, om_prev, free_frame, eta, cap, om_out, F_ou
 
 
 @jit
-def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangent_weight, limit):
+def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangent_weight, coil_gain, limit):
     """Elements chosen along the strand, each as long as it can be: from where the previous one ended,
     the most vertices one helix fits within ``within`` (m) at their arc lengths ``s``, found from the
     previous element's count (a curl keeps its pace) by steps of 1, 2, 4, ... vertices, then bisection.
     Each element ends at a vertex, so the fitted length is the polyline's estimated arc length. Writes ``F0`` (the root frame, its tangent fitted with the first element) and the first rows
     of ``omega`` (M-1, 3) and ``length`` (M-1,); returns the element count, or stops once it exceeds
-    ``limit`` and returns ``limit + 1``."""
+    ``limit`` and returns ``limit + 1``. ``coil_gain``: how much more firmly an element's end tangent is
+    held where the strand coils (:func:`_element_trial`)."""
     m = p.shape[0]
     _initial_frame(p, up, F0)
     x = root.copy()
@@ -967,7 +969,7 @@ def _greedy_elements(root, F0, p, s, up, within, eta, cap, omega, length, tangen
         k = min(max(k_prev, 2), left)
         step = 1
         # a chain that has lost the coil's phase (single-vertex elements) finds it again with the usual weight
-        gain = _COIL_TANGENT_GAIN if k_prev >= 2 else 1.0
+        gain = coil_gain if k_prev >= 2 else 1.0
         while True:
             if _element_trial(x, F, p, s, j, k, om_prev, first, eta, cap, om_t, F_t, tangent_weight, gain, within) <= within:
                 k_ok = k
@@ -1394,7 +1396,12 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         omega_g = np.zeros((m - 1, 3))
         length_g = np.zeros(m - 1)
         within = max(_GREEDY_WITHIN * tolerance, 1e-9 * s[m - 1])
-        n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT, cap)
+        n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT,
+                             _COIL_TANGENT_GAIN, cap)
+        if n > cap:
+            # held firmly, coarsely sampled or uneven curls can lose their phase: the usual weight
+            n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT,
+                                 1.0, cap)
         if n > cap:
             # Where noise dominates the vertices, the elements follow the smooth curve through them: the
             # distance they aim for is what the noise leaves, and no effort goes into following the noise.
@@ -1404,13 +1411,13 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
                 within = target
                 noisy = True
                 n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g,
-                                     _TANGENT_WEIGHT, cap)
+                                     _TANGENT_WEIGHT, 1.0, cap)
         for _ in range(40):
             if n <= cap:
                 break
             within *= 2.0
             n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT,
-                                 cap)
+                                 1.0, cap)
         if n < n_min and m - 1 >= n_min:
             # fewer than asked for: split the longest until there are n_min
             while n < n_min:
