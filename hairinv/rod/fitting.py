@@ -1399,10 +1399,6 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
         n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT,
                              _COIL_TANGENT_GAIN, cap)
         if n > cap:
-            # held firmly, coarsely sampled or uneven curls can lose their phase: the usual weight
-            n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT,
-                                 1.0, cap)
-        if n > cap:
             # Where noise dominates the vertices, the elements follow the smooth curve through them: the
             # distance they aim for is what the noise leaves, and no effort goes into following the noise.
             noise = _scatter(p)[1]
@@ -1410,8 +1406,9 @@ def fit_adaptive(p, up, tolerance, fixed, n_min, n_max, max_iter, F0, omega_out,
                 target = noise * np.sqrt(2.0 * np.log(m) + _NOISE_MARGIN)
                 within = target
                 noisy = True
-                n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g,
-                                     _TANGENT_WEIGHT, 1.0, cap)
+            # held firmly, coarsely sampled or uneven curls can lose their phase: the usual weight
+            n = _greedy_elements(root, F0, p, s, up, within, eta, bend_cap, omega_g, length_g, _TANGENT_WEIGHT,
+                                 1.0, cap)
         for _ in range(40):
             if n <= cap:
                 break
