@@ -480,8 +480,55 @@ def test_killed_while_writing_leaves_the_previous_output(previous, tmp_path, mom
     assert (folder / "out.h5").read_bytes() == before
     stage = stages.read_stage(folder / "out.h5")
     assert list(stage.groups) == ["curves", "helices", "contacts"]
-    # the killed run's temporary file stays (nothing runs after SIGKILL), beside the output, not over it
-    assert len(_temporaries(folder)) == 1
+    # the killed run's temporary file stays (nothing runs after SIGKILL), beside the output, not over it,
+    # named by the process that wrote it ...
+    assert [p.name.startswith(f".out.h5.hairinv-{process.pid}-") for p in _temporaries(folder)] == [True]
+    # ... and the next run writing the same output removes it
+    again = hairinv(folder, *WRITE)
+    assert again.returncode == 0, again.stderr
+    assert _temporaries(folder) == []
+    assert stages.read_stage(folder / "out.h5").producer.endswith(" detect")
+    assert sorted(p.name for p in folder.iterdir()) == ["body.obj", "model.h5", "out.h5", "paused"]
+
+
+def _paused(folder: Path, moment: str) -> tuple[subprocess.Popen, Path]:
+    """:data:`WRITE` run in ``folder`` and stopped at ``moment`` of its write (:data:`PAUSED`), still running;
+    its temporary file."""
+    marker = folder / f"paused-{moment}"
+    process = subprocess.Popen([sys.executable, "-c", PAUSED, moment, str(marker), *WRITE], cwd=folder, env=ENV,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not marker.exists():
+        if process.poll() is not None or time.monotonic() > deadline:
+            if process.poll() is None:
+                _kill(process)
+            pytest.fail("the run never reached its write")
+        time.sleep(0.01)
+    mine = [p for p in _temporaries(folder) if p.name.startswith(f".out.h5.hairinv-{process.pid}-")]
+    assert len(mine) == 1
+    return process, mine[0]
+
+
+def test_a_live_writers_temporary_is_not_removed(previous, tmp_path):
+    """A run that writes the output while another is still writing it leaves the other's temporary file alone
+    (it would break a write in progress); once that writer is killed, the next run removes it."""
+    folder = tmp_path
+    for name in ("model.h5", "body.obj", "out.h5"):
+        shutil.copyfile(previous / name, folder / name)
+    writing, live = _paused(folder, "mid-write")
+    try:
+        inode, size = os.stat(live).st_ino, os.stat(live).st_size
+        assert size > 0  # the datasets written so far, flushed
+        other = hairinv(folder, *WRITE)
+        assert other.returncode == 0, other.stderr
+        assert _temporaries(folder) == [live] and os.stat(live).st_ino == inode and os.stat(live).st_size == size
+        assert writing.poll() is None
+    finally:
+        _kill(writing)
+    assert live.exists()  # nothing runs after SIGKILL
+    again = hairinv(folder, *WRITE)
+    assert again.returncode == 0, again.stderr
+    assert _temporaries(folder) == [] and stages.read_stage(folder / "out.h5").producer.endswith(" detect")
 
 
 def test_killed_as_soon_as_the_write_starts(previous, tmp_path):
