@@ -459,6 +459,7 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
     scene = prepare(style, body, settings, contacts=True, progress=_stage_progress(obj["progress"]))
     for line in scene.lines:
         _say(obj, line)
+    _say(obj, scene.features.line())
     stages.write_stage(output, list(scene.groups.values()), "detect", record)
     _say(obj, f"wrote {output}")
     _say_timings(obj, scene.timings)
@@ -476,6 +477,9 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
               help="Strands whose equilibrium is unstable under their contact forces held fixed: stiffen each just "
                    "enough to hold (the default), or off: keep the material and only report them "
                    "[solver.stabilize; --set solver.stable_under=supports checks with the contact points held].")
+@click.option("--no-stability-check", "no_stability_check", is_flag=True,
+              help="Skip the stability check (and so stiffening): no margins, no unstable strands reported "
+                   "[solver.check_stability = false, solver.stabilize = off].")
 @import_options
 @body_options
 @contact_options
@@ -483,8 +487,8 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
 @if_stale_option
 @click.pass_obj
 @handle_errors
-def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up, flip, guides, seed, body_distance,
-           hair_distance, mu, no_hair_hair, quality, config_file, sets, if_stale, body_frame):
+def invert(obj, style, body, output, target, gamma, stabilize, no_stability_check, units, scale, up, flip, guides,
+           seed, body_distance, hair_distance, mu, no_hair_hair, quality, config_file, sets, if_stale, body_frame):
     """Invert STYLE resting on BODY: find the rest shape and contact forces
     that make the input shape a static equilibrium.
 
@@ -495,6 +499,7 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
     """
     from hairinv import config, stages
     from hairinv.errors import RunError
+    from hairinv.features import invert_features
     from hairinv.invert import Material, settings_dict, validate_settings, warm_start
     from hairinv.invert import invert as run_invert
     from hairinv.pipeline import prepare
@@ -505,6 +510,9 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
         solver_extra["target"] = target
     if gamma is not None:
         solver_extra["gamma"] = gamma
+    if no_stability_check:
+        solver_extra["check_stability"] = False
+        solver_extra["stabilize"] = "off"
     if stabilize is not None:
         solver_extra["stabilize"] = stabilize
     settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed),
@@ -540,6 +548,8 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
         bar.close()
     for line in report.lines():
         _say(obj, line)
+    features = invert_features(settings.contacts, settings.solver, material.gravity, scene.body is not None)
+    _say(obj, features.line())
     if model.result.status == "NUMERICAL_ERROR":
         raise RunError(f"the contact solver met a numerical error after {model.result.sweeps} sweeps "
                        f"(residual {model.result.residual:.3g} N); no output was written")
@@ -551,6 +561,7 @@ def invert(obj, style, body, output, target, gamma, stabilize, units, scale, up,
     groups.pop(stages.MODEL, None)
     groups.pop(stages.FRAMES, None)
     groups[stages.MODEL] = model.group(settings_dict(settings.material, settings.solver), scene.inputs)
+    groups[stages.MODEL].attrs["features"] = features.attr()
     stages.write_stage(output, list(groups.values()), "invert", record)
     _say(obj, f"wrote {output}")
     _say_timings(obj, {**scene.timings, "invert": report.seconds})
@@ -625,6 +636,21 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
             "settings": settings, "to_groom": to_groom}
 
 
+def _simulation_features(run: dict, init: str):
+    """What a simulation of ``run`` (:func:`_load_simulation`) models and skips, and why."""
+    import numpy as np
+
+    from hairinv import stages
+    from hairinv.features import simulate_features
+    from hairinv.model import stiffening_from_group
+
+    model = run["stage"][stages.MODEL]
+    factor = stiffening_from_group(model, run["helices"].n_strands)
+    return simulate_features(run["settings"].contacts, np.asarray(model.attrs["gravity"], dtype=np.float64),
+                             run["mesh"] is not None, run["scene"], init,
+                             factor is not None and bool(np.any(factor > 1.0)))
+
+
 def _run_simulation(obj, run: dict, init: str, seconds: float, fps: float, on_frame):
     """``run_scene`` on what :func:`_load_simulation` loaded, with a progress bar of its steps."""
     from hairinv import stages
@@ -661,6 +687,7 @@ def _write_frames(output: Path, model: Path, run: dict, frames, init: str) -> No
     cfg = {"dynamics": dataclasses.asdict(settings.dynamics), "contacts": dataclasses.asdict(settings.contacts),
            "scene": run["scene"].name, "init": init}
     groups[stages.FRAMES] = frames.group(cfg, inputs)
+    groups[stages.FRAMES].attrs["features"] = _simulation_features(run, init).attr()
     stages.write_stage(output, list(groups.values()), "simulate", run.get("record"))
 
 
@@ -705,6 +732,7 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
         return
     _say(obj, f"scene {scene.name}, {run_seconds:g} s at {run_fps:g} frames per second"
          + (f": {scene.description}" if scene.description else ""))
+    _say(obj, _simulation_features(run, init).line())
     frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=lambda log: _say(obj, log.line()))
     last = frames.log[-1]
     _say(obj, f"simulated {last.time:g} s in {sum(f.seconds for f in frames.log):.1f} s; largest displacement "

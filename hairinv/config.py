@@ -98,7 +98,8 @@ class MaterialSettings:
     radius: float = 5e-5
     """m. Radius of the circular cross-section (a 0.1 mm thick hair); I = pi r^4 / 4, J = pi r^4 / 2."""
     gravity: float = 9.81
-    """m/s^2. Gravity's magnitude; it points along minus the groom's up axis."""
+    """m/s^2. Gravity's magnitude; it points along minus the groom's up axis. 0: a scene without gravity
+    (the input shape is then its own rest shape wherever no contact pushes on it)."""
 
     @property
     def shear(self) -> float:
@@ -181,6 +182,10 @@ class SolverSettings:
     (multiply its bending and twist stiffness by the smallest factor that makes it stable, times
     stiffen_margin, and invert it with that stiffness) or off (keep the material and only report it).
     A strand the contacts cannot hold would otherwise fall away as soon as a simulation starts."""
+    check_stability: bool = True
+    """Check every strand's stability after the inversion (an eigen-decomposition per strand, the
+    ``/model/stability_margin``). false skips it: no margins, no unstable strands reported, and so no
+    stiffening (it needs stabilize = off). For runs whose stability a later ``hairinv verify`` judges."""
     stable_under: str = "forces"
     """What the stability check (and so stabilize) holds: forces (the contact forces held fixed, every
     motion allowed: what a simulation at rest needs, since its contact solve answers only past its

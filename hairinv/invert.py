@@ -551,6 +551,9 @@ def validate_settings(settings: SolverSettings) -> None:
         raise InputError(f"unknown solver.stabilize {settings.stabilize!r}; choose one of {', '.join(STABILIZE)}")
     if not (np.isfinite(settings.stiffen_margin) and settings.stiffen_margin > 1.0):
         raise InputError(f"solver.stiffen_margin must be a finite number > 1, got {settings.stiffen_margin}")
+    if not settings.check_stability and settings.stabilize == "stiffen":
+        raise InputError("solver.check_stability = false skips the check that stiffening needs: set "
+                         "solver.stabilize = off with it (--stabilize off)")
 
 
 def invert(helices: Helices, contacts: Contacts | None, material: Material, settings: SolverSettings,
@@ -588,6 +591,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     """
     validate_settings(settings)
     started = time.perf_counter()
+    # no stability check when the settings ask for none (solver.check_stability = false)
+    check_stability = check_stability and settings.check_stability
     declared = 0 if contacts is None else contacts.n_contacts
     if settings.target == "gravity-only" or contacts is None:
         contacts = Contacts.empty()

@@ -22,6 +22,7 @@ from .config import BodySettings, UNITS, ImportSettings, Settings
 from .contacts import Contacts, detect_contacts
 from .contacts.body import BodyMesh
 from .errors import InputError
+from .features import Features, detect_features
 from .fit import Helices, fit_groom
 from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto
 
@@ -54,6 +55,8 @@ class Scene:
     """the style file's /model group, kept only when its contacts are the ones used (its forces match them)"""
     timings: dict = field(default_factory=dict)
     """seconds of the stages run here (``fit``, ``detect``); stages reused from the style file are absent"""
+    features: Features | None = None
+    """what the contacts model and skip, and why (:func:`hairinv.features.detect_features`)"""
 
 
 def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refitted: bool,
@@ -227,8 +230,9 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         lines += notes
         inputs[1]["to_groom"] = to_groom.tolist()
         mesh = load_body(body, to_groom, native)
-    # built once: the roots' check here and the body contacts below
-    body_mesh = BodyMesh.from_mesh(mesh) if mesh is not None else None
+    # built once: the roots' check here and the body contacts below; with contacts.body off the body is
+    # read (its file is an input) but never queried
+    body_mesh = BodyMesh.from_mesh(mesh) if mesh is not None and settings.contacts.body and contacts else None
     if body_mesh is not None:
         roots = groom.points[groom.offsets[:-1]] if helices is None else helices.root
         lines += root_distance_lines(roots, body_mesh, body, up, settings.body, to_groom)
@@ -246,6 +250,7 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         scene.timings["fit"] = fit_report.seconds
     if not contacts:
         return scene
+    scene.features = detect_features(settings.contacts, mesh is not None)
     wanted = {"contacts": dataclasses.asdict(settings.contacts)}
     stale = _stale_contacts(stored_contacts, stored_model, wanted, inputs[1] if body is not None else None,
                             refitted=refitted, hair_unit=(scale, flip))
@@ -261,9 +266,12 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         lines.append(f"the contacts in {style.name} {stale}; detecting them again")
     if mesh is None and settings.contacts.body:
         lines.append("no body given: only hair-hair contacts are declared")
+    if mesh is not None and not settings.contacts.body:
+        lines.append("contacts.body is off: the body mesh is ignored (no body queries)")
     found, detect_report = detect_contacts(helices, body_mesh, settings.contacts, up=up)
     lines += detect_report.lines()
     scene.timings["detect"] = detect_report.seconds
     scene.contacts = found
     groups[stages.CONTACTS] = found.group(settings.contacts, inputs, seconds=detect_report.seconds)
+    groups[stages.CONTACTS].attrs["features"] = scene.features.attr()
     return scene

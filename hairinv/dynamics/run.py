@@ -171,7 +171,9 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
             keep = contacts.strand[:, 1] >= 0
             contacts = contacts.subset(keep)
             force = None if force is None else force[keep]
-    body = BodyMesh.from_mesh(body_mesh) if (body_mesh is not None and not body_removed) else None
+    # no body queries where no body contact is modelled (the scene removes it, or contacts.body is off)
+    body = BodyMesh.from_mesh(body_mesh) if (body_mesh is not None and not body_removed
+                                             and contact_settings.body) else None
     sim = Simulation(helices, rest, material, body, contact_settings, settings.dynamics,
                      initial=contacts, initial_force=force, stiffening=factor)
 
