@@ -459,13 +459,14 @@ def check_consistency(stage: StageFile) -> None:
       dropped, and counted, where the groom is read);
     - ``/curves`` and ``/helices`` hold the same number of strands, and every dataset has the size of the
       counts it is defined by (strands, points, elements, contacts, frames: :data:`LAYOUT`);
-    - float datasets are finite (``/model/stability_margin`` may be ``+inf``, as documented);
+    - float datasets are finite (``/model/stability_margin`` and ``/contacts/mu`` may be ``+inf``, as
+      documented: :data:`MAY_BE_INFINITE`);
     - element lengths are > 0; frames are orthonormal (:data:`FRAME_TOLERANCE`), rod frames right-handed;
       ``/frames/body_transform`` is rigid; ``/frames/time`` increases;
     - contacts: side A is a strand in ``[0, S)``; side B is ``-1`` (the body) or a strand in ``(A, S)``
       (A is the lower index); arc lengths lie on their strands of ``/helices`` (within
       :data:`ARC_TOLERANCE_M` plus :data:`ARC_TOLERANCE_RELATIVE` of the length; not checked in a file
-      without ``/helices``), and are 0 on the body's side; ``mu >= 0``;
+      without ``/helices``), and are 0 on the body's side; ``mu >= 0`` (``+inf`` allowed: a sticking contact);
     - ``/model``: weights >= 0, stiffening factors > 0, and the attributes hairinv reads (:data:`ATTRS`)
       of the right type and range.
     """
@@ -563,15 +564,19 @@ def _check_size(path, name, key, shape, dims, counts) -> None:
                          f"{',' if len(expected) == 1 else ''}): {'; '.join(why)}", path)
 
 
+#: Float datasets that may hold ``+inf`` (docs/stage-files.md): a strand's stability margin where no motion is
+#: left, and a friction coefficient of a sticking contact (infinite friction: the cone is the half-space
+#: r_N >= 0, which the solvers handle).
+MAY_BE_INFINITE = {(MODEL, "stability_margin"), (CONTACTS, "mu")}
+
+
 def _check_finite(path, name, key, value) -> None:
-    if name == MODEL and key == "stability_margin":  # inf where no motion is left (docs/stage-files.md)
-        bad = np.isnan(value) | (value == -np.inf)
-    else:
-        bad = ~np.isfinite(value)
+    infinite = (name, key) in MAY_BE_INFINITE
+    bad = (np.isnan(value) | (value == -np.inf)) if infinite else ~np.isfinite(value)
     if np.any(bad):
         where = np.unravel_index(int(np.flatnonzero(bad.ravel())[0]), value.shape)
         raise InputError(f"/{name}/{key}{list(map(int, where))} is {value[where]}: the dataset must hold "
-                         f"{'no NaN and no -inf' if key == 'stability_margin' else 'finite numbers'}", path)
+                         f"{'no NaN and no -inf' if infinite else 'finite numbers'}", path)
 
 
 def _check_positive(path, name, key, value, what: str) -> None:

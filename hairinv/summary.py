@@ -80,7 +80,7 @@ def _contacts(g: stages.Group, model: stages.Group | None) -> dict:
     (hairinv.contacts.detect): a body contact at ``gap >= body_distance`` was declared by the layer rule, a
     hair-hair one at ``gap >= hair_distance`` by the wisp rule, every other by its distance.
     """
-    strand = g["strand"]
+    strand, mu = g["strand"], g["mu"]
     body = strand[:, 1] < 0
     gap = g.datasets.get("gap")
     settings = g.config.get("contacts", {})
@@ -103,7 +103,9 @@ def _contacts(g: stages.Group, model: stages.Group | None) -> dict:
         "carrying_force": None if carrying is None else _count(carrying),
         "strands_touching_body": len(np.unique(strand[body, 0])),
         "inside_body": None if gap is None else _count(body & (gap < 0)),
-        "mu": _stats(g["mu"]),
+        # infinite friction (sticking contacts) is counted apart: the statistics are of the finite values
+        "mu": _stats(mu[np.isfinite(mu)]),
+        "mu_infinite": _count(np.isinf(mu)),
         "by_kind": {"hair_body": kind(body, "body_distance", "layer"),
                     "hair_hair": kind(~body, "hair_distance", "wisp")},
     }

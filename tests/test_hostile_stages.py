@@ -13,6 +13,7 @@ numerical kernel.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -21,6 +22,7 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
+from types import SimpleNamespace
 from pathlib import Path
 
 import h5py
@@ -29,9 +31,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import SAMPLES
-from hairinv import stages
+from conftest import FINITE_DIFFERENCE, SAMPLES
+from hairinv import config, stages
+from hairinv.model import Material, stiffness
+from hairinv.rod.helix import points_at
 from test_cli import ENV, hairinv
+from test_invert import UP, energy_gradient, three_strands_on_the_body
 
 # The model's sizes (samples/settled.h5 inverted with its default settings on the sample body).
 S = 40
@@ -233,6 +238,10 @@ CASES = {
     "arc length on the body side": (
         "model.h5", edit("contacts/s", setitem((0, 1), 0.01)), ["info"], ["on a body contact", "must be 0"]),
     "negative friction": ("model.h5", edit("contacts/mu", setitem(3, -0.3)), ["fit"], ["/contacts/mu[3]", ">= 0"]),
+    # infinite friction is read (test_infinite_friction_is_read_and_inverted); NaN and -inf are not
+    "nan friction": ("model.h5", edit("contacts/mu", setitem(2, np.nan)), ["invert"],
+                     ["/contacts/mu[2] is nan", "no NaN and no -inf"]),
+    "friction of -inf": ("model.h5", edit("contacts/mu", setitem(4, -np.inf)), ["info"], ["/contacts/mu[4] is -inf"]),
     "contact frame not orthonormal": (
         "model.h5", edit("contacts/frame", setitem((2, 0), [1.0, 1.0, 0.0])), ["fit"],
         ["/contacts/frame[2] is not an orthonormal frame"]),
@@ -338,6 +347,55 @@ def test_no_numerical_kernel_runs_before_the_refusal(valid, tmp_path, command):
     assert [p for p in cache.rglob("*") if p.is_file()] == []
 
 
+# --------------------------------------------------------------------------- infinite friction, accepted
+
+
+def _sticking_scene(path: Path) -> tuple:
+    """A stage file of three strands resting on 10 body contacts of infinite friction (test_invert's scene),
+    with the default settings' records, so that ``invert`` uses its contacts: (helices, contacts)."""
+    helices, contacts = three_strands_on_the_body(np.inf)
+    settings = config.resolve("default")
+    points, offsets = [], [0]
+    for k in range(helices.n_strands):
+        a, z = helices.offsets[k], helices.offsets[k + 1]
+        s = np.linspace(0.0, helices.length[a:z].sum(), 13)
+        out = np.empty((len(s), 3))
+        points_at(helices.root[k], helices.frame0[k], helices.omega[a:z], helices.length[a:z], s, out)
+        points.append(out)
+        offsets.append(offsets[-1] + len(s))
+    curves = stages.Group(stages.CURVES, {"points": np.concatenate(points), "offsets": np.array(offsets)},
+                          attrs={"up": UP, "scale_to_m": 1.0, "source": "made by the test"})
+    stages.write_stage(path, [curves, helices.group(settings.fit, []), contacts.group(settings.contacts, [])], "test")
+    return helices, contacts
+
+
+def test_infinite_friction_is_read_and_inverted(tmp_path):
+    """mu = inf (a sticking contact: the half-space r_N >= 0, which the solver handles) is read, inverted by
+    the real CLI from the file's own contacts, and summarised as valid JSON."""
+    helices, contacts = _sticking_scene(tmp_path / "scene.h5")
+    assert np.all(stages.read_stage(tmp_path / "scene.h5")["contacts"]["mu"] == np.inf)
+    result = hairinv(tmp_path, "invert", "scene.h5", "-o", "model.h5")
+    assert result.returncode == 0, result.stderr
+    assert f"using the {contacts.n_contacts} contacts in scene.h5" in result.stdout
+    stage = stages.read_stage(tmp_path / "model.h5")
+    assert np.all(stage["contacts"]["mu"] == np.inf)
+    model = stage["model"]
+    force = model["force"]
+    assert model.attrs["status"] == "CONVERGED" and np.all(np.isfinite(force)) and np.all(force[:, 0] >= 0.0)
+    assert np.count_nonzero(force[:, 0] > model.attrs["carrying_threshold"]) > 0
+    # the model is an equilibrium of the material it records, under its forces (central differences of the energy)
+    mat = Material(*(model.attrs[k] for k in ("youngs_modulus", "shear_modulus", "density", "radius")),
+                   np.asarray(model.attrs["gravity"]))
+    grad, weight = energy_gradient(helices, contacts, SimpleNamespace(force=force, omega_rest=model["omega_rest"]),
+                                   mat)
+    load = np.abs(stiffness(helices, mat) * (helices.omega - model["omega_rest"]).ravel()).max()
+    assert np.abs(grad).max() <= FINITE_DIFFERENCE * max(weight, load)
+    summary = hairinv(tmp_path, "export", "model.h5", "-o", "model.json")
+    assert summary.returncode == 0, summary.stderr
+    groups = json.loads((tmp_path / "model.json").read_text())["groups"]  # strict JSON: no Infinity
+    assert groups["contacts"]["mu_infinite"] == contacts.n_contacts and groups["contacts"]["mu"] is None
+
+
 # --------------------------------------------------------------------------- families (hypothesis)
 
 
@@ -387,7 +445,7 @@ def test_non_finite_number(valid, data):
         name = data.draw(st.sampled_from(names), label="dataset")
         shape = fh[name].shape
     index = tuple(data.draw(st.integers(0, n - 1), label=f"index {k}") for k, n in enumerate(shape))
-    allowed = [np.nan, -np.inf] + ([] if name == "model/stability_margin" else [np.inf])
+    allowed = [np.nan, -np.inf] + ([] if tuple(name.split("/")) in stages.MAY_BE_INFINITE else [np.inf])
     value = data.draw(st.sampled_from(allowed), label="value")
     command = data.draw(st.sampled_from(["info", "fit", "status"]), label="command")
     check_refused(run_refused(valid, "frames.h5", edit(name, setitem(index, value)), command),
