@@ -329,6 +329,9 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     # body contacts only: strand by strand on dense blocks (see solve_strand_blocks); with hair-hair
     # contact, the accelerated contact-by-contact sweeps of the inversion
     blocks = rows.n_contacts > 0 and not np.any(strand[:, 1] >= 0)
+    # frictionless everywhere: the De Saxce shift mu |u_T| is zero, so the first round is the problem itself,
+    # solved to the final tolerance at once (no rounds of loose tolerances chasing a shift)
+    frictionless = not np.any(mu > 0.0)
     groups = None  # made once a round is needed (a still groom's warm start often meets the tolerance)
     stalled = False
     r = np.array(r0, dtype=np.float64, copy=True)
@@ -376,7 +379,7 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         shifted = b.copy()
         shifted[:, 0] += np.where(mu < np.inf, mu, 0.0) * np.hypot(u[:, 1], u[:, 2])  # (inf: no De Saxce term)
         # each round only as exact as the shift it starts from deserves
-        inner_tol = max(tolerance, 0.1 * best / velocity_scale)
+        inner_tol = tolerance if frictionless else max(tolerance, 0.1 * best / velocity_scale)
         if blocks:
             groups = strand_groups(rows, gamma, strand, Wd) if groups is None else groups
             inner = solve_strand_blocks(rows, gamma, shifted, mu, strand, velocity_scale, inner_tol,
