@@ -979,26 +979,35 @@ def info(obj, file, as_json):
 @click.option("--config", "config_file", type=click.Path(dir_okay=False), default=None,
               help="Also compare the settings of this TOML file with the recorded ones.")
 @click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE", help="Also compare this setting.")
+@click.option("--check", "check_data", is_flag=True,
+              help="Also read every array of STAGE_FILE and check it as the other commands do (slower on a large "
+                   "file); without it only the file's metadata is checked.")
 @click.pass_obj
 @handle_errors
-def status(obj, stage_file, inputs, quality, config_file, sets):
+def status(obj, stage_file, inputs, quality, config_file, sets, check_data):
     """Say whether STAGE_FILE is current: exit 0 if its inputs still have the contents it was made from
     (and, with --quality/--config/--set, the same settings), 1 if stale (naming what changed), 2 if it
-    cannot be read or records nothing to compare.
+    cannot be read, breaks the stage-file format or records nothing to compare.
 
     The inputs are found where the file recorded them (as written, then next to STAGE_FILE), or given as
     INPUTS in the order the command took them (e.g. the hairstyle, then the body). An export written with
     --if-stale (a USD, PNG, ... with its OUTPUT.hairinv.json beside it) is checked the same way.
+
+    It reads the stage file's attributes and the shapes of its datasets, not the arrays, so it answers at
+    once on a large file: a file whose groups disagree in size or lack what hairinv reads is refused, but
+    the numbers in it are not checked (the answer says so). --check reads and checks them too.
     """
-    from hairinv import config
+    from hairinv import config, stages
     from hairinv.staleness import status as file_status
 
     settings = None
     if quality is not None or config_file is not None or sets:
         settings = config.resolve(quality or "default", config_file, sets)
-    current, reasons = file_status(stage_file, inputs, settings)
+    current, reasons = file_status(stage_file, inputs, settings, check_data=check_data)
     if current:
-        _say(obj, f"{stage_file}: current")
+        unchecked = not check_data and stages.is_stage_file(stage_file)
+        _say(obj, f"{stage_file}: current" + (" (its arrays were not read; --check checks them too)" if unchecked
+                                               else ""))
         return
     for reason in reasons:
         _say(obj, f"{stage_file}: stale: {reason}")

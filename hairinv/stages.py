@@ -314,6 +314,46 @@ def read_stage(path) -> StageFile:
     return stage
 
 
+def check_metadata(path) -> None:
+    """Check a stage file as far as its metadata tells, without reading its arrays.
+
+    For a quick look at a large file (``hairinv status``): the root attributes, every group's attributes,
+    config and inputs, the datasets' dtypes and shapes, and the counts the shapes must agree on (strands,
+    points, elements, contacts, frames), which it reads from the first and last entries of each ``offsets``
+    (two numbers per group) and the datasets' shapes. The checks that need the arrays' values (finite
+    numbers, frames, contact indices and arc lengths, offsets in between) are left to :func:`read_stage`,
+    and so is the size of the file against this machine's memory (nothing large is read here).
+
+    Raises
+    ------
+    InputError
+        Whatever :func:`read_stage` refuses that the metadata shows, with the same sentence.
+    """
+    path = Path(path)
+    try:
+        fh = h5py.File(path, "r")
+    except (OSError, ValueError):
+        raise InputError("is not a readable HDF5 file", path) from None
+    with fh:
+        try:
+            _, members = _read_members(fh, path)
+            attrs = {name: _group_attrs(fh[name], name, path)[0] for name in members}
+            shapes = {name: {key: d.shape for key, d in datasets.items() if key in LAYOUT[name]}
+                      for name, datasets in members.items()}
+            ends = {name: _ends(datasets["offsets"]) for name, datasets in members.items() if "offsets" in datasets}
+        except InputError:
+            raise
+        except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:  # h5py on a damaged file
+            raise InputError(f"cannot be read, the HDF5 file is damaged ({_one_line(exc)})", path) from None
+    _check_layout(path, shapes, attrs, ends)
+
+
+def _ends(offsets) -> tuple[int, int] | None:
+    """The first and last entries of an ``offsets`` array or h5py dataset (reading two numbers), or None if
+    it is empty."""
+    return (int(offsets[0]), int(offsets[-1])) if len(offsets) else None
+
+
 def _schema_version(value, path: Path) -> int:
     value = _attr(value)
     if isinstance(value, str):
@@ -333,7 +373,9 @@ def _json_attr(h5, key: str, default: str, path: Path, where: str):
         raise InputError(f"{where} attribute {key} is not JSON", path) from None
 
 
-def _read(fh, path: Path) -> StageFile:
+def _read_members(fh, path: Path) -> tuple[int, dict]:
+    """The schema version and every group's datasets (h5py objects, not read), after the root attributes'
+    checks and each dataset's dtype and dimensions (:func:`_group_members`)."""
     if _attr(fh.attrs.get("format")) != FORMAT:
         raise InputError("is an HDF5 file but not a hairinv stage file", path)
     version = _schema_version(fh.attrs.get("schema_version", 0), path)
@@ -355,6 +397,20 @@ def _read(fh, path: Path) -> StageFile:
         members[name] = _group_members(h5, name, path)
     if not members:
         raise InputError("holds no hairinv stage group", path)
+    return version, members
+
+
+def _group_attrs(h5, name: str, path: Path) -> tuple[dict, dict, list]:
+    """A group's attributes (but ``config`` and ``inputs``), ``config`` and ``inputs``, the last two checked."""
+    attrs = {key: _attr(h5.attrs[key]) for key in h5.attrs.keys() if key not in ("config", "inputs")}
+    config = _json_attr(h5, "config", "{}", path, f"/{name}")
+    inputs = _json_attr(h5, "inputs", "[]", path, f"/{name}")
+    _check_provenance(name, config, inputs, path)
+    return attrs, config, inputs
+
+
+def _read(fh, path: Path) -> StageFile:
+    version, members = _read_members(fh, path)
     # refuse what would not fit in memory before reading any of it (a dataset may declare any size and
     # store nothing: HDF5 fills it in on read)
     declared = {f"/{name}/{key}": (0 if d.shape is None else math.prod(d.shape)) * d.dtype.itemsize
@@ -367,13 +423,8 @@ def _read(fh, path: Path) -> StageFile:
                          f"{memory / 1e9:.3g} GB", path)
     groups = {}
     for name, datasets in members.items():
-        h5 = fh[name]
         data = {key: _normalise(name, key, d[()], path) for key, d in datasets.items()}
-        attrs = {key: _attr(h5.attrs[key]) for key in h5.attrs.keys() if key not in ("config", "inputs")}
-        config = _json_attr(h5, "config", "{}", path, f"/{name}")
-        inputs = _json_attr(h5, "inputs", "[]", path, f"/{name}")
-        _check_provenance(name, config, inputs, path)
-        groups[name] = Group(name, data, attrs, config, inputs)
+        groups[name] = Group(name, data, *_group_attrs(fh[name], name, path))
     return StageFile(path, groups, str(_attr(fh.attrs.get("producer", ""))), version)
 
 
@@ -469,53 +520,28 @@ def check_consistency(stage: StageFile) -> None:
       without ``/helices``), and are 0 on the body's side; ``mu >= 0`` (``+inf`` allowed: a sticking contact);
     - ``/model``: weights >= 0, stiffening factors > 0, and the attributes hairinv reads (:data:`ATTRS`)
       of the right type and range.
+
+    The checks that need no array but the ends of the offsets come first (:func:`_check_layout`);
+    :func:`check_metadata` runs those alone.
     """
     path, groups = stage.path, stage.groups
-    for name, needed in NEEDS.items():
-        if name in groups and needed not in groups:
-            raise InputError(f"has a /{name} group but no /{needed}: its arrays are sized by the elements of "
-                             f"/{needed}", path)
+    shapes = {name: {key: np.shape(v) for key, v in g.datasets.items() if key in LAYOUT[name]}
+              for name, g in groups.items()}
+    ends = {name: _ends(g["offsets"]) for name, g in groups.items() if "offsets" in g.datasets}
+    counts = _check_layout(path, shapes, {name: g.attrs for name, g in groups.items()}, ends)
     for name, group in groups.items():
-        _check_attrs(path, name, group.attrs)
         for key, value in group.datasets.items():
             if key in LAYOUT[name] and LAYOUT[name][key][0] == "f":
                 _check_finite(path, name, key, value)
-    counts = {}
     if CURVES in groups:
-        offsets = groups[CURVES]["offsets"]
         # strands of fewer than 2 points are kept: reading a groom drops them and says so
-        _check_offsets(path, CURVES, offsets, len(groups[CURVES]["points"]), "points", "point", 0)
-        counts["S"] = (len(offsets) - 1, "strands (/curves/offsets)")
-        counts["P"] = (int(offsets[-1]), "points (/curves/offsets)")
+        _check_offsets(path, CURVES, groups[CURVES]["offsets"], len(groups[CURVES]["points"]), "points", "point", 0)
     if HELICES in groups:
         h = groups[HELICES]
         _check_offsets(path, HELICES, h["offsets"], len(h["length"]), "length", "element", 1)
-        strands = len(h["offsets"]) - 1
-        if "S" in counts and counts["S"][0] != strands:
-            raise InputError(f"holds {counts['S'][0]} strands in /curves but {strands} in /helices", path)
-        counts["S"] = (strands, "strands (/helices/offsets)")
-        counts["E"] = (int(h["offsets"][-1]), "elements (/helices/offsets)")
-    if CONTACTS in groups:
-        counts["C"] = (len(groups[CONTACTS]["strand"]), "contacts (/contacts/strand)")
-    else:
-        counts["C"] = (0, "contacts (the file has no /contacts group)")
-    if FRAMES in groups:
+    if FRAMES in groups and "offsets" in groups[FRAMES].datasets:
         f = groups[FRAMES]
-        counts["F"] = (len(f["time"]), "frames (/frames/time)")
-        counts["Ef"] = counts["E"]
-        if ("offsets" in f.datasets) != ("length" in f.datasets):
-            raise InputError("/frames holds one of offsets and length without the other (a trimmed run stores both)",
-                             path)
-        if "offsets" in f.datasets:
-            _check_offsets(path, FRAMES, f["offsets"], len(f["length"]), "length", "element", 1)
-            counts["Ef"] = (int(f["offsets"][-1]), "elements of the frames' strands (/frames/offsets)")
-        if isinstance(f.attrs.get("trimmed"), bool) and f.attrs["trimmed"] != ("offsets" in f.datasets):
-            raise InputError(f"/frames says trimmed = {f.attrs['trimmed']} but "
-                             f"{'holds no' if f.attrs['trimmed'] else 'holds its own'} offsets and length", path)
-    for name, group in groups.items():
-        for key, value in group.datasets.items():
-            if key in LAYOUT[name]:
-                _check_size(path, name, key, value.shape, LAYOUT[name][key][1], counts)
+        _check_offsets(path, FRAMES, f["offsets"], len(f["length"]), "length", "element", 1)
     if HELICES in groups:
         h = groups[HELICES]
         _check_positive(path, HELICES, "length", h["length"], "element lengths")
@@ -531,6 +557,69 @@ def check_consistency(stage: StageFile) -> None:
         _check_model(path, groups[MODEL])
     if FRAMES in groups:
         _check_run(path, groups[FRAMES])
+
+
+def _check_layout(path, shapes: dict, attrs: dict, ends: dict) -> dict:
+    """The checks of :func:`check_consistency` that need no array's values: the groups a group refers to, the
+    attributes, and every dataset's shape against the counts (strands, points, elements, contacts, frames).
+
+    Parameters
+    ----------
+    shapes : {group: {dataset of LAYOUT: shape}}
+    attrs : {group: {attribute: value}} (without ``config`` and ``inputs``)
+    ends : {group: (first, last) entry of its ``offsets``, or None where they are empty}
+
+    Returns the counts: ``{symbol of LAYOUT: (count, what it is counted from)}``.
+    """
+    for name, needed in NEEDS.items():
+        if name in shapes and needed not in shapes:
+            raise InputError(f"has a /{name} group but no /{needed}: its arrays are sized by the elements of "
+                             f"/{needed}", path)
+    for name in shapes:
+        _check_attrs(path, name, attrs[name])
+    counts = {}
+    if CURVES in shapes:
+        _check_offset_ends(path, CURVES, ends[CURVES], shapes[CURVES]["points"][0], "points")
+        counts["S"] = (shapes[CURVES]["offsets"][0] - 1, "strands (/curves/offsets)")
+        counts["P"] = (ends[CURVES][1], "points (/curves/offsets)")
+    if HELICES in shapes:
+        h = shapes[HELICES]
+        _check_offset_ends(path, HELICES, ends[HELICES], h["length"][0], "length")
+        strands = h["offsets"][0] - 1
+        if "S" in counts and counts["S"][0] != strands:
+            raise InputError(f"holds {counts['S'][0]} strands in /curves but {strands} in /helices", path)
+        counts["S"] = (strands, "strands (/helices/offsets)")
+        counts["E"] = (ends[HELICES][1], "elements (/helices/offsets)")
+    if CONTACTS in shapes:
+        counts["C"] = (shapes[CONTACTS]["strand"][0], "contacts (/contacts/strand)")
+    else:
+        counts["C"] = (0, "contacts (the file has no /contacts group)")
+    if FRAMES in shapes:
+        f, trimmed = shapes[FRAMES], attrs[FRAMES].get("trimmed")
+        counts["F"] = (f["time"][0], "frames (/frames/time)")
+        counts["Ef"] = counts["E"]
+        if ("offsets" in f) != ("length" in f):
+            raise InputError("/frames holds one of offsets and length without the other (a trimmed run stores both)",
+                             path)
+        if "offsets" in f:
+            _check_offset_ends(path, FRAMES, ends[FRAMES], f["length"][0], "length")
+            counts["Ef"] = (ends[FRAMES][1], "elements of the frames' strands (/frames/offsets)")
+        if isinstance(trimmed, (bool, np.bool_)) and bool(trimmed) != ("offsets" in f):
+            raise InputError(f"/frames says trimmed = {bool(trimmed)} but "
+                             f"{'holds no' if trimmed else 'holds its own'} offsets and length", path)
+    for name, datasets in shapes.items():
+        for key, shape in datasets.items():
+            _check_size(path, name, key, shape, LAYOUT[name][key][1], counts)
+    return counts
+
+
+def _check_offset_ends(path, name, ends, rows: int, indexed: str) -> None:
+    """``offsets`` start at 0 and end at ``rows``, the length of the array they index (from their ends)."""
+    if ends is None or ends[0] != 0:
+        raise InputError(f"/{name}/offsets is not a valid CSR offset array (it must start at 0 and never decrease)",
+                         path)
+    if ends[1] != rows:
+        raise InputError(f"/{name}/offsets ends at {ends[1]}, but /{name}/{indexed} has {rows} rows", path)
 
 
 def _check_offsets(path, name, offsets, rows: int, indexed: str, unit: str, least: int) -> None:

@@ -164,10 +164,15 @@ def mark_current(output) -> None:
     os.utime(output)
 
 
-def status(path, given_inputs=(), settings: Settings | None = None) -> tuple[bool, list[str]]:
+def status(path, given_inputs=(), settings: Settings | None = None, check_data: bool = False
+           ) -> tuple[bool, list[str]]:
     """Whether a stage file, or an export with its record (:func:`write_sidecar`), is current: its recorded
     inputs (or ``given_inputs``, in order) with the recorded SHA-256, and, when ``settings`` are given, the
     recorded settings.
+
+    A stage file is checked from its metadata only (:func:`hairinv.stages.check_metadata`: attributes,
+    dataset shapes, the ends of the offsets), so that a large file answers at once; with ``check_data`` it is
+    read and checked whole, as every other command reads it (:func:`hairinv.stages.read_stage`).
 
     Inputs are found as :func:`hairinv.groom.find_recorded_body` finds the body: the recorded path as written
     (relative to the working directory or absolute), then relative to the stage file's folder.
@@ -182,7 +187,11 @@ def status(path, given_inputs=(), settings: Settings | None = None) -> tuple[boo
         raise InputError("no such file", path)
     reasons = []
     if stages.is_stage_file(path):
-        stages.read_stage(path)  # refuses a file that breaks the stage-file contract, as every reader does
+        # refuses a file that breaks the stage-file contract, whole or as far as its metadata shows
+        if check_data:
+            stages.read_stage(path)
+        else:
+            stages.check_metadata(path)
         recorded = recorded_command(path)
         if recorded is None:
             raise InputError("records no command (written by an older hairinv): its currency cannot be told; "

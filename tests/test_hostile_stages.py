@@ -52,7 +52,8 @@ COMMANDS = {
     "export": ["export", "F", "-o", "out.obj"],
     "info": ["info", "F"],
     "diff": ["diff", "valid.h5", "F"],
-    "status": ["status", "F"],
+    "status": ["status", "F"],  # the file's metadata only
+    "status --check": ["status", "--check", "F"],
 }
 
 # Hypothesis: a handful of examples per family, the same ones on every run.
@@ -219,22 +220,22 @@ CASES = {
         "model.h5", edit("contacts/strand", setitem((0, 0), S + 1)), ["invert", "simulate", "verify"],
         [f"/contacts/strand[0, 0] is {S + 1}", f"[0, {S})"]),
     "contact strand index S": (
-        "model.h5", edit("contacts/strand", setitem((0, 0), S)), ["detect"],
+        "model.h5", edit("contacts/strand", setitem((0, 0), S)), ["detect", "status --check"],
         [f"/contacts/strand[0, 0] is {S}"]),
     "contact arc length 10 m past its strand": (
         "model.h5", _s_past_end, ["invert", "simulate"], ["/contacts/s[0, 0] is", "off strand"]),
     "fewer forces than contacts": (
-        "model.h5", edit("model/force", lambda a: a[:-5]), ["simulate", "invert"],
+        "model.h5", edit("model/force", lambda a: a[:-5]), ["simulate", "invert", "status"],
         ["/model/force has shape", "expected", "contacts (/contacts/strand)"]),
     # contacts
     "side B below -1": ("model.h5", _hair_contact(-2), ["simulate"], ["/contacts/strand[", "side B must be -1"]),
     "side B past S": ("model.h5", _hair_contact(S), ["info"], ["side B must be -1 (the body) or a strand"]),
     "side B as unsigned -1": ("model.h5", _uint_strand, ["info"], ["/contacts/strand", "too large for an index"]),
-    "hair contact with A above B": ("model.h5", _hair_contact_swapped, ["status"], ["lower strand on side A"]),
+    "hair contact with A above B": ("model.h5", _hair_contact_swapped, ["status --check"], ["lower strand on side A"]),
     "hair contact with itself": ("model.h5", lambda fh: _hair_contact(int(fh["contacts/strand"][first_hair_contact(
         fh), 0]))(fh), ["info"], ["lower strand on side A"]),
     "negative arc length": (
-        "model.h5", edit("contacts/s", setitem((0, 0), -1e-3)), ["status"], ["/contacts/s[0, 0] is -0.001 m"]),
+        "model.h5", edit("contacts/s", setitem((0, 0), -1e-3)), ["status --check"], ["/contacts/s[0, 0] is -0.001 m"]),
     "arc length on the body side": (
         "model.h5", edit("contacts/s", setitem((0, 1), 0.01)), ["info"], ["on a body contact", "must be 0"]),
     "negative friction": ("model.h5", edit("contacts/mu", setitem(3, -0.3)), ["fit"], ["/contacts/mu[3]", ">= 0"]),
@@ -246,13 +247,13 @@ CASES = {
         "model.h5", edit("contacts/frame", setitem((2, 0), [1.0, 1.0, 0.0])), ["fit"],
         ["/contacts/frame[2] is not an orthonormal frame"]),
     "contact arrays of different lengths": (
-        "model.h5", edit("contacts/gap", lambda a: a[:-1]), ["diff"], ["/contacts/gap has shape"]),
+        "model.h5", edit("contacts/gap", lambda a: a[:-1]), ["diff", "status"], ["/contacts/gap has shape"]),
     "nan in the optional gaps": ("model.h5", edit("contacts/gap", setitem(7, np.nan)), ["info"],
                                  ["/contacts/gap[7] is nan"]),
     "contact strand as floats": (
         "model.h5", edit("contacts/strand", lambda a: a.astype(float)), ["simulate"],
         ["/contacts/strand has dtype float64, expected integer"]),
-    "model without helices": ("model.h5", _delete("helices"), ["simulate"],
+    "model without helices": ("model.h5", _delete("helices"), ["simulate", "status"],
                               ["has a /model group but no /helices"]),
     "contacts without helices, past S": (  # invert fits such a file again; its strand indices are still checked
         "model.h5", lambda fh: (_delete("helices")(fh), _delete("model")(fh),
@@ -260,10 +261,11 @@ CASES = {
         ["invert"], [f"/contacts/strand[0, 0] is {S + 1}", f"({S} strands in /curves)"]),
     # curves and helices
     "strand counts of curves and helices differ": (
-        "model.h5", _curves_one_strand_short, ["export"],
+        "model.h5", _curves_one_strand_short, ["export", "status"],
         [f"holds {S - 1} strands in /curves but {S} in /helices"]),
     "helix offsets past the elements": (
-        "model.h5", edit("helices/offsets", setitem(-1, 10**12)), ["fit"], ["/helices/offsets ends at 1000000000000"]),
+        "model.h5", edit("helices/offsets", setitem(-1, 10**12)), ["fit", "status"],
+        ["/helices/offsets ends at 1000000000000"]),
     "helix offsets decreasing": (
         "model.h5", edit("helices/offsets", setitem(5, 0)), ["info"], ["/helices/offsets is not a valid CSR"]),
     "scalar offsets": ("model.h5", edit("curves/offsets", lambda a: np.int64(0)), ["fit"],
@@ -275,13 +277,15 @@ CASES = {
         ["/helices/frame0[4] is a left-handed frame"]),
     # model
     "omega_rest of another groom": (
-        "model.h5", edit("model/omega_rest", lambda a: a[:100]), ["status"], ["/model/omega_rest has shape"]),
+        "model.h5", edit("model/omega_rest", lambda a: a[:100]), ["status", "status --check"],
+        ["/model/omega_rest has shape"]),
     "negative radius": ("model.h5", set_attr("model", "radius", -5e-5), ["simulate"], ["attribute radius is -5e-05"]),
-    "radius as text": ("model.h5", set_attr("model", "radius", "thin"), ["verify"], ["attribute radius is 'thin'"]),
+    "radius as text": ("model.h5", set_attr("model", "radius", "thin"), ["verify", "status"],
+                       ["attribute radius is 'thin'"]),
     "infinite Young's modulus": ("model.h5", set_attr("model", "youngs_modulus", np.inf), ["info"],
                                  ["attribute youngs_modulus is inf"]),
     "no gravity": ("model.h5", set_attr("model", "gravity", np.zeros(3)), ["info"], ["attribute gravity"]),
-    "missing material": ("model.h5", _delete_attr("model", "shear_modulus"), ["simulate"],
+    "missing material": ("model.h5", _delete_attr("model", "shear_modulus"), ["simulate", "status"],
                          ["/model lacks the attribute 'shear_modulus'"]),
     "unknown target": ("model.h5", set_attr("model", "target", "sideways"), ["info"], ["attribute target"]),
     "zero stiffening": ("model.h5", edit("model/stiffening", setitem(0, 0.0)), ["info"],
@@ -294,18 +298,21 @@ CASES = {
     "frames going back in time": ("frames.h5", edit("frames/time", setitem(1, -1.0)), ["export"],
                                   ["/frames/time[1] is -1 s"]),
     "frames of another element layout": (
-        "frames.h5", edit("frames/omega", lambda a: a[:, :-1]), ["diff"], ["/frames/omega has shape"]),
+        "frames.h5", edit("frames/omega", lambda a: a[:, :-1]), ["diff", "status"], ["/frames/omega has shape"]),
     "body transform not rigid": (
         "frames.h5", edit("frames/body_transform", setitem((1, 3, 0), 1.0)), ["info"], ["not a rigid transform"]),
-    "trimmed without a layout": ("frames.h5", set_attr("frames", "trimmed", True), ["export"], ["trimmed = True"]),
+    "trimmed without a layout": ("frames.h5", set_attr("frames", "trimmed", True), ["export", "status"],
+                                 ["trimmed = True"]),
     # the file as a whole
-    "absurd declared size": ("model.h5", _huge("model/omega_target", (10**11, 3)), ["info"],
+    "absurd declared size": ("model.h5", _huge("model/omega_target", (10**11, 3)), ["info", "status --check"],
                              ["GB of memory to read", "/model/omega_target"]),
+    "absurd declared size, from its shape": ("model.h5", _huge("model/omega_target", (10**11, 3)), ["status"],
+                                             ["/model/omega_target has shape (100000000000, 3)"]),
     "newer schema": ("model.h5", lambda fh: fh.attrs.__setitem__("schema_version", 99), ["status"],
                      ["schema 99", "upgrade hairinv"]),
     "schema version as text": ("model.h5", lambda fh: fh.attrs.__setitem__("schema_version", "one"), ["info"],
                                ["schema_version attribute that is not an integer"]),
-    "config not JSON": ("model.h5", set_attr("contacts", "config", "{contacts"), ["simulate"],
+    "config not JSON": ("model.h5", set_attr("contacts", "config", "{contacts"), ["simulate", "status"],
                         ["/contacts attribute config is not JSON"]),
     "inputs not records": ("model.h5", set_attr("model", "inputs", "[1, 2]"), ["verify"],
                            ["/model attribute inputs is not a JSON list of records"]),
@@ -313,7 +320,7 @@ CASES = {
         "model.h5", lambda fh: fh.attrs.__setitem__("command", '{"subcommand": "invert", "inputs": [{"name": 1}]}'),
         ["status"], ["command attribute that has inputs that are not records"]),
     "dataset that is a group": ("model.h5", lambda fh: (_delete("model/force")(fh), fh.create_group("model/force")),
-                                ["simulate"], ["/model/force is not a dataset"]),
+                                ["simulate", "status"], ["/model/force is not a dataset"]),
 }
 
 RUNS = [(case, command) for case, (_, _, commands, _) in CASES.items() for command in commands]
@@ -345,6 +352,16 @@ def test_no_numerical_kernel_runs_before_the_refusal(valid, tmp_path, command):
     check_refused(run_refused(valid, "model.h5", edit("contacts/strand", setitem((0, 0), S + 1)), command,
                               env={"NUMBA_CACHE_DIR": str(cache)}), "/contacts/strand[0, 0]")
     assert [p for p in cache.rglob("*") if p.is_file()] == []
+
+
+def test_status_without_check_does_not_read_the_values(valid):
+    """``status`` checks what the metadata shows: a wrong value in an array of the right shape (an arc length
+    off its strand) is found by ``status --check``, which reads the arrays, and plain ``status`` says it did
+    not read them."""
+    result, before, after = run_refused(valid, "model.h5", _s_past_end, "status")
+    assert result.returncode == 0 and after == before, result.stderr
+    assert result.stdout.strip() == f"{HOSTILE}: current (its arrays were not read; --check checks them too)"
+    check_refused(run_refused(valid, "model.h5", _s_past_end, "status --check"), "/contacts/s[0, 0] is", "off strand")
 
 
 # --------------------------------------------------------------------------- infinite friction, accepted
@@ -447,7 +464,7 @@ def test_non_finite_number(valid, data):
     index = tuple(data.draw(st.integers(0, n - 1), label=f"index {k}") for k, n in enumerate(shape))
     allowed = [np.nan, -np.inf] + ([] if tuple(name.split("/")) in stages.MAY_BE_INFINITE else [np.inf])
     value = data.draw(st.sampled_from(allowed), label="value")
-    command = data.draw(st.sampled_from(["info", "fit", "status"]), label="command")
+    command = data.draw(st.sampled_from(["info", "fit", "status --check"]), label="command")
     check_refused(run_refused(valid, "frames.h5", edit(name, setitem(index, value)), command),
                   f"/{name}{list(index)} is {value}")
 

@@ -16,10 +16,12 @@ import subprocess
 import time
 
 import h5py
+import numpy as np
 import pytest
 
 from conftest import ROOT, SAMPLES
 from hairinv import config, stages
+from hairinv.errors import InputError
 from hairinv.staleness import command_record, differences, status
 from test_cli import ENV, hairinv
 
@@ -87,7 +89,9 @@ def test_if_stale_leaves_a_current_output_and_remakes_a_stale_one(model):
 
 def test_status_of_a_current_a_stale_and_an_unreadable_file(model, tmp_path):
     ok = hairinv(model, "status", "m.h5")
-    assert ok.returncode == 0 and ok.stdout.strip() == "m.h5: current"
+    assert ok.returncode == 0 and ok.stdout.strip() == "m.h5: current (its arrays were not read; --check checks them too)"
+    checked = hairinv(model, "status", "m.h5", "--check")
+    assert checked.returncode == 0 and checked.stdout.strip() == "m.h5: current"
     # moved to another folder: the inputs are found where they were recorded (relative to the working folder)
     shutil.copyfile(model / "m.h5", tmp_path / "m.h5")
     assert hairinv(model, "status", tmp_path / "m.h5").returncode == 0
@@ -108,6 +112,58 @@ def test_status_of_a_current_a_stale_and_an_unreadable_file(model, tmp_path):
     assert bad.returncode == 2 and "broken.h5" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
     old = hairinv(tmp_path, "status", SAMPLES / "wavy.h5")
     assert old.returncode == 2 and "records no command" in old.stderr
+
+
+class DatasetReads:
+    """Every read of an h5py dataset's values in this process (through any of h5py's ways of reading), as
+    (dataset name, selection, number of values read)."""
+
+    def __init__(self, monkeypatch):
+        self.reads = []
+        real_getitem, real_read_direct = h5py.Dataset.__getitem__, h5py.Dataset.read_direct
+        real_array = h5py.Dataset.__array__
+
+        def getitem(dataset, selection, *args, **kwargs):
+            value = real_getitem(dataset, selection, *args, **kwargs)
+            self.reads.append((dataset.name, selection, int(np.size(value))))
+            return value
+
+        def read_direct(dataset, dest, source_sel=None, dest_sel=None):
+            self.reads.append((dataset.name, source_sel, int(np.size(dest))))
+            return real_read_direct(dataset, dest, source_sel, dest_sel)
+
+        def array(dataset, *args, **kwargs):
+            value = real_array(dataset, *args, **kwargs)
+            self.reads.append((dataset.name, "__array__", int(np.size(value))))
+            return value
+
+        monkeypatch.setattr(h5py.Dataset, "__getitem__", getitem)
+        monkeypatch.setattr(h5py.Dataset, "read_direct", read_direct)
+        monkeypatch.setattr(h5py.Dataset, "__array__", array)
+
+
+def test_status_reads_no_array_of_the_stage_file(model, tmp_path, monkeypatch):
+    """status reads the file's attributes, its datasets' shapes and the two ends of each offsets, and no
+    other value, however large the file; --check (as every other reader) reads every dataset whole."""
+    shutil.copyfile(model / "m.h5", tmp_path / "m.h5")
+    shutil.copyfile(model / "m.h5", tmp_path / "huge.h5")
+    with h5py.File(tmp_path / "huge.h5", "r+") as fh:
+        # 64 GB declared and never written: reading it would take minutes, or more memory than the machine has
+        del fh["model/residual_history"]
+        fh.create_dataset("model/residual_history", shape=(4 * 10**9, 2), dtype="f8")
+    with h5py.File(tmp_path / "m.h5", "r") as fh:
+        datasets = []
+        fh.visititems(lambda name, obj: datasets.append("/" + name) if isinstance(obj, h5py.Dataset) else None)
+    monkeypatch.chdir(model)  # the inputs are recorded relative to the folder the model was made in
+    reads = DatasetReads(monkeypatch)
+    assert status(tmp_path / "huge.h5") == (True, [])
+    values = [(name, size) for name, _, size in reads.reads]
+    assert sorted(values) == [("/curves/offsets", 1)] * 2 + [("/helices/offsets", 1)] * 2  # first and last
+    with pytest.raises(InputError, match="GB of memory to read"):
+        status(tmp_path / "huge.h5", check_data=True)
+    del reads.reads[:]
+    assert status(tmp_path / "m.h5", check_data=True) == (True, [])
+    assert {name for name, _, _ in reads.reads} == set(datasets)
 
 
 def _make(folder, *args):
