@@ -178,9 +178,11 @@ class Material:
 
     @classmethod
     def from_settings(cls, settings: MaterialSettings, up: np.ndarray) -> "Material":
-        for name in ("youngs_modulus", "density", "radius", "gravity"):
+        for name in ("youngs_modulus", "density", "radius"):
             if not getattr(settings, name) > 0:
                 raise InputError(f"material.{name} must be > 0, got {getattr(settings, name)}")
+        if not (np.isfinite(settings.gravity) and settings.gravity >= 0):
+            raise InputError(f"material.gravity must be a finite number >= 0 (0: no gravity), got {settings.gravity}")
         if settings.shear_modulus < 0 or not -1.0 < settings.poisson_ratio <= 0.5:
             raise InputError("material.shear_modulus must be >= 0 and material.poisson_ratio in (-1, 0.5]")
         up = np.asarray(up, dtype=np.float64)

@@ -99,8 +99,8 @@ NEEDS = {MODEL: HELICES, FRAMES: HELICES}
 MODEL_TARGETS = ("actual", "zero", "uniform", "tip", "gravity-only")
 
 # The attributes hairinv reads: name -> (kind, required). Kinds: "positive" and "nonnegative" (a finite
-# number), "count" (an integer >= 0), "vector" (3 finite numbers, not all 0), "str", "bool", or a tuple of
-# the strings allowed.
+# number), "count" (an integer >= 0), "vector" (3 finite numbers, not all 0), "vector0" (3 finite numbers,
+# all 0 allowed), "str", "bool", or a tuple of the strings allowed.
 ATTRS = {
     CURVES: {"up": ("vector", False), "scale_to_m": ("positive", False), "source": ("str", False)},
     HELICES: {"seconds": ("nonnegative", False)},
@@ -110,7 +110,7 @@ ATTRS = {
         "shear_modulus": ("nonnegative", True),
         "density": ("positive", True),
         "radius": ("positive", True),
-        "gravity": ("vector", True),
+        "gravity": ("vector0", True),  # all 0: a scene without gravity (material.gravity = 0)
         "gamma": ("positive", True),
         "target": (MODEL_TARGETS, False),
         "iterations": ("count", False),
@@ -783,11 +783,11 @@ def _check_attrs(path, name, attrs: dict) -> None:
         elif kind == "count":
             ok, want = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0, \
                 "an integer >= 0"
-        elif kind == "vector":
+        elif kind in ("vector", "vector0"):
             v = np.asarray(value)
             ok = (v.shape == (3,) and v.dtype.kind in "iuf" and bool(np.all(np.isfinite(v)))
-                  and bool(np.any(v != 0)))
-            want = "3 finite numbers, not all 0"
+                  and (kind == "vector0" or bool(np.any(v != 0))))
+            want = "3 finite numbers" + (", not all 0" if kind == "vector" else "")
         elif kind == "str":
             ok, want = isinstance(value, str), "a string"
         elif kind == "bool":
