@@ -36,9 +36,9 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import DATA, ROOT, log, machine, machine_markdown, table  # type: ignore
+    from common import DATA, ROOT, WORK as BENCH_WORK, log, machine, machine_markdown, smoke, table  # type: ignore
 else:
-    from .common import DATA, ROOT, log, machine, machine_markdown, table
+    from .common import DATA, ROOT, WORK as BENCH_WORK, log, machine, machine_markdown, smoke, table
 
 sys.path.insert(0, str(ROOT))
 
@@ -46,12 +46,12 @@ TITLE = "Blender reads the USD export"
 HAIRINV = ROOT / ".venv" / "bin" / "hairinv"
 BLENDER_PYTHON = Path(os.environ.get("HAIRINV_BLENDER_PYTHON", ROOT / ".venv-blender" / "bin" / "python"))
 SCRIPT = ROOT / "tests" / "blender_read_usd.py"
-WORK = ROOT / "out" / "blender_bench"
+WORK = BENCH_WORK / "blender_bench"
 RUBY = DATA / "ruby" / "ruby_long_hair_16_guide.tfx"
 RUBY_HEAD = DATA / "ruby" / "ruby_head.obj"
-GUIDES = 500
+GUIDES = smoke(500, 10)
 SECONDS, FPS = 1.0, 30
-REPEATS = 5
+REPEATS = smoke(5, 1)
 CATMULL = "ruby.still.catmull-rom.usdc"
 # Blender is +Z up: a +Y up stage is turned by +90 degrees about X, (x, y, z) -> (x, -z, y).
 Y_TO_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])

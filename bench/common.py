@@ -13,9 +13,20 @@ from typing import Callable, Sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
-IMG = DOCS / "img"
+# A smoke run (HAIRINV_BENCH_SMOKE=1, what the test suite does): every benchmark on tiny inputs, once,
+# without waiting for an idle machine, its pictures and work files under HAIRINV_BENCH_WORK (default
+# out/bench-smoke) instead of docs/img and out/. It shows that a benchmark still runs end to end; its
+# figures mean nothing.
+SMOKE = os.environ.get("HAIRINV_BENCH_SMOKE", "") not in ("", "0")
+WORK = Path(os.environ.get("HAIRINV_BENCH_WORK", ROOT / "out" / "bench-smoke")) if SMOKE else ROOT / "out"
+IMG = WORK / "img" if SMOKE else DOCS / "img"
 # The real third-party grooms: HAIRINV_REAL_DATA, or shared/data/real beside the repository.
 DATA = Path(os.environ.get("HAIRINV_REAL_DATA", Path(__file__).resolve().parents[2] / "shared" / "data" / "real"))
+
+
+def smoke(full, small):
+    """``small`` in a smoke run (see ``SMOKE``), else ``full``: a benchmark's sizes and repeat counts."""
+    return small if SMOKE else full
 
 
 def _cpu_model() -> str:
@@ -111,7 +122,7 @@ def background_load(seconds: float = 0.5) -> float:
 
 # Seconds that all waits of one process may spend in total, so a busy machine
 # slows the benchmarks down by a bounded amount.
-WAIT_BUDGET = 60.0
+WAIT_BUDGET = 0.0 if SMOKE else 60.0
 _waited = 0.0
 
 

@@ -34,9 +34,9 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import DATA, IMG, ROOT, log, table  # type: ignore
+    from common import DATA, IMG, ROOT, log, smoke, table  # type: ignore
 else:
-    from .common import DATA, IMG, ROOT, log, table
+    from .common import DATA, IMG, ROOT, log, smoke, table
 
 sys.path.insert(0, str(ROOT))
 
@@ -52,22 +52,22 @@ from hairinv.pipeline import prepare  # noqa: E402
 
 TITLE = "Simulating an inverted groom"
 SAMPLES = ROOT / "samples"
-GUIDES = 40
-SETTLE_SECONDS = 4.0
+GUIDES = smoke(40, 4)
+SETTLE_SECONDS = smoke(4.0, 0.05)
 SETTLE_AIR = 5.0  # 1/s: the reference settles faster; only the settled shape is kept
-STILL_SECONDS = 2.0
-GRAVITY_ONLY_SECONDS = 0.5  # it falls apart at once; the strands' fast motion makes its steps costly
-RELEASE_SECONDS = 1.0
+STILL_SECONDS = smoke(2.0, 0.05)
+GRAVITY_ONLY_SECONDS = smoke(0.5, 0.02)  # it falls apart at once; the strands' fast motion makes its steps costly
+RELEASE_SECONDS = smoke(1.0, 0.02)
 RELEASE_FINE = 4  # the reference released again with the time step divided by this
-MOTION_SECONDS = 3.0
-TRIM_SECONDS = 1.0
-SPEED_GUIDES = 300
-SPEED_MOTION_SECONDS = 1.0
-RUBY_SECONDS = 0.04  # one frame: the drawn groom has strands that no rest shape holds (see speed())
+MOTION_SECONDS = smoke(3.0, 0.05)
+TRIM_SECONDS = smoke(1.0, 0.02)
+SPEED_GUIDES = smoke(300, 4)
+SPEED_MOTION_SECONDS = smoke(1.0, 0.02)
+RUBY_SECONDS = smoke(0.04, 0.01)  # one frame: the drawn groom has strands that no rest shape holds (see speed())
 RUBY_MOTION_START = 0.5  # s into the motion scene: the head turns fastest (about 95 degrees/s)
-RUBY_MOTION_SECONDS = 0.08  # two frames
+RUBY_MOTION_SECONDS = smoke(0.08, 0.01)  # two frames
 RUBY_COARSE_TURN = 0.1  # rad: steps halved only past twice the default turn
-RUBY_REFERENCE_SWEEPS = 1000  # per step, every one of them: the reference the moving rows are measured against
+RUBY_REFERENCE_SWEEPS = smoke(1000, 20)  # per step, every one of them: the reference the moving rows are measured against
 PLOT_STILL = IMG / "bench_dynamics_still.png"
 PLOT_SHAPES = IMG / "bench_dynamics_shapes.png"
 
@@ -81,7 +81,7 @@ def _displacement(helices: Helices, q_start: np.ndarray, q: np.ndarray) -> float
                for a, b in zip(_samples(helices, q), _samples(helices, q_start)))
 
 
-def _run(sim: Simulation, seconds: float, motion_at, every: float = 0.1, watch=None) -> dict:
+def _run(sim: Simulation, seconds: float, motion_at, every: float = smoke(0.1, 0.01), watch=None) -> dict:
     """Step ``sim`` for ``seconds``; sample displacement, energy and contacts every ``every`` s."""
     h = sim.settings.time_step
     q_start = sim.q.copy()
@@ -312,7 +312,8 @@ def speed() -> list[dict]:
     ruby = DATA / "ruby" / "ruby_short_hair_16_guide.tfx"
     if ruby.exists():
         log("speed: ruby short, 1,867 strands, hair-hair on")
-        extra = {"import": {"scale": 0.002}, "contacts": {"hair_hair": True}, "solver": {"max_sweeps": 300}}
+        extra = {"import": {"scale": 0.002, "guides": smoke(0, 10)}, "contacts": {"hair_hair": True},
+                 "solver": {"max_sweeps": smoke(300, 20)}}
         rs = _settings(**extra)
         rscene = prepare(ruby, DATA / "ruby" / "ruby_head.obj", rs)
         rmat = Material.from_settings(rs.material, rscene.up)

@@ -27,9 +27,9 @@ if str(HERE) not in sys.path:
     sys.path.insert(0, str(HERE))  # the generator and the other benchmarks are imported by name
 
 if __package__ in (None, ""):
-    from common import ROOT, log, machine, machine_markdown, median_time, table  # type: ignore
+    from common import ROOT, log, machine, machine_markdown, median_time, smoke, table  # type: ignore
 else:
-    from .common import ROOT, log, machine, machine_markdown, median_time, table
+    from .common import ROOT, log, machine, machine_markdown, median_time, smoke, table
 
 sys.path.insert(0, str(ROOT))
 
@@ -43,9 +43,9 @@ from hairinv.groom import Groom, load_groom, strand_lengths  # noqa: E402
 from hairinv.rod.fitting import closest_distances  # noqa: E402
 
 TITLE = "Fitting hard grooms: kinks, waves, coils, coarse and noisy strands"
-STRANDS = 200  # per generated variant
+STRANDS = smoke(200, 3)  # per generated variant
 RATIO_RANGE = (0.99, 1.08)  # fitted length / polyline length outside this range is counted
-REAL = [(path, scale, label) for path, scale, label in SOURCES] + [(SINTEL[0], SINTEL[1], "sintel")]
+REAL = smoke([(path, scale, label) for path, scale, label in SOURCES], []) + [(SINTEL[0], SINTEL[1], "sintel")]
 
 
 def measure(groom: Groom, settings: FitSettings | None = None, repeats: int = 1, quiet: bool = False) -> dict:

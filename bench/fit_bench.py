@@ -28,9 +28,9 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import DATA, IMG, ROOT, log, median_time, table, wait_quiet  # type: ignore
+    from common import DATA, IMG, ROOT, SMOKE, log, median_time, smoke, table, wait_quiet  # type: ignore
 else:
-    from .common import DATA, IMG, ROOT, log, median_time, table, wait_quiet
+    from .common import DATA, IMG, ROOT, SMOKE, log, median_time, smoke, table, wait_quiet
 
 sys.path.insert(0, str(ROOT))
 
@@ -45,7 +45,7 @@ from hairinv.rod.helix import points_at  # noqa: E402
 
 TITLE = "Fitting super-helices to strands"
 SEED = 0
-STRANDS = 2000
+STRANDS = smoke(2000, 40)
 POINTS = 32
 LENGTH_RANGE = (0.10, 0.50)  # m
 SOURCES = [  # (file, metres per file unit, label)
@@ -53,12 +53,12 @@ SOURCES = [  # (file, metres per file unit, label)
     (DATA / "ponytail" / "hair_free_16_guide.tfx", 0.0025, "ponytail free"),
 ]
 SINTEL = (DATA / "sintel" / "GEO-sintel_hair_emit.001-sintel_hair.tfx", 0.008)
-SAMPLES = sorted((ROOT / "samples").glob("*.h5"))
-REPEATS = 5
-PEER_STRANDS = 100
-PEER_REPEATS = 3
-SWEEP_MM = (0.05, 0.1, 0.2, 0.5, 1.0)
-SWEEP_REPEATS = 3
+SAMPLES = smoke(sorted((ROOT / "samples").glob("*.h5")), [ROOT / "samples" / "straight.h5"])
+REPEATS = smoke(5, 1)
+PEER_STRANDS = smoke(100, 2)
+PEER_REPEATS = smoke(3, 1)
+SWEEP_MM = smoke((0.05, 0.1, 0.2, 0.5, 1.0), (0.2, 1.0))
+SWEEP_REPEATS = smoke(3, 1)
 TARGET_SECONDS = 3.0
 TARGET_MEAN_MM = 0.1
 PLOT = IMG / "bench_fit_tolerance.png"
@@ -160,7 +160,8 @@ def measure_compile(groom: Groom) -> dict:
         np.save(Path(tmp) / "points.npy", groom.points[: 10 * POINTS])
         cache = Path(tmp) / "numba-cache"
         cache.mkdir()
-        env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+        # a smoke run checks the probe only, with the kernels already compiled
+        env = dict(os.environ) if SMOKE else dict(os.environ, NUMBA_CACHE_DIR=str(cache))
         code = _PROBE.format(root=str(ROOT), points=str(Path(tmp) / "points.npy"), m=POINTS)
         start = time.perf_counter()
         out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
@@ -513,7 +514,7 @@ def run() -> str:
     old = os.environ.get("HAIRINV_THREADS")
     os.environ["HAIRINV_THREADS"] = "1"
     try:
-        single = fit_summary(groom, settings, 3)
+        single = fit_summary(groom, settings, smoke(3, 1))
     finally:
         if old is None:
             os.environ.pop("HAIRINV_THREADS", None)

@@ -38,9 +38,9 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import DATA, IMG, ROOT, log, median_time, table  # type: ignore
+    from common import DATA, IMG, ROOT, SMOKE, log, median_time, smoke, table  # type: ignore
 else:
-    from .common import DATA, IMG, ROOT, log, median_time, table
+    from .common import DATA, IMG, ROOT, SMOKE, log, median_time, smoke, table
 
 sys.path.insert(0, str(ROOT))
 
@@ -63,24 +63,24 @@ QUALITY = "default"
 # The paper's largest example (Derouet-Jourdan et al. 2013): strands, contacts, seconds.
 PAPER = (1980, 30381, 19.0)
 # Paper-size problem: solver tolerances (relative to the heaviest strand's weight), and the sweep cap.
-TOLERANCES = (1e-2, 1e-3, 1e-4, 1e-6)
-CAP = 2000
+TOLERANCES = smoke((1e-2, 1e-3, 1e-4, 1e-6), (1e-2,))
+CAP = smoke(2000, 50)
 # Fixed sweep counts on the paper-size problem (tolerance TINY so that they run to the count).
-PAPER_SWEEPS = (10, 50, 200, 500)
+PAPER_SWEEPS = smoke((10, 50, 200, 500), (5,))
 TINY = 1e-12
 # Subset for the comparison with Clarabel (which takes over 10 min on the whole paper-size problem).
-SUBSET = 1000
-SUBSET_SWEEPS = (10, 30, 100, 300, 1000, 3000)
-CLARABEL_TOLS = (1e-3, 1e-5, 1e-8)  # 1e-8 is Clarabel's default gap and feasibility tolerance
+SUBSET = smoke(1000, 15)
+SUBSET_SWEEPS = smoke((10, 30, 100, 300, 1000, 3000), (5, 20))
+CLARABEL_TOLS = smoke((1e-3, 1e-5, 1e-8), (1e-3,))  # 1e-8 is Clarabel's default gap and feasibility tolerance
 CLARABEL_DEFAULT = 1e-8
 GAPS = (1e-2, 1e-3, 1e-4, 1e-6)
 # Set to 1 to also run Clarabel on the whole paper-size problem (measured once: over 13 min).
 FULL_CLARABEL = os.environ.get("HAIRINV_BENCH_CLARABEL_FULL", "") not in ("", "0")
 # Scaling runs: one fixed solver budget.
 SCALING_TOLERANCE = 1e-4
-SCALING_SWEEPS = 500
+SCALING_SWEEPS = smoke(500, 20)
 # The follow-hair groom is too big for SCALING_SWEEPS sweeps in the benchmark's time: it gets this many.
-BIG_SWEEPS = 10
+BIG_SWEEPS = smoke(10, 2)
 FOLLOW = 4  # follow hairs per guide (the TressFX header's numFollowHairsPerGuideHair)
 FOLLOW_RADIUS = 1.5  # file units (maxRadiusAroundGuideHair) = 3 mm
 SEED = 0
@@ -357,7 +357,8 @@ def compile_probe(_arg: dict) -> dict:
 
 def measure_compile() -> dict:
     with tempfile.TemporaryDirectory(prefix="hairinv-bench-") as tmp:
-        env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+        # a smoke run checks the probe only, with the kernels already compiled
+        env = dict(os.environ) if SMOKE else dict(os.environ, NUMBA_CACHE_DIR=tmp)
         result = _child("compile_probe", {}, env)
         result["cache_files"] = sum(1 for _ in Path(tmp).rglob("*.nbc"))
     return result
@@ -490,6 +491,13 @@ def matched(hairinv_rows: list[dict], clarabel_rows: list[dict], best: float) ->
 
 def scaling_specs() -> list[dict]:
     """The scaling points: guide subsets of ruby short, all of it, ruby long, and the follow-hair groom."""
+    if SMOKE:
+        return [
+            {"label": "ruby short, 10 guides", "files": [str(SHORT)], "guides": 10, "follow": 0, "clarabel": True},
+            {"label": "ruby short, 20 guides", "files": [str(SHORT)], "guides": 20, "follow": 0},
+            {"label": "ruby short, 10 guides, 1 follow hair per guide", "files": [str(SHORT)], "guides": 10,
+             "follow": 1, "big": True},
+        ]
     return [
         {"label": "ruby short, 100 guides", "files": [str(SHORT)], "guides": 100, "follow": 0, "clarabel": True},
         {"label": "ruby short, 300 guides", "files": [str(SHORT)], "guides": 300, "follow": 0, "clarabel": True},
@@ -510,7 +518,7 @@ def run() -> str:
     _pipeline_once(settings_for(WARMUP_GUIDES), [str(SHORT)], check_stability=True)
 
     log("invert: paper-size problem (ruby short): import, fit, detect")
-    full = prepare_groom(0, 3)
+    full = prepare_groom(smoke(0, 20), smoke(3, 1))
     prob = Problem.build(full["helices"], full["contacts"], full["material"], full["settings"].solver)
     log("invert: paper-size problem: tolerances")
     tols = tolerance_runs(prob)

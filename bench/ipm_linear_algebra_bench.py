@@ -51,20 +51,22 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(HERE))
     sys.path.insert(0, str(HERE.parent))
 
+from common import smoke  # noqa: E402
+
 TITLE = "Linear algebra for an interior-point solver"
-GUIDES = (1000, 0)  # ruby short subsets (0: the whole groom)
-SWEEPS = 200  # Gauss-Seidel sweeps giving the forces the scaling is taken at
+GUIDES = smoke((1000, 0), (20,))  # ruby short subsets (0: the whole groom)
+SWEEPS = smoke(200, 10)  # Gauss-Seidel sweeps giving the forces the scaling is taken at
 SHIFT = 1e-3  # interior shift of the primal and dual points, relative (see nt_scaling)
 ORDERINGS = ("natural", "amd", "metis", "nesdis", "best")
 MODES = ("supernodal", "simplicial")
-REPEATS = 3  # numeric refactorisations timed per configuration (median)
+REPEATS = smoke(3, 1)  # numeric refactorisations timed per configuration (median)
 CHILD_TIMEOUT = 150.0  # s per configuration
 # configurations whose factor needs more flops are not factored (their fill is counted only):
 # about a minute at this machine's rates (reference BLAS ~3.5 GFlop/s, OpenBLAS ~15, simplicial ~1)
 FLOP_CAPS = {"reference BLAS": 2e11, "OpenBLAS": 8e11, "simplicial": 2e10}
 IPM_ITERS = (20, 40)
-TARGETS = {1000: 1.0, 0: 19.0}  # s for a whole solve
-DENSE_PROBE = 4000  # size of the dense Cholesky timed to get numpy's flop rate
+TARGETS = smoke({1000: 1.0, 0: 19.0}, {20: 1.0})  # s for a whole solve
+DENSE_PROBE = smoke(4000, 400)  # size of the dense Cholesky timed to get numpy's flop rate
 OPENBLAS_DEFAULT = Path("/usr/lib/x86_64-linux-gnu/openblas-pthread")
 
 

@@ -5,6 +5,9 @@ benchmark; each returns one markdown section. Usage, from the project root::
 
     make bench            # or: .venv/bin/python bench/run.py
     .venv/bin/python bench/run.py fit    # only the modules whose name starts with "fit"
+
+``HAIRINV_BENCH_SMOKE=1`` runs a benchmark on tiny inputs (``bench/common.py``, ``SMOKE``); the test
+suite runs every one that way (``tests/test_bench_smoke.py``).
 """
 
 from __future__ import annotations

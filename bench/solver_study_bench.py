@@ -29,26 +29,26 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import invert_bench as ib  # type: ignore
-    from common import log, table  # type: ignore
+    from common import log, smoke, table  # type: ignore
 else:
     from . import invert_bench as ib
-    from .common import log, table
+    from .common import log, smoke, table
 
 from hairinv.solver.gauss_seidel import solve_cone_qp, split_strands  # noqa: E402
 from hairinv.solver.reference import solve_socqp_clarabel, solve_socqp_dense_clarabel  # noqa: E402
 from hairinv.solver.rows import contact_rows  # noqa: E402
 
 TITLE = "Why the inverse sweeps converge slowly"
-SMALL, LARGE = 300, 1000  # guide subsets of ruby short
-POLISH = (10, 100)  # sweeps started from the interior-point optimum
-COLD = (1000, 4000)  # sweeps started from r = 0
-GAMMAS = (1e-3, 1e3, 1e5, 1e8)  # N^-2 m^-2; 1e-3 is the default (the paper's)
-GAMMA_CAP = 4000
+SMALL, LARGE = smoke((300, 1000), (10, 20))  # guide subsets of ruby short
+POLISH = smoke((10, 100), (2, 5))  # sweeps started from the interior-point optimum
+COLD = smoke((1000, 4000), (10, 40))  # sweeps started from r = 0
+GAMMAS = smoke((1e-3, 1e3, 1e5, 1e8), (1e-3, 1e3))  # N^-2 m^-2; 1e-3 is the default (the paper's)
+GAMMA_CAP = smoke(4000, 40)
 TOP_SHARE = 0.05  # "where the error lies": this share of the strands
-BLOCK_EVERY = 20  # sweeps between two rounds of block solves
+BLOCK_EVERY = smoke(20, 5)  # sweeps between two rounds of block solves
 BLOCK_TOP = 0.10  # the strands with the largest residual whose contacts make the blocks
 BLOCK_SIZES = {SMALL: 10 ** 6, LARGE: 150}  # most contacts per block (small subset: one block)
-BLOCK_ROUNDS = {SMALL: 40, LARGE: 40}
+BLOCK_ROUNDS = {SMALL: smoke(40, 2), LARGE: smoke(40, 2)}
 TOLERANCE = 1e-6
 
 

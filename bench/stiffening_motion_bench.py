@@ -33,9 +33,9 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import ROOT, log, machine, machine_markdown, table  # type: ignore
+    from common import ROOT, SMOKE, WORK as BENCH_WORK, log, machine, machine_markdown, smoke, table  # type: ignore
 else:
-    from .common import ROOT, log, machine, machine_markdown, table
+    from .common import ROOT, SMOKE, WORK as BENCH_WORK, log, machine, machine_markdown, smoke, table
 
 sys.path.insert(0, str(ROOT))
 
@@ -47,10 +47,12 @@ from hairinv.model import stiffening_from_group  # noqa: E402
 TITLE = "Stiffened strands in motion"
 HAIRINV = ROOT / ".venv" / "bin" / "hairinv"
 PYTHON = ROOT / ".venv" / "bin" / "python"
-WORK = ROOT / "out" / "still_bench"
-OUT = ROOT / "out" / "stiffening_motion"
+WORK = BENCH_WORK / "still_bench"
+OUT = BENCH_WORK / "stiffening_motion"
 # (name, style, seconds of the motion scene): the generated kinds with most stiffened strands
-GROOMS = (("mohawk", 1.0), ("draped_gap6", 0.5), ("updo", 0.5))
+GROOMS = smoke((("mohawk", 1.0), ("draped_gap6", 0.5), ("updo", 0.5)), (("mohawk", 0.02),))
+# a smoke run inverts this many guides of the groom
+GUIDES = smoke([], ["--guides", "10"])
 
 
 def tip_travel(frames_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -91,7 +93,7 @@ def measure(name: str, seconds: float) -> dict:
     invert_seconds = None
     if not model.exists() or model.stat().st_mtime < style.stat().st_mtime:
         model = OUT / f"{name}.model.h5"
-        invert_seconds = _run([str(HAIRINV), "invert", str(style), str(body), "-o", str(model)])
+        invert_seconds = _run([str(HAIRINV), "invert", str(style), str(body), "-o", str(model)] + GUIDES)
     frames = OUT / f"{name}.motion.h5"
     frames.unlink(missing_ok=True)
     sim_seconds = _run([str(HAIRINV), "simulate", str(model), str(body), "--scene", "motion", "--seconds",

@@ -52,9 +52,9 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import DATA, ROOT, log, machine, machine_markdown, table  # type: ignore
+    from common import DATA, ROOT, SMOKE, log, machine, machine_markdown, table  # type: ignore
 else:
-    from .common import DATA, ROOT, log, machine, machine_markdown, table
+    from .common import DATA, ROOT, SMOKE, log, machine, machine_markdown, table
 
 sys.path.insert(0, str(ROOT / "bench"))
 
@@ -502,7 +502,7 @@ def measure(quick: bool = False, workdir: Path | None = None,
     return results, meta
 
 
-def run(quick: bool = False) -> str:
+def run(quick: bool = SMOKE) -> str:
     if quick:
         with tempfile.TemporaryDirectory(prefix="still_bench_") as folder:
             results, meta = measure(quick=True, workdir=Path(folder))
@@ -513,7 +513,7 @@ def run(quick: bool = False) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true",
+    parser.add_argument("--quick", action="store_true", default=SMOKE,
                         help=f"smoke run: {QUICK_GUIDES} guides of the generated {QUICK_VARIANT} only")
     args = parser.parse_args(argv)
     print(run(quick=args.quick))
