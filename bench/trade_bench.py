@@ -80,6 +80,7 @@ DET_SAMPLES = smoke((2, 4, 8, 16), (2, 8))
 DET_CAPS = smoke((1, 2, 4, 8, 16, 0), (8, 0))
 DET_STRANDS = smoke(0, 12)
 
+CAP_COLOURS = {8: "tab:red", 16: "tab:brown", 0: "tab:blue"}
 PRESET_STYLE = {"draft": ("o", "tab:orange"), "default": ("s", "tab:green"), "final": ("D", "tab:purple")}
 
 
@@ -111,6 +112,21 @@ def _plt():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def _log_axes(ax, x=True, y=True):
+    """Log scales with plain tick labels (call after plotting: the labels depend on the range)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    for on, axis, scale, limits in ((x, ax.xaxis, ax.set_xscale, ax.get_xlim),
+                                    (y, ax.yaxis, ax.set_yscale, ax.get_ylim)):
+        if on:
+            scale("log")
+            lo, hi = limits()  # of the log scale
+            few = 0 < lo and hi < 300 * lo  # 1, 2 and 5 labelled over two and a half decades or less, else 1 alone
+            axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0) if few else (1.0,)))
+            axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            axis.set_minor_formatter(NullFormatter())
 
 
 def _mark_presets(ax, points, x, y, floor=0.0):
@@ -178,7 +194,8 @@ def fit_plot(result: dict, path: Path) -> None:
     fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.6), squeeze=False)
     for ax, name in zip(axes[0], names):
         rows = [r for r in result["rows"] if r["groom"] == name]
-        for cap, colour in zip(FIT_CAPS, ("tab:blue", "tab:red", "tab:gray")):
+        for cap in FIT_CAPS:
+            colour = CAP_COLOURS.get(cap, "tab:gray")
             line = [r for r in rows if r["preset"] is None and r["max_elements"] == cap]
             ax.plot([1e3 * r["seconds"] for r in line], [1e3 * r["mean"] for r in line], "-o", ms=4, color=colour,
                     label=f"max_elements {cap or 'auto (0)'}")
@@ -187,15 +204,14 @@ def fit_plot(result: dict, path: Path) -> None:
                     ax.annotate(f"{1e3 * r['tolerance']:g}", (1e3 * r["seconds"], 1e3 * r["mean"]),
                                 textcoords="offset points", xytext=(-4, -12), fontsize=7, color=colour)
         _mark_presets(ax, [r for r in rows if r["preset"]], lambda r: 1e3 * r["seconds"], lambda r: 1e3 * r["mean"])
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        _log_axes(ax)
         strands = next(g[1] for g in result["grooms"] if g[0] == name)
         ax.set_title(f"{name}, {strands} strands", fontsize=10)
         ax.set_xlabel("fit time (ms, median)")
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].set_ylabel("mean vertex distance (mm)")
     axes[0][0].legend(fontsize=8, loc="lower left")
-    fig.suptitle("fit: fit.tolerance (grey labels, mm) and fit.max_elements against the fit error", fontsize=11)
+    fig.suptitle("fit: fit.tolerance (labels, mm) and fit.max_elements against the fit error", fontsize=11)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
@@ -325,10 +341,9 @@ def invert_plot(result: dict, path: Path) -> None:
         _mark_presets(ax, [r for r in rows if r["kind"] == "preset"], lambda r: r["seconds"], lambda r: r["rms"],
                       floor)
         ax.axhline(problem["gravity_only"][0], color="k", ls=":", lw=1)
-        ax.annotate("no contact forces (gravity-only rest shape)", (ax.get_xlim()[0], problem["gravity_only"][0]),
-                    textcoords="offset points", xytext=(4, -11), fontsize=7)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        ax.text(0.02, problem["gravity_only"][0], "no contact forces (the gravity-only rest shape)",
+                transform=ax.get_yaxis_transform(), va="top", fontsize=7)
+        _log_axes(ax)
         ax.set_title(f"{problem['groom']}: {problem['strands']} guides, {problem['contacts']:,} contacts", fontsize=10)
         ax.set_xlabel("invert time (s, median, no stability check)")
         ax.grid(True, which="both", alpha=0.3)
@@ -454,8 +469,7 @@ def simulate_plot(result: dict, path: Path) -> None:
                         xytext=(4, 4), fontsize=7, color=colour)
     _mark_presets(ax, [r for r in result["rows"] if r["kind"] == "preset"], lambda r: r["seconds"],
                   lambda r: 1e3 * r["max"], floor)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    _log_axes(ax)
     ax.set_xlabel(f"wall time of {SIM_SECONDS:g} s simulated (s)")
     ax.set_ylabel("largest point distance from the reference at the end (mm)")
     ax.set_title(f"simulate: {result['strands']} inverted wavy guides, the motion scene's first {SIM_SECONDS:g} s",
@@ -553,7 +567,7 @@ def detect_plot(result: dict, path: Path) -> None:
     _mark_presets(ax, [dict(spot, preset=q) for q in result["presets"]
                        if result["presets"][q] == result["default"]],
                   lambda r: 1e3 * r["seconds"], lambda r: r["contacts"])
-    ax.set_xscale("log")
+    _log_axes(ax, y=False)
     ax.set_xlabel("detection time (ms, median)")
     ax.set_ylabel("contacts declared (hair-body + hair-hair)")
     ax.set_title(f"detect: {result['strands']} strands of the sample wavy groom on the sample bust", fontsize=10)
