@@ -7,6 +7,7 @@ killed job leaves either the old file or the complete new one, never a part.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -299,19 +300,27 @@ def read_stage(path) -> StageFile:
         needs, has one of the wrong type or shape, or holds groups inconsistent with one another.
     """
     path = Path(path)
+    with _opened(path) as fh:
+        stage = _read(fh, path)
+    check_consistency(stage)
+    return stage
+
+
+@contextlib.contextmanager
+def _opened(path: Path):
+    """The stage file open for reading; h5py's errors on a file that is not HDF5, or is damaged, become
+    one :class:`InputError` sentence."""
     try:
         fh = h5py.File(path, "r")
     except (OSError, ValueError):
         raise InputError("is not a readable HDF5 file", path) from None
     with fh:
         try:
-            stage = _read(fh, path)
+            yield fh
         except InputError:
             raise
         except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:  # h5py on a damaged file
             raise InputError(f"cannot be read, the HDF5 file is damaged ({_one_line(exc)})", path) from None
-    check_consistency(stage)
-    return stage
 
 
 def check_metadata(path) -> None:
@@ -330,21 +339,12 @@ def check_metadata(path) -> None:
         Whatever :func:`read_stage` refuses that the metadata shows, with the same sentence.
     """
     path = Path(path)
-    try:
-        fh = h5py.File(path, "r")
-    except (OSError, ValueError):
-        raise InputError("is not a readable HDF5 file", path) from None
-    with fh:
-        try:
-            _, members = _read_members(fh, path)
-            attrs = {name: _group_attrs(fh[name], name, path)[0] for name in members}
-            shapes = {name: {key: d.shape for key, d in datasets.items() if key in LAYOUT[name]}
-                      for name, datasets in members.items()}
-            ends = {name: _ends(datasets["offsets"]) for name, datasets in members.items() if "offsets" in datasets}
-        except InputError:
-            raise
-        except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:  # h5py on a damaged file
-            raise InputError(f"cannot be read, the HDF5 file is damaged ({_one_line(exc)})", path) from None
+    with _opened(path) as fh:
+        _, members = _read_members(fh, path)
+        attrs = {name: _group_attrs(fh[name], name, path)[0] for name in members}
+        shapes = {name: {key: d.shape for key, d in datasets.items() if key in LAYOUT[name]}
+                  for name, datasets in members.items()}
+        ends = {name: _ends(datasets["offsets"]) for name, datasets in members.items() if "offsets" in datasets}
     _check_layout(path, shapes, attrs, ends)
 
 
