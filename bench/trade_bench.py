@@ -24,6 +24,7 @@ The quality presets (``configs/quality/{draft,default,final}.toml``) are placed 
 from __future__ import annotations
 
 import dataclasses
+import json
 import sys
 import time
 from pathlib import Path
@@ -33,7 +34,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from common import DATA, IMG, ROOT, SMOKE, log, median_time, smoke, table  # noqa: E402
+from common import DATA, IMG, ROOT, SMOKE, WORK, log, median_time, smoke, table  # noqa: E402
 
 sys.path.insert(0, str(ROOT))
 
@@ -613,12 +614,25 @@ STAGES = (("fit", fit_stage, fit_plot, fit_section),
           ("detect", detect_stage, detect_plot, detect_section))
 
 
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
 def run() -> str:
     started = time.perf_counter()
     parts = []
     for name, stage, plot, section in STAGES:
         log(f"trade: {name}")
         result = stage()
+        # the figures of the run, kept beside its work files (out/), to read or redraw without running again
+        WORK.mkdir(parents=True, exist_ok=True)
+        (WORK / f"bench_trade_{name}.json").write_text(json.dumps(_jsonable(result), indent=1))
         plot(result, IMG / f"bench_trade_{name}.png")
         parts += section(result) + [""]
         log(f"trade: {name} done, {time.perf_counter() - started:.0f} s")
