@@ -8,6 +8,8 @@ the value; a group the file lacks is ``null``.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from . import stages
@@ -208,6 +210,20 @@ def _warnings(out: dict) -> list[str]:
     return found
 
 
+def _features(g: stages.Group) -> dict | None:
+    """What the stage that wrote ``g`` modelled and skipped, and why (its ``features`` attribute,
+    docs/stage-files.md), or None where the file does not say (older files) or says it unreadably."""
+    try:
+        said = json.loads(str(g.attrs["features"]))
+    except (KeyError, ValueError):
+        return None
+    if not (isinstance(said, dict) and isinstance(said.get("modelled"), list)
+            and isinstance(said.get("skipped"), dict)):
+        return None
+    return {"modelled": [str(k) for k in said["modelled"]],
+            "skipped": {str(k): str(v) for k, v in said["skipped"].items()}}
+
+
 def summarise(stage: stages.StageFile) -> dict:
     """A JSON-ready dictionary describing every group of a stage file (docs/export.md, "JSON")."""
     groups = stage.groups
@@ -227,6 +243,10 @@ def summarise(stage: stages.StageFile) -> dict:
             "frames": _frames(groups[stages.FRAMES]) if stages.FRAMES in groups else None,
         },
     }
+    for name in (stages.CONTACTS, stages.MODEL, stages.FRAMES):
+        said = _features(groups[name]) if name in groups else None
+        if said is not None:
+            out["groups"][name]["features"] = said
     # seconds each stage took, where the file records it (only the contact solve of invert does)
     model = out["groups"]["model"]
     def seconds(name):  # the stage's own computing time, None where the file does not record it

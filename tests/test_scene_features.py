@@ -272,6 +272,24 @@ def test_the_stage_files_record_what_was_modelled(tmp_path):
     with h5py.File(frames, "r") as fh:
         assert fh["frames/displacement"][()].max() == 0.0
         assert "trim" in json.loads(fh["frames"].attrs["features"])["skipped"]
+    # info and the JSON summary say it too, per group
+    run = subprocess.run([HAIRINV, "info", "--json", str(frames)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    groups = json.loads(run.stdout)["groups"]
+    assert groups["model"]["features"]["skipped"]["gravity"] == "material.gravity = 0"
+    assert "hair_hair_contact" in groups["contacts"]["features"]["skipped"]
+    assert groups["frames"]["features"]["skipped"]["trim"] == "the scene has no [trim]"
+    text = subprocess.run([HAIRINV, "info", str(frames)], capture_output=True, text=True).stdout
+    assert "skipped: gravity material.gravity = 0" in text
+    # a file whose attribute is not what hairinv writes (another tool's) is summarised without it
+    with h5py.File(frames, "r+") as fh:
+        fh["frames"].attrs["features"] = "not json"
+        fh["model"].attrs["features"] = json.dumps(["gravity"])
+    run = subprocess.run([HAIRINV, "info", "--json", str(frames)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    groups = json.loads(run.stdout)["groups"]
+    assert "features" not in groups["frames"] and "features" not in groups["model"]
+    assert "features" in groups["contacts"]
 
 
 def test_detect_features_say_why():
