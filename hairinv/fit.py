@@ -60,6 +60,10 @@ class FitReport:
     noise: np.ndarray | None = None
     """(S,) m, where the vertices scatter (``smooth`` below :data:`SCATTERED`), the noise's estimated
     standard deviation per coordinate (:func:`hairinv.rod.fitting._scatter`), else 0"""
+    noisy: np.ndarray | None = None
+    """(S,) bool, the strands whose noise leaves more than the tolerance at their vertices (the largest of
+    their M deviations, sigma sqrt(2 ln M + 4), beyond it): the fit lays the smooth curve through the middle
+    of their noise"""
 
     def worst(self, count: int = LISTED) -> list[tuple[int, float, float]]:
         """The strands farthest from their vertices: (index, largest distance m, length ratio)."""
@@ -98,7 +102,9 @@ class FitReport:
                  f"({tol_mm:.3g} mm) from some vertex, with the most elements their vertices determine:"]
         if self.sagitta is not None:
             coarse = missed & (self.sagitta > self.tolerance)
-            if self.noise is not None:
+            if self.noisy is not None:
+                coarse &= ~self.noisy
+            elif self.noise is not None:
                 coarse &= self.noise == 0
             elif self.smooth is not None:
                 coarse &= self.smooth >= SCATTERED
@@ -108,7 +114,10 @@ class FitReport:
                     f"  {int(coarse.sum())} are sampled too coarsely for it: between their vertices a smooth curve "
                     f"may pass up to {1e3 * self.sagitta[coarse].max():.2f} mm from the chords, so the vertices do "
                     "not determine it to the tolerance. Resample them more finely, or raise fit.tolerance")
-            noisy = rough & (self.noise > 0) if self.noise is not None else np.zeros_like(rough)
+            if self.noisy is not None:
+                noisy = rough & self.noisy
+            else:
+                noisy = rough & (self.noise > 0) if self.noise is not None else np.zeros_like(rough)
             kinked = rough & ~noisy
             if noisy.any():
                 need = 1e3 * self.fit_error[noisy, 1].max()
@@ -117,16 +126,22 @@ class FitReport:
                     f"  {int(noisy.sum())} have vertices that scatter about a smooth curve (noise of about "
                     f"{np.median(sigma):.2g} mm per coordinate, up to {sigma.max():.2g} mm): they are fitted by "
                     "the smooth curve, not the noise. "
-                    f"Smooth them, or raise fit.tolerance to {need:.2g} mm")
+                    f"Smooth them, or raise fit.tolerance to {_up(need):g} mm")
             if kinked.any():
                 need = 1e3 * self.fit_error[kinked, 1].max()
                 lines.append(
                     f"  {int(kinked.sum())} bend sharper (kinks) than a smooth rod follows within it. "
-                    f"Smooth them, or raise fit.tolerance to {need:.2g} mm")
+                    f"Smooth them, or raise fit.tolerance to {_up(need):g} mm")
         listed = ", ".join(f"{k} ({1e3 * e:.3f} mm, length ratio {r:.3f})"
                            for k, e, r in self.worst() if e > self.tolerance)
         lines.append(f"  worst strands (index, largest distance, fitted length over polyline): {listed}")
         return lines
+
+
+def _up(x: float) -> float:
+    """``x`` > 0 rounded up to two significant digits (a tolerance that the distances it is raised to meet)."""
+    step = 10.0 ** (np.floor(np.log10(x)) - 1)
+    return float(np.ceil(x / step - 1e-9) * step)
 
 
 def _validate(settings: FitSettings) -> None:
@@ -193,8 +208,10 @@ def fit_groom(groom: Groom, settings: FitSettings, progress=None, chunk: int = 3
     fitted_length = np.add.reduceat(length, helix_offsets[:-1]) if count else np.zeros(0)
     arc, sagitta, smooth, noise = np.zeros(count), np.zeros(count), np.zeros(count), np.zeros(count)
     sampling_figures(points, offsets, arc, sagitta, smooth, noise)
+    vertices = np.maximum(np.diff(offsets), 2)
+    noisy = noise * np.sqrt(2.0 * np.log(vertices) + fitting._NOISE_MARGIN) > settings.tolerance
     overlong = int((fitted_length > OVERLONG * arc).sum())
     report = FitReport(count, out_n, fit_error, int(missed.sum()), time.perf_counter() - start, overlong,
                        float(settings.tolerance), fitted_length / strand_lengths(points, offsets), sagitta, missed,
-                       smooth, noise)
+                       smooth, noise, noisy)
     return helices, report

@@ -399,6 +399,27 @@ def test_a_coarse_smooth_strand_and_a_noisy_one_are_reported_with_their_reasons(
     assert 0.99 * polyline <= fitted[0] <= 1.08 * polyline
 
 
+def test_a_miss_is_put_down_to_noise_only_where_the_noise_accounts_for_it():
+    """A strand whose vertices scatter a little (sigma 0.014 mm: its largest deviation of 101,
+    sigma sqrt(2 ln 101 + 4) = 0.05 mm, is well within 0.2 mm) but which misses the tolerance by a kink
+    is reported as kinked, with a tolerance that would hold it (0.204 mm rounded up, not down to 0.2);
+    one whose noise leaves 0.3 mm is reported as noisy."""
+    from hairinv.fit import FitReport
+
+    def report(sigma, worst):
+        return FitReport(1, np.array([20]), np.array([[5e-5, worst]]), 1, 0.0, tolerance=2e-4,
+                         length_ratio=np.ones(1), sagitta=np.array([1e-5]), missed=np.array([True]),
+                         smooth=np.array([-0.6]), noise=np.array([sigma]),
+                         noisy=np.array([sigma * np.sqrt(2 * np.log(101) + 4) > 2e-4]))
+
+    text = "\n".join(report(1.4e-5, 2.044e-4).lines())
+    assert "bend sharper (kinks)" in text and "scatter" not in text
+    assert "raise fit.tolerance to 0.21 mm" in text
+    text = "\n".join(report(6e-5, 4e-4).lines())
+    assert "scatter about a smooth curve" in text and "kinks" not in text
+    assert "raise fit.tolerance to 0.4 mm" in text
+
+
 def test_sampling_figures_closed_forms():
     """On a circle of radius R sampled every h: the smooth curve's length is the arc (chords times
     (a/2)/sin(a/2)), the sagitta estimate h a / 8 with a the turning per vertex, and consecutive second
