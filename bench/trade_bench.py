@@ -239,7 +239,7 @@ def fit_section(result: dict) -> list[str]:
         "",
         f"`hairinv.fit.fit_groom` on {grooms}, every other fit setting the default's "
         f"(the presets use their own: draft 20 Levenberg-Marquardt iterations, final 100). Time: median of "
-        f"{REPEATS} runs (both threads). Mean error: mean over strands of each strand's mean vertex distance "
+        f"{REPEATS} runs when under {QUICK:g} s, else one (both threads). Mean error: mean over strands of each strand's mean vertex distance "
         "(`helices.fit_error[:, 0]`); max: the largest vertex distance of any strand; length ratio: fitted length "
         "over the polyline's, smallest and largest strand; missed: strands the fitter reports above the tolerance.",
         "",
@@ -382,7 +382,9 @@ def invert_section(result: dict) -> list[str]:
             f"({p['body']:,} hair-body); Clarabel at tolerance {REFERENCE_CLARABEL:g} took {p['clarabel_seconds']:.2f} s "
             f"({p['clarabel_iterations']} iterations, {p['clarabel_status']}), the sweeps started from its forces "
             f"reached a relative residual of {p['polish_relres']:.1e} in {p['polish_sweeps']} sweeps; the reference is "
-            f"the lower objective of the two ({p['reference']}, relative residual {p['reference_relres']:.1e}). "
+            f"the one of the two closer to optimality by its natural-map residual ({p['reference']}, relative "
+            f"residual {p['reference_relres']:.1e}; Clarabel's objective is {p['clarabel_gap']:.1e} above the "
+            f"lowest, its answer may lie a little outside the cones). "
             f"Its rest shape lies {_g(p['drift'], 3)} 1/m (rms) from the input curvature; the gravity-only rest shape "
             f"(no contact forces) lies {_g(p['gravity_only'][0], 3)} 1/m from it")
     return [
