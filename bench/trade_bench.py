@@ -195,6 +195,16 @@ def fit_stage() -> dict:
     return {"rows": rows, "grooms": [(n, g.n_strands, len(g.points)) for n, g in grooms]}
 
 
+def _save(fig, path: Path) -> None:
+    """Lay out ``fig``, write it to ``path`` (its folder made if needed) and free it."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def fit_plot(result: dict, path: Path) -> None:
     plt = _plt()
     names = [g[0] for g in result["grooms"]]
@@ -219,10 +229,7 @@ def fit_plot(result: dict, path: Path) -> None:
     axes[0][0].set_ylabel("mean vertex distance (mm)")
     axes[0][0].legend(fontsize=8, loc="lower left")
     fig.suptitle("fit: fit.tolerance (labels, mm) and fit.max_elements against the fit error", fontsize=11)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def fit_section(result: dict) -> list[str]:
@@ -360,10 +367,7 @@ def invert_plot(result: dict, path: Path) -> None:
     axes[0][0].set_ylabel("rest shape: rms |q0 - q0*| over elements (1/m)")
     axes[0][0].legend(fontsize=8, loc="lower left")
     fig.suptitle("invert: the solver's knobs against the rest shape's distance from the exact optimum", fontsize=11)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def invert_section(result: dict) -> list[str]:
@@ -489,10 +493,7 @@ def simulate_plot(result: dict, path: Path) -> None:
                  fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="lower left")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def simulate_section(result: dict) -> list[str]:
@@ -587,10 +588,7 @@ def detect_plot(result: dict, path: Path) -> None:
     ax.set_title(f"detect: {result['strands']} strands of the sample wavy groom on the sample bust", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def detect_section(result: dict) -> list[str]:
