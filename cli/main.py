@@ -831,6 +831,7 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
         verdict = _recorded_verdict(output, tolerance, run_seconds)
         notes.append(f"the verdict recorded in {output}")
     else:
+        notes.append(_simulation_features(run, init).line())
         stop = None if full else (lambda log: log.displacement > tolerance)
         frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=stop)
         verdict = judge(frames, tolerance, run_seconds)

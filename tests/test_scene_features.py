@@ -272,6 +272,10 @@ def test_the_stage_files_record_what_was_modelled(tmp_path):
     with h5py.File(frames, "r") as fh:
         assert fh["frames/displacement"][()].max() == 0.0
         assert "trim" in json.loads(fh["frames"].attrs["features"])["skipped"]
+    # verify says what its still simulation models, as simulate does
+    run = subprocess.run([HAIRINV, "verify", str(model), "--seconds", "0.05"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "skipped: gravity" in run.stdout and "body motion (the scene's body is fixed" in run.stdout
     # info and the JSON summary say it too, per group
     run = subprocess.run([HAIRINV, "info", "--json", str(frames)], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
