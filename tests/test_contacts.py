@@ -644,3 +644,160 @@ def test_a_strand_resting_on_another_beyond_the_fixed_radius_is_supported():
     model, _ = invert(h, contacts, Material.from_settings(MaterialSettings(), up), SolverSettings(tolerance=1e-8))
     weight = Material.from_settings(MaterialSettings(), up).linear_density * 9.81 * 0.1
     assert model.force[hair, 0].sum() > 0.3 * weight
+
+
+# --- dense grooms: the hair-hair search and the layer rule at full-head sizes -----------------------------------
+
+def bundle_and_guides(seed=0):
+    """Bent horizontal strands along +x over the floor y = 0: a dense bundle (20 strands, 0.5 mm apart, as the
+    follow hairs of one guide) and, 3 cm to the side, sparse guides stacked 2-2.8 mm apart (wisps), plus one
+    strand between the two kinds at 1.5-3 mm from the bundle, so every pairing of dense and sparse occurs."""
+    rng = np.random.default_rng(seed)
+    strands = []
+    for i in range(5):
+        for j in range(4):
+            y, z = 0.004 + 0.0005 * j, 0.0005 * i + 0.0001 * rng.uniform()
+            strands.append(((0.0, y, z), frame_with_tangent([1.0, 0.0, 0.0], n2=[0.0, 1.0, 0.0]),
+                            np.tile([rng.uniform(0.5, 1.0), 0.0, 0.0], (6, 1)), np.full(6, 0.02)))
+    y = 0.004
+    for k in range(5):
+        strands.append(((0.0, y, 0.03), frame_with_tangent([1.0, 0.0, 0.0], n2=[0.0, 1.0, 0.0]),
+                        np.tile([rng.uniform(0.5, 1.0), 0.0, 0.0], (6, 1)), np.full(6, 0.02)))
+        y += rng.uniform(0.002, 0.0028)
+    strands.append(((0.0, 0.0055 + 0.0015, 0.0025), frame_with_tangent([1.0, 0.0, 0.0], n2=[0.0, 1.0, 0.0]),
+                    np.tile([0.7, 0.0, 0.0], (6, 1)), np.full(6, 0.02)))
+    return helices(strands)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_two_pass_hair_search_declares_what_one_wide_search_does(monkeypatch, seed):
+    """The first search (within hair_distance) finds the strands whose wisp radius is hair_distance; the
+    second searches only the pairs with a sparse strand to hair_max_distance. Contacts and wisp radii are
+    those of one search of every pair to hair_max_distance, bit for bit, on a groom with both kinds."""
+    import functools
+
+    from hairinv.contacts import detect as detect_module
+
+    up = np.array([0.0, 1.0, 0.0])
+    settings = dataclasses.replace(SETTINGS, root_clearance=0.0, layer=False)
+    h = bundle_and_guides(seed)
+    two, report = detect_contacts(h, plane(), settings, up=up)
+    monkeypatch.setattr(detect_module, "_hair_candidates",
+                        functools.partial(detect_module._hair_candidates, two_pass=False))
+    one, report_one = detect_contacts(h, plane(), settings, up=up)
+    for key in ("strand", "s", "point", "frame", "mu", "gap", "element"):
+        np.testing.assert_array_equal(getattr(two, key), getattr(one, key))
+    np.testing.assert_array_equal(report.wisp_radius, report_one.wisp_radius)
+    # both kinds are there: the bundle at hair_distance, the guides wider, and wisp contacts between guides
+    assert np.all(report.wisp_radius[:20] == settings.hair_distance)
+    assert np.all(report.wisp_radius[20:25] > settings.hair_distance)
+    assert report.hair_wisp > 0 and two.n_hair > report.hair_wisp
+
+
+def test_a_groom_of_dense_strands_is_searched_once_and_only_to_hair_distance(monkeypatch):
+    from hairinv.contacts import detect as detect_module
+
+    reaches = []
+    real = detect_module.hair_pairs
+
+    def spy(samples, omega, length, strand_of, reach):
+        reaches.append(reach)
+        return real(samples, omega, length, strand_of, reach)
+
+    monkeypatch.setattr(detect_module, "hair_pairs", spy)
+    h = bundle_and_guides()
+    dense = helices([(h.root[i], h.frame0[i], h.omega[6 * i:6 * i + 6], h.length[6 * i:6 * i + 6]) for i in range(20)])
+    _, report = detect_contacts(dense, plane(), dataclasses.replace(SETTINGS, layer=False), up=np.array([0, 1.0, 0]))
+    assert reaches == [SETTINGS.hair_distance] and np.all(report.wisp_radius == SETTINGS.hair_distance)
+
+
+def _median_by_strand(nearest, strand_of, count, settings):
+    """The wisp radii by their definition: numpy's median of each strand's finite nearest distances."""
+    radius = np.full(count, settings.hair_distance)
+    for k in range(count):
+        values = nearest[(strand_of == k) & np.isfinite(nearest)]
+        if len(values):
+            radius[k] = np.median(values)
+    return np.clip(1.25 * radius, settings.hair_distance, settings.hair_max_distance)
+
+
+def test_wisp_radius_is_the_median_of_each_strands_nearest_distances():
+    from hairinv.contacts.detect import _wisp_radius
+
+    rng = np.random.default_rng(3)
+    strand_of = np.repeat(np.arange(40), rng.integers(1, 9, 40))
+    E = len(strand_of)
+    ea = rng.integers(0, E, 300)
+    eb = rng.integers(0, E, 300)
+    dist = rng.uniform(0.0, 0.003, 300)
+    nearest = np.full(E, np.inf)
+    np.minimum.at(nearest, ea, dist)
+    np.minimum.at(nearest, eb, dist)
+    np.testing.assert_array_equal(_wisp_radius(ea, eb, dist, strand_of, 41, SETTINGS),
+                                  _median_by_strand(nearest, strand_of, 41, SETTINGS))
+
+
+def _layer_by_the_rule(has, sd, sigma, least, samples, s0, length, offsets, mesh, settings):
+    """The layer rule read directly (docs of ``_layer_elements``), strand by strand and run by run with numpy."""
+    E, n = samples.shape[0], samples.shape[1]
+    has = has.astype(bool)
+    out = np.zeros(E, dtype=bool)
+    gaps = []
+    near = np.flatnonzero(np.minimum(np.where(has, sd, np.inf), least) <= settings.layer_max_gap)
+    if not len(near):
+        return out, np.zeros(0)
+    dist = mesh.closest(np.ascontiguousarray(samples[near].reshape(-1, 3)))[0].reshape(-1, n)
+    arc = s0[near, None] + length[near, None] * np.minimum(np.arange(n) / (n - 1), 1.0)[None, :]
+    strand_of = np.searchsorted(offsets, near, side="right") - 1
+    for k in np.unique(strand_of):
+        mine = strand_of == k
+        els, d, s = near[mine], dist[mine].ravel(), arc[mine].ravel()
+        owner = np.repeat(els, n)
+        valid = (s >= settings.root_clearance) & (d <= settings.layer_max_gap)
+        run = np.cumsum(~valid | np.r_[False, np.diff(owner) > 1])
+        for r in np.unique(run[valid]):
+            members = valid & (run == r)
+            gap = float(np.median(np.maximum(d[members], 0.0)))
+            idx = np.flatnonzero(members)
+            in_band = d[idx] <= gap + settings.layer_tolerance
+            stretch = np.cumsum(np.r_[True, in_band[1:] != in_band[:-1]])
+            declared = False
+            for t in np.unique(stretch[in_band]):
+                sel = idx[in_band & (stretch == t)]
+                lo, hi = s[sel].min(), s[sel].max()
+                if hi - lo < settings.layer_min_length:
+                    continue
+                for e in np.unique(owner[sel]):
+                    step = length[e] / (n - 1)
+                    if (has[e] and settings.body_distance <= sd[e] <= gap + settings.layer_tolerance
+                            and lo - step <= s0[e] + sigma[e] <= hi + step):
+                        out[e] = declared = True
+            if declared:
+                gaps.append(gap)
+    return out, np.asarray(gaps)
+
+
+@pytest.mark.parametrize("name", ["wavy.h5", "settled.h5"])
+def test_the_layer_rule_kernel_declares_what_the_rule_says(monkeypatch, name):
+    """The compiled layer rule against a direct numpy reading of it, on the inputs detection gives it for
+    a sample groom on the sample bust (hundreds of runs, some broken by gaps between near elements)."""
+    from hairinv.contacts import detect as detect_module
+
+    calls = []
+    real = detect_module._layer_elements
+
+    def spy(*args):
+        out = real(*args)
+        calls.append((args, out))
+        return out
+
+    monkeypatch.setattr(detect_module, "_layer_elements", spy)
+    groom, _ = load_groom(SAMPLES / name, ImportSettings())
+    h, _ = fit_groom(groom, FitSettings())
+    body = load_body(SAMPLES / "body.obj", hair_unit_transform(groom.scale_to_m))
+    detect_contacts(h, body, SETTINGS, up=groom.up)
+    (args, (out, gaps)), = calls
+    expected, expected_gaps = _layer_by_the_rule(*args)
+    assert out.sum() > 10 and len(gaps) > 10
+    np.testing.assert_array_equal(out, expected)
+    np.testing.assert_array_equal(gaps, expected_gaps)

@@ -294,22 +294,10 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
     if settings.hair_hair and elements:
         wisp = settings.wisp and up is not None and settings.hair_max_distance > settings.hair_distance
         hair_reach = float(settings.hair_max_distance if wisp else settings.hair_distance)
-        ea, eb, sa, sb, _close = hair_pairs(samples, omega, length, strand_of, hair_reach)
-        pairs = len(ea)
-        pa = np.empty((pairs, 3))
-        pb = np.empty((pairs, 3))
-        ta = np.empty((pairs, 3))
-        tb = np.empty((pairs, 3))
-        dist = np.empty(pairs)
-        run_chunks(lambda lo, hi: refine_pairs(lo, hi, ea, eb, sa, sb, xs, Fs, omega, length, pa, pb, ta, tb, dist),
-                   pairs, 4096)
-        # one contact per element pair within reach; a closest point on an element's end starts the next
-        # element, whose pair with the same other element is at least as close and declares its own
-        keep = dist < hair_reach
-        keep &= ~((sa == length[ea]) & (is_last[ea] == 0))
-        keep &= ~((sb == length[eb]) & (is_last[eb] == 0))
+        ea, eb, sa, sb, pa, pb, ta, tb, dist, keep = _hair_candidates(
+            samples, xs, Fs, omega, length, strand_of, is_last, count, settings, wisp)
         wisp_radius = np.full(count, float(settings.hair_distance))
-        by_wisp = np.zeros(pairs, dtype=bool)
+        by_wisp = np.zeros(len(ea), dtype=bool)
         if wisp:
             wisp_radius = _wisp_radius(ea[keep], eb[keep], dist[keep], strand_of, count, settings)
             beyond = keep & (dist >= settings.hair_distance)
@@ -411,46 +399,145 @@ def _layer_elements(has: np.ndarray, sd: np.ndarray, sigma: np.ndarray, least: n
     dist = mesh.closest(np.ascontiguousarray(samples[near].reshape(-1, 3)))[0].reshape(-1, n)
     arc = s0[near, None] + length[near, None] * np.minimum(np.arange(n) / (n - 1), 1.0)[None, :]
     strand_of = np.searchsorted(offsets, near, side="right") - 1
-    order_start = 0
-    while order_start < len(near):
-        # one strand's near elements, in order
-        k = strand_of[order_start]
-        stop = order_start
-        while stop < len(near) and strand_of[stop] == k:
-            stop += 1
-        els = near[order_start:stop]
-        d = dist[order_start:stop].ravel()
-        s = arc[order_start:stop].ravel()
-        owner = np.repeat(els, n)
-        valid = (s >= settings.root_clearance) & (d <= settings.layer_max_gap)
-        # a run breaks where a sample is out of reach or where two near elements are not consecutive
-        jump = np.r_[False, np.diff(owner) > 1]
-        run = np.cumsum(~valid | jump)
-        for r in np.unique(run[valid]):
-            members = valid & (run == r)
-            gap = float(np.median(np.maximum(d[members], 0.0)))
-            band = members & (d <= gap + settings.layer_tolerance)
-            # stretches of consecutive samples within the band, and their arc lengths
-            idx = np.flatnonzero(members)
-            inside_band = band[idx]
-            stretch = np.cumsum(np.r_[True, inside_band[1:] != inside_band[:-1]])
+    gaps = np.empty(len(near) * n)
+    count = _layer_runs(near, n, np.ascontiguousarray(dist).ravel(), np.ascontiguousarray(arc).ravel(), strand_of,
+                        has, sd, sigma, s0,
+                        length, float(settings.root_clearance), float(settings.layer_max_gap),
+                        float(settings.layer_tolerance), float(settings.layer_min_length),
+                        float(settings.body_distance), out, gaps)
+    return out, gaps[:count].copy()
+
+
+@jit
+def _median_sorted(v):
+    """The median of sorted ``v``: the middle value, or the mean of the two middle ones (as numpy's)."""
+    m = v.shape[0]
+    return (v[(m - 1) // 2] + v[m // 2]) / 2.0
+
+
+@jit
+def _layer_runs(near, n, dist, arc, strand_of, has, sd, sigma, s0, length, root_clearance, max_gap, tolerance,
+                min_length, body_distance, out, gaps):
+    """:func:`_layer_elements` along each strand: ``near`` (sorted) holds the elements measured, ``dist`` and
+    ``arc`` (len(near) * n,) their samples' distances to the body and arc lengths. Marks ``out`` and writes the
+    gap of each run that declared an element into ``gaps``, strand by strand and run by run; returns their count."""
+    found = 0
+    first = 0
+    while first < near.shape[0]:
+        last = first
+        while last < near.shape[0] and strand_of[last] == strand_of[first]:
+            last += 1
+        # the strand's samples, flattened: index i is sample i % n of near element first + i // n
+        a = first * n
+        b = last * n
+        i = a
+        while i < b:
+            # a run: consecutive valid samples on consecutive elements
+            while i < b and not (arc[i] >= root_clearance and dist[i] <= max_gap):
+                i += 1
+            if i >= b:
+                break
+            j = i + 1
+            while j < b and (arc[j] >= root_clearance and dist[j] <= max_gap) and not (
+                    j % n == 0 and near[j // n] - near[j // n - 1] > 1):
+                j += 1
+            values = np.empty(j - i)
+            for t in range(i, j):
+                values[t - i] = max(dist[t], 0.0)
+            values.sort()
+            gap = _median_sorted(values)
             declared = False
-            for t in np.unique(stretch[inside_band]):
-                sel = idx[inside_band & (stretch == t)]
-                if s[sel].max() - s[sel].min() < settings.layer_min_length:
+            t = i
+            while t < j:
+                # a stretch of consecutive samples within the band
+                if dist[t] > gap + tolerance:
+                    t += 1
                     continue
-                lo, hi = s[sel].min(), s[sel].max()
-                for e in np.unique(owner[sel]):
-                    where = s0[e] + sigma[e]  # the contact point, within the stretch (up to a sample)
-                    step = length[e] / (n - 1)
-                    if (has[e] and settings.body_distance <= sd[e] <= gap + settings.layer_tolerance
-                            and lo - step <= where <= hi + step):
-                        out[e] = True
-                        declared = True
+                u = t
+                lo = arc[t]
+                hi = arc[t]
+                while u < j and dist[u] <= gap + tolerance:
+                    lo = min(lo, arc[u])
+                    hi = max(hi, arc[u])
+                    u += 1
+                if hi - lo >= min_length:
+                    previous = -1
+                    for w in range(t, u):
+                        e = near[w // n]
+                        if e == previous:
+                            continue
+                        previous = e
+                        where = s0[e] + sigma[e]  # the contact point, within the stretch (up to a sample)
+                        step = length[e] / (n - 1)
+                        if has[e] and body_distance <= sd[e] <= gap + tolerance and lo - step <= where <= hi + step:
+                            out[e] = True
+                            declared = True
+                t = u
             if declared:
-                gaps.append(gap)
-        order_start = stop
-    return out, np.asarray(gaps, dtype=np.float64)
+                gaps[found] = gap
+                found += 1
+            i = j
+        first = last
+    return found
+
+
+def _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, within: float) -> tuple:
+    """Element pairs of different strands whose centre lines come within ``reach`` (float, or per element:
+    a pair is searched to the mean of its two elements' values), refined on the exact centre lines.
+
+    Returns ``(ea, eb, sa, sb, pa, pb, ta, tb, dist, keep)``: ``keep`` marks the pairs closer than
+    ``within`` whose closest points are not an element's end that starts the next element (whose pair
+    with the same other element is at least as close and declares its own).
+    """
+    ea, eb, sa, sb, _close = hair_pairs(samples, omega, length, strand_of, reach)
+    pairs = len(ea)
+    pa = np.empty((pairs, 3))
+    pb = np.empty((pairs, 3))
+    ta = np.empty((pairs, 3))
+    tb = np.empty((pairs, 3))
+    dist = np.empty(pairs)
+    run_chunks(lambda lo, hi: refine_pairs(lo, hi, ea, eb, sa, sb, xs, Fs, omega, length, pa, pb, ta, tb, dist),
+               pairs, 4096)
+    keep = dist < within
+    keep &= ~((sa == length[ea]) & (is_last[ea] == 0))
+    keep &= ~((sb == length[eb]) & (is_last[eb] == 0))
+    return ea, eb, sa, sb, pa, pb, ta, tb, dist, keep
+
+
+def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, count: int, settings: ContactSettings,
+                     wisp: bool, two_pass: bool = True) -> tuple:
+    """The element pairs the hair-hair rules choose from (:func:`_refined_pairs`), within ``hair_distance``,
+    and with the wisp rule within ``hair_max_distance`` wherever a wisp may be that wide.
+
+    A wisp contact joins two strands only within the narrower of their wisp radii, and a strand whose
+    elements mostly have a neighbour within ``hair_distance / WISP_WIDTH`` has the radius ``hair_distance``
+    (:func:`_wisp_radius`). So the wide search is needed only for pairs of the other strands (sparse guides):
+    a first search within ``hair_distance`` finds the dense strands, and the second searches a pair to
+    ``hair_max_distance`` only where one element is on another strand (``2 hair_max_distance - hair_distance``
+    between two of them, ``hair_distance`` between two dense ones). The pairs it keeps, the radii and so
+    the contacts are those of one search to ``hair_max_distance`` for all (``two_pass=False``); a full head
+    of follow hairs, where every strand is dense, is searched to 1 mm instead of 3.
+    """
+    near = float(settings.hair_distance)
+    if not wisp:
+        return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, near, near)
+    wide = float(settings.hair_max_distance)
+    if not two_pass:
+        return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, wide, wide)
+    first = _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, near, near)
+    ea, eb, dist, keep = first[0], first[1], first[8], first[9]
+    close = np.zeros(len(strand_of), dtype=bool)
+    tight = keep & (dist <= near / WISP_WIDTH)
+    close[ea[tight]] = True
+    close[eb[tight]] = True
+    per_strand = np.bincount(strand_of, minlength=count)
+    # more than half of a strand's elements (so of those with any neighbour within hair_max_distance) have one
+    # within hair_distance / WISP_WIDTH: the median, times WISP_WIDTH, is at most hair_distance
+    dense = np.bincount(strand_of, weights=close, minlength=count) >= per_strand // 2 + 1
+    if dense.all():
+        return first
+    reach = np.where(dense[strand_of], near, 2.0 * wide - near)
+    return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, wide)
 
 
 def _wisp_radius(ea: np.ndarray, eb: np.ndarray, dist: np.ndarray, strand_of: np.ndarray, count: int,
@@ -470,10 +557,14 @@ def _wisp_radius(ea: np.ndarray, eb: np.ndarray, dist: np.ndarray, strand_of: np
     radius = np.full(count, float(settings.hair_distance))
     finite = np.isfinite(nearest)
     if finite.any():
-        order = np.argsort(strand_of[finite], kind="stable")
+        # each strand's median (the mean of the two middle values for an even count, as numpy's)
+        owners = strand_of[finite]
+        order = np.lexsort((nearest[finite], owners))
         values = nearest[finite][order]
-        owners = strand_of[finite][order]
-        bounds = np.searchsorted(owners, np.arange(count + 1))
-        for k in np.flatnonzero(np.diff(bounds)):
-            radius[k] = float(np.median(values[bounds[k]:bounds[k + 1]]))
+        bounds = np.searchsorted(owners[order], np.arange(count + 1))
+        sizes = np.diff(bounds)
+        some = np.flatnonzero(sizes)
+        low = values[bounds[some] + (sizes[some] - 1) // 2]
+        high = values[bounds[some] + sizes[some] // 2]
+        radius[some] = (low + high) / 2.0
     return np.clip(WISP_WIDTH * radius, settings.hair_distance, settings.hair_max_distance)

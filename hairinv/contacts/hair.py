@@ -321,7 +321,8 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     omega : (E, 3) float64, 1/m
     length : (E,) float64, m
     strand_of : (E,) int64, strand of each element
-    hair_distance : float, m
+    hair_distance : float, or (E,) float64 per element, m: a pair of elements is searched to the mean of
+        their two values (to the value itself when it is one float)
 
     Returns
     -------
@@ -334,7 +335,7 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     spacing = length / n1
     kappa = np.hypot(omega[:, 0], omega[:, 1])
     sag = np.minimum(kappa * spacing**2 / 8.0, 0.5 * spacing)
-    radius = np.ascontiguousarray(0.5 * hair_distance + sag)
+    radius = np.ascontiguousarray(0.5 * np.asarray(hair_distance, dtype=np.float64) + sag)
     segments = count * n1
     empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0), 0)
     if segments == 0 or len(np.unique(strand_of)) < 2:
@@ -345,7 +346,7 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     origin = lo.min(axis=0)
     extent = hi.max(axis=0) - origin
     # Cell about a typical box (Teschner et al.): a box then spans 1-2 cells per axis.
-    cell = max(CELL_FACTOR * float(np.median(np.max(hi - lo, axis=1))), hair_distance)
+    cell = max(CELL_FACTOR * float(np.median(np.max(hi - lo, axis=1))), float(np.min(hair_distance)))
     # key = (i, j, k) packed with just the bits the grid needs, and the segment index below it: one plain
     # sort of int64 instead of an argsort (measured 5x faster, gathers included, on 6.6 million entries).
     # A grid too fine to pack (strands metres apart) is coarsened: slower, never wrong.
