@@ -140,7 +140,8 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
 
 def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None = None,
                       contacts: Contacts | None = None, carrying: np.ndarray | None = None,
-                      force: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                      force: np.ndarray | None = None, strands: np.ndarray | None = None,
+                      previous: tuple | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The smallest eigenvalue ``lambda`` of each strand's scaled Hessian ``I + K^-1/2 V'' K^-1/2`` on
     the motions :func:`stability` allows (with the supports, without, with every declared contact held,
     with the forces held fixed), each (S,) float64; ``inf`` where the held points leave no motion. A strand is unstable where
@@ -149,6 +150,10 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
     Scaling the strand's stiffness by ``a`` scales ``K^-1/2 V'' K^-1/2`` by ``1/a``, so its smallest
     eigenvalue becomes ``1 - (1 - lambda) / a``: exactly ``a = 1 - lambda`` makes it singular, and any
     larger factor stable (:func:`critical_stiffening`).
+
+    ``strands`` (indices) checks only those strands; the others keep the values of ``previous`` (an
+    earlier result of this function, for the same contacts and forces), as they are where only the
+    stiffness of ``strands`` changed since.
     """
     S = helices.n_strands
     # each strand's contact sides (a hair-hair contact counts on both its strands), strand by strand
@@ -184,18 +189,19 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
         ptr, cols, vals = np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
         load_s, load_f = np.zeros(0), np.zeros((0, 3))
         slip_kind, slip_dir = np.zeros(0, np.int64), np.zeros((0, 2))
-    unstable = np.zeros(S)
-    free = np.zeros(S)
-    always = np.zeros(S)
-    fixed = np.zeros(S)
+    if previous is None:
+        unstable, free, always, fixed = (np.zeros(S) for _ in range(4))
+    else:
+        unstable, free, always, fixed = (np.array(a, dtype=np.float64) for a in previous)
+    which = np.arange(S, dtype=np.int64) if strands is None else np.asarray(strands, dtype=np.int64)
 
     def check(lo: int, hi: int) -> None:
         _stability_chunk(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
                          material.linear_density, material.gravity, stiff, incident_ptr, incident, loaded, ptr,
-                         cols, vals, load_s, load_f, force is not None, slip_kind, slip_dir, lo, hi, unstable,
-                         free, always, fixed)
+                         cols, vals, load_s, load_f, force is not None, slip_kind, slip_dir, which, lo, hi,
+                         unstable, free, always, fixed)
 
-    run_chunks(check, S, 64)
+    run_chunks(check, len(which), 64)
     return unstable, free, always, fixed
 
 
@@ -216,10 +222,11 @@ def _on_cone_edge(tangential: np.ndarray, mu: np.ndarray, normal: np.ndarray) ->
 
 @jit
 def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, incident_ptr, incident, loaded,
-                     ptr, cols, vals, load_s, load_f, with_loads, slip_kind, slip_dir, lo, hi, unstable, free,
-                     always, fixed):
-    """:func:`stability` for strands ``lo`` to ``hi``."""
-    for s in range(lo, hi):
+                     ptr, cols, vals, load_s, load_f, with_loads, slip_kind, slip_dir, which, lo, hi, unstable,
+                     free, always, fixed):
+    """:func:`stability` for strands ``which[lo:hi]``."""
+    for w in range(lo, hi):
+        s = which[w]
         e0 = offsets[s]
         e1 = offsets[s + 1]
         c0 = 3 * e0
@@ -650,10 +657,15 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     # the margin stabilisation works on: the forces held fixed (default), or the supports held
     by_forces = settings.stable_under == "forces"
 
-    def margins(stiff: np.ndarray, carrying: np.ndarray, force: np.ndarray) -> tuple:
-        """(the margin stabilisation works on, free, always, groups, their margins, strands unchecked)"""
-        supported, free, always, fixed = stability_margins(helices, material, stiff, rows, contacts, carrying,
-                                                           force)
+    last: dict = {}
+
+    def margins(stiff: np.ndarray, carrying: np.ndarray, force: np.ndarray, changed=None) -> tuple:
+        """(the margin stabilisation works on, free, always, groups, their margins, strands unchecked);
+        ``changed``: only these strands' stiffness changed since the last call, with the same forces"""
+        checked = stability_margins(helices, material, stiff, rows, contacts, carrying, force,
+                                    strands=changed, previous=last.get("margins") if changed is not None else None)
+        last["margins"] = checked
+        supported, free, always, fixed = checked
         if by_forces:  # stable on every motion is stable together too: no joint check of the groups
             groups, group_lam, too_large = [], np.zeros(0), 0
         else:
@@ -688,7 +700,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                     # strand stable. Solving again would move forces onto other strands and stiffen those in
                     # turn (a draped groom: 26 strands, factors up to 41, 8 times the sweeps, against 16 up
                     # to 4.3 this way)
-                    margin, _, always, groups, group_lam, too_large = margins(stiff, carrying, result.r)
+                    changed = np.flatnonzero(factor != before)
+                    margin, _, always, groups, group_lam, too_large = margins(stiff, carrying, result.r, changed)
                     continue
                 result, carrying, _ = solve(stiff, result.r, False)
                 sweeps += result.sweeps

@@ -68,6 +68,21 @@ def validate_settings(settings: DynamicsSettings) -> None:
         raise InputError(f"dynamics.quadrature must be between 1 and 8, got {settings.quadrature}")
 
 
+
+@jit
+def _load_hessians(strands, lo, hi, bounds, root, frame0, q, length, offsets, arc, load, chol_ptr, held):
+    """:func:`point_load_hessian` of ``strands[lo:hi]``, each strand's loads ``bounds[k]:bounds[k + 1]``
+    of ``arc`` and ``load``, written into its block of ``held`` (laid out like the Cholesky blocks)."""
+    for w in range(lo, hi):
+        k = strands[w]
+        a = offsets[k]
+        z = offsets[k + 1]
+        n = 3 * (z - a)
+        out = np.empty((n, n))
+        point_load_hessian(root[k], frame0[k], q[a:z], length[a:z], arc[bounds[k]:bounds[k + 1]],
+                           load[bounds[k]:bounds[k + 1]], out)
+        held[chol_ptr[k]:chol_ptr[k + 1]] = out.ravel()
+
 @dataclass
 class StepReport:
     """What one step did."""
@@ -789,14 +804,11 @@ class Simulation:
         strand, arc, load = strand[order], arc[order], load[order]
         bounds = np.searchsorted(strand, np.arange(self.helices.n_strands + 1))
         h = self.helices
-        for k in np.flatnonzero(np.diff(bounds)):
-            a, z = h.offsets[k], h.offsets[k + 1]
-            n = 3 * (z - a)
-            out = np.empty((n, n))
-            point_load_hessian(h.root[k], h.frame0[k], self.q[a:z], h.length[a:z],
-                               np.ascontiguousarray(arc[bounds[k]:bounds[k + 1]]),
-                               np.ascontiguousarray(load[bounds[k]:bounds[k + 1]]), out)
-            held[self.chol_ptr[k]:self.chol_ptr[k + 1]] = out.ravel()
+        loaded_strands = np.flatnonzero(np.diff(bounds)).astype(np.int64)
+        arc, load = np.ascontiguousarray(arc), np.ascontiguousarray(load)
+        run_chunks(lambda lo, hi: _load_hessians(loaded_strands, lo, hi, bounds, h.root, h.frame0, self.q, h.length,
+                                                 h.offsets, arc, load, self.chol_ptr, held),
+                   len(loaded_strands), 64)
         return held
 
     # ------------------------------------------------------------------ stepping
