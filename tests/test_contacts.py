@@ -700,9 +700,9 @@ def test_a_groom_of_dense_strands_is_searched_once_and_only_to_hair_distance(mon
     reaches = []
     real = detect_module.hair_pairs
 
-    def spy(samples, omega, length, strand_of, reach):
+    def spy(samples, omega, length, strand_of, reach, wide=None):
         reaches.append(reach)
-        return real(samples, omega, length, strand_of, reach)
+        return real(samples, omega, length, strand_of, reach, wide)
 
     monkeypatch.setattr(detect_module, "hair_pairs", spy)
     h = bundle_and_guides()

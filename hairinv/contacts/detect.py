@@ -481,15 +481,16 @@ def _layer_runs(near, n, dist, arc, strand_of, has, sd, sigma, s0, length, root_
     return found
 
 
-def _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, within: float) -> tuple:
+def _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, within: float, wide=None) -> tuple:
     """Element pairs of different strands whose centre lines come within ``reach`` (float, or per element:
     a pair is searched to the mean of its two elements' values), refined on the exact centre lines.
 
     Returns ``(ea, eb, sa, sb, pa, pb, ta, tb, dist, keep)``: ``keep`` marks the pairs closer than
     ``within`` whose closest points are not an element's end that starts the next element (whose pair
-    with the same other element is at least as close and declares its own).
+    with the same other element is at least as close and declares its own). ``wide`` (per element):
+    only the pairs with at least one of these elements. Pairs are sorted by (element A, element B).
     """
-    ea, eb, sa, sb, _close = hair_pairs(samples, omega, length, strand_of, reach)
+    ea, eb, sa, sb, _close = hair_pairs(samples, omega, length, strand_of, reach, wide)
     pairs = len(ea)
     pa = np.empty((pairs, 3))
     pb = np.empty((pairs, 3))
@@ -498,10 +499,15 @@ def _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, wi
     dist = np.empty(pairs)
     run_chunks(lambda lo, hi: refine_pairs(lo, hi, ea, eb, sa, sb, xs, Fs, omega, length, pa, pb, ta, tb, dist),
                pairs, 4096)
+    return ea, eb, sa, sb, pa, pb, ta, tb, dist, _kept(ea, eb, sa, sb, dist, within, length, is_last)
+
+
+def _kept(ea, eb, sa, sb, dist, within: float, length, is_last) -> np.ndarray:
+    """The pairs closer than ``within`` whose closest points are not an element's end that starts the next."""
     keep = dist < within
     keep &= ~((sa == length[ea]) & (is_last[ea] == 0))
     keep &= ~((sb == length[eb]) & (is_last[eb] == 0))
-    return ea, eb, sa, sb, pa, pb, ta, tb, dist, keep
+    return keep
 
 
 def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, count: int, settings: ContactSettings,
@@ -536,8 +542,17 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, count: 
     dense = np.bincount(strand_of, weights=close, minlength=count) >= per_strand // 2 + 1
     if dense.all():
         return first
-    reach = np.where(dense[strand_of], near, 2.0 * wide - near)
-    return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, wide)
+    sparse = ~dense[strand_of]
+    reach = np.where(sparse, 2.0 * wide - near, near)
+    second = _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, wide, sparse)
+    # the pairs of two dense strands are the first search's (the same reach), the others the second's,
+    # merged in the order of one search
+    both_dense = ~sparse[ea] & ~sparse[eb]
+    key = np.concatenate([ea[both_dense], second[0]]) * len(strand_of) + np.concatenate([eb[both_dense], second[1]])
+    order = np.argsort(key, kind="stable")
+    merged = [np.concatenate([a[both_dense], b])[order] for a, b in zip(first, second)]
+    merged[9] = _kept(*merged[:4], merged[8], wide, length, is_last)
+    return tuple(merged)
 
 
 def _wisp_radius(ea: np.ndarray, eb: np.ndarray, dist: np.ndarray, strand_of: np.ndarray, count: int,

@@ -155,9 +155,10 @@ def _grow(a, size):
 
 
 @jit
-def _pairs_in_cells(run_start, r0, r1, keys, segs, lo, hi, radius, strand_of, samples, origin, inv_cell, shift_i,
-                    shift_j):
-    """Close segment pairs of the cells ``r0:r1``, each pair tested once (in the cell of its overlap's low corner).
+def _pairs_in_cells(run_start, r0, r1, keys, segs, lo, hi, radius, strand_of, wide, samples, origin, inv_cell,
+                    shift_i, shift_j):
+    """Close segment pairs of the cells ``r0:r1``, each pair tested once (in the cell of its overlap's low corner),
+    of elements on different strands at least one of which is ``wide``.
 
     Returns ``(count, first, second, d2, u, v)``: segment indices with the
     lower strand first, squared polyline distance and segment parameters.
@@ -189,7 +190,7 @@ def _pairs_in_cells(run_start, r0, r1, keys, segs, lo, hi, radius, strand_of, sa
                 j = segs[y]
                 ej = j // n1
                 sj = strand_of[ej]
-                if si == sj:
+                if si == sj or not (wide[ei] or wide[ej]):
                     continue
                 if (lo[i, 0] > hi[j, 0] or lo[j, 0] > hi[i, 0] or lo[i, 1] > hi[j, 1] or lo[j, 1] > hi[i, 1]
                         or lo[i, 2] > hi[j, 2] or lo[j, 2] > hi[i, 2]):
@@ -312,7 +313,8 @@ def refine_pairs(lo, hi, elem_a, elem_b, sigma_a, sigma_b, xs, Fs, omega, length
 
 
 def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, strand_of: np.ndarray,
-               hair_distance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+               hair_distance, wide: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                                       np.ndarray, int]:
     """Closest segment pair of every pair of elements (on different strands) whose polylines may be close.
 
     Parameters
@@ -323,6 +325,7 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     strand_of : (E,) int64, strand of each element
     hair_distance : float, or (E,) float64 per element, m: a pair of elements is searched to the mean of
         their two values (to the value itself when it is one float)
+    wide : (E,) bool, optional: only pairs with at least one of these elements (default: every pair)
 
     Returns
     -------
@@ -340,6 +343,7 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0), 0)
     if segments == 0 or len(np.unique(strand_of)) < 2:
         return empty
+    wide = np.ones(count, dtype=np.bool_) if wide is None else np.ascontiguousarray(wide, dtype=np.bool_)
     lo = np.empty((segments, 3))
     hi = np.empty((segments, 3))
     _segment_boxes(samples, radius, lo, hi)
@@ -377,28 +381,34 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     bounds = np.unique(np.concatenate([[0], bounds, [len(size)]])).astype(np.int64)
     results: dict[int, tuple] = {}
 
+    def best(first, second, dist2, pu, pv):
+        """The closest segment pair of each element pair (ties to the lowest segments), sorted by element pair."""
+        pair_key = (first // n1) * count + second // n1
+        keep = _best_per_pair(np.argsort(pair_key, kind="stable"), pair_key, dist2, first, second)
+        return first[keep], second[keep], dist2[keep], pu[keep], pv[keep]
+
     def pairs_chunk(lo_c: int, hi_c: int) -> None:
         for c in range(lo_c, hi_c):
-            results[c] = _pairs_in_cells(run_start, bounds[c], bounds[c + 1], keys, segs, lo, hi, radius,
-                                         strand_of, samples, origin, inv_cell, shift_i, shift_j)
+            found = _pairs_in_cells(run_start, bounds[c], bounds[c + 1], keys, segs, lo, hi, radius,
+                                    strand_of, wide, samples, origin, inv_cell, shift_i, shift_j)
+            # each chunk keeps its best segment pair per element pair, so memory holds element pairs, not
+            # the (many times more) segment pairs of dense grooms; the best of the bests is the best
+            results[c] = (found[0], *best(*found[1:]))
 
     run_chunks(pairs_chunk, len(bounds) - 1, 1)
-    parts = [results[c] for c in range(len(bounds) - 1)]
-    first = np.concatenate([p[1] for p in parts])
-    second = np.concatenate([p[2] for p in parts])
-    dist2 = np.concatenate([p[3] for p in parts])
-    pu = np.concatenate([p[4] for p in parts])
-    pv = np.concatenate([p[5] for p in parts])
+    parts = [results.pop(c) for c in range(len(bounds) - 1)]
+    close = sum(int(p[0]) for p in parts)
+    first, second, dist2, pu, pv = (np.concatenate([p[k] for p in parts]) for k in range(1, 6))
+    del parts
     if len(first) == 0:
         return empty
+    first, second, dist2, pu, pv = best(first, second, dist2, pu, pv)
     ea = first // n1
     eb = second // n1
-    pair_key = ea * count + eb
-    # the closest segment pair of each element pair; ties to the lowest segments
-    keep = _best_per_pair(np.argsort(pair_key, kind="stable"), pair_key, dist2, first, second)
-    sigma_a = np.minimum((first[keep] - ea[keep] * n1 + pu[keep]) * spacing[ea[keep]], length[ea[keep]])
-    sigma_b = np.minimum((second[keep] - eb[keep] * n1 + pv[keep]) * spacing[eb[keep]], length[eb[keep]])
+    ka, kb = first - ea * n1, second - eb * n1
+    sigma_a = np.minimum((ka + pu) * spacing[ea], length[ea])
+    sigma_b = np.minimum((kb + pv) * spacing[eb], length[eb])
     # a clamped end of the last segment is exactly the element's end
-    sigma_a = np.where((first[keep] - ea[keep] * n1 == n1 - 1) & (pu[keep] >= 1.0), length[ea[keep]], sigma_a)
-    sigma_b = np.where((second[keep] - eb[keep] * n1 == n1 - 1) & (pv[keep] >= 1.0), length[eb[keep]], sigma_b)
-    return ea[keep], eb[keep], sigma_a, sigma_b, len(first)
+    sigma_a = np.where((ka == n1 - 1) & (pu >= 1.0), length[ea], sigma_a)
+    sigma_b = np.where((kb == n1 - 1) & (pv >= 1.0), length[eb], sigma_b)
+    return ea, eb, sigma_a, sigma_b, close
