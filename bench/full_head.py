@@ -19,7 +19,8 @@ against the strand count:
 So the head grows denser as N grows, as a real head is denser than its guides:
 at 100,000 strands about 20 follow hairs share each guide's 3 mm disc.
 
-Usage: ``python bench/full_head.py N out.h5`` writes a /curves stage file in metres.
+Usage: ``python bench/full_head.py N out.h5 [GUIDES]`` writes a /curves stage file in metres (GUIDES:
+first keep that many guides, so that a small head is as dense as a large one).
 """
 
 from __future__ import annotations
@@ -89,14 +90,18 @@ def follow_offsets(P: np.ndarray, copies: int, radius: float, rng) -> np.ndarray
     return out
 
 
-def full_head(n: int, seed: int = SEED, base: Groom | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Points (metres) and offsets of an ``n``-strand head: guides, or guides and follow hairs."""
+def full_head(n: int, seed: int = SEED, base: Groom | None = None, guide_count: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Points (metres) and offsets of an ``n``-strand head: guides, or guides and follow hairs.
+    ``guide_count`` > 0 first keeps that many guides (spread over the scalp), so a small head can be dense."""
     base = base or guides()
     counts = np.diff(base.offsets)
     G, m = base.n_strands, int(counts[0])
     if not np.all(counts == m):
         raise ValueError("the guides must all have the same point count")
     P = base.points.reshape(G, m, 3)
+    if 0 < guide_count < G:
+        P = P[np.sort(select_guides(P[:, 0], guide_count, seed))]
+        G = guide_count
     if n <= G:
         keep = np.sort(select_guides(P[:, 0], n, seed))
         strands = P[keep]
@@ -110,12 +115,13 @@ def full_head(n: int, seed: int = SEED, base: Groom | None = None) -> tuple[np.n
     return np.ascontiguousarray(strands.reshape(-1, 3)), offsets
 
 
-def write(n: int, path: Path, seed: int = SEED, base: Groom | None = None) -> Path:
-    points, offsets = full_head(n, seed, base)
+def write(n: int, path: Path, seed: int = SEED, base: Groom | None = None, guide_count: int = 0) -> Path:
+    points, offsets = full_head(n, seed, base, guide_count)
+    kept = f" from {guide_count} guides" if guide_count else ""
     write_hdf5_curves(Path(path), points, offsets, up=(0.0, 1.0, 0.0),
-                      source=f"ruby short + long, {n} strands (bench/full_head.py, seed {seed})", command="bench")
+                      source=f"ruby short + long, {n} strands{kept} (bench/full_head.py, seed {seed})", command="bench")
     return Path(path)
 
 
 if __name__ == "__main__":
-    write(int(sys.argv[1]), Path(sys.argv[2]))
+    write(int(sys.argv[1]), Path(sys.argv[2]), guide_count=int(sys.argv[3]) if len(sys.argv) > 3 else 0)
