@@ -39,8 +39,10 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from common import DATA, IMG, ROOT, SMOKE, log, median_time, smoke, table  # type: ignore
+    from full_head import follow_offsets  # type: ignore
 else:
     from .common import DATA, IMG, ROOT, SMOKE, log, median_time, smoke, table
+    from .full_head import follow_offsets
 
 sys.path.insert(0, str(ROOT))
 
@@ -118,26 +120,7 @@ def follow_hairs(groom: Groom, count: int, radius: float, seed: int) -> Groom:
         raise ValueError("follow_hairs needs strands of equal point counts")
     S, m = groom.n_strands, int(counts[0])
     P = groom.points.reshape(S, m, 3)
-    t = np.diff(P, axis=1)
-    t /= np.linalg.norm(t, axis=2, keepdims=True)
-    rng = np.random.default_rng(seed)
-    copies = [P]
-    for _ in range(count):
-        a = rng.normal(size=(S, 3))
-        a -= np.sum(a * t[:, 0], axis=1, keepdims=True) * t[:, 0]
-        a /= np.linalg.norm(a, axis=1, keepdims=True)
-        off = a * (radius * np.sqrt(rng.uniform(size=(S, 1))))
-        Q = np.empty_like(P)
-        Q[:, 0] = P[:, 0] + off
-        Q[:, 1] = P[:, 1] + off
-        for i in range(2, m):
-            t1, t2 = t[:, i - 2], t[:, i - 1]
-            v = np.cross(t1, t2)
-            c = np.sum(t1 * t2, axis=1, keepdims=True)
-            # Rodrigues' rotation taking t1 to t2, applied to the offset
-            off = off * c + np.cross(v, off) + v * np.sum(v * off, axis=1, keepdims=True) / np.maximum(1.0 + c, 1e-12)
-            Q[:, i] = P[:, i] + off
-        copies.append(Q)
+    copies = [P[None], follow_offsets(P, count, radius, np.random.default_rng(seed))]
     points = np.ascontiguousarray(np.concatenate(copies).reshape(-1, 3))
     total = S * (count + 1)
     offsets = np.arange(0, m * (total + 1), m, dtype=np.int64)
