@@ -104,7 +104,8 @@ class Contacts:
     element : (C, 2) int64 or None
         Element (global index) holding each side, -1 for the body; at most one
         contact per element (body) or element pair (hair-hair), so it names
-        the contact from one detection to the next. Not stored in files.
+        the contact from one detection to the next. Stored as ``/contacts/element``
+        (None for files written before it was, or by tools that do not write it).
     """
 
     strand: np.ndarray
@@ -132,6 +133,8 @@ class Contacts:
         data = {"strand": self.strand, "s": self.s, "point": self.point, "frame": self.frame, "mu": self.mu}
         if self.gap is not None:
             data["gap"] = self.gap
+        if self.element is not None:
+            data["element"] = np.asarray(self.element, dtype=np.int64)
         return stages.Group(
             stages.CONTACTS,
             data,
@@ -149,6 +152,8 @@ class Contacts:
             np.ascontiguousarray(group["frame"], dtype=np.float64).reshape(-1, 3, 3),
             np.ascontiguousarray(group["mu"], dtype=np.float64).reshape(-1),
             np.ascontiguousarray(group["gap"], dtype=np.float64).reshape(-1) if "gap" in group.datasets else None,
+            np.ascontiguousarray(group["element"], dtype=np.int64).reshape(-1, 2) if "element" in group.datasets
+            else None,
         )
 
     @classmethod

@@ -54,6 +54,7 @@ LAYOUT = {
         "frame": ("f", ("C", 3, 3)),
         "mu": ("f", ("C",)),
         "gap": ("f", ("C",)),
+        "element": ("i", ("C", 2)),
     },
     MODEL: {
         "omega_rest": ("f", ("E", 3)),
@@ -733,6 +734,39 @@ def _check_contacts(path, contacts: Group, helices: Group | None, n_strands: int
                                  path)
             raise InputError(f"/contacts/s[{i}, {side}] is {s[i, side]:.6g} m, off strand {int(on[i])}, which runs "
                              f"from 0 to {length[i]:.6g} m along /helices", path)
+    if "element" in contacts.datasets:
+        _check_contact_elements(path, contacts["element"], a, b, s, helices)
+
+
+def _check_contact_elements(path, element, a, b, s, helices: Group) -> None:
+    """``/contacts/element``: each side's element is one of its strand's, and holds its arc length."""
+    offsets, lengths = helices["offsets"], helices["length"]
+    starts = np.concatenate([[0.0], np.cumsum(lengths)])
+    for side, on in ((0, a), (1, b)):
+        hair = on >= 0
+        e = element[:, side]
+        bad = np.flatnonzero(~hair & (e != -1))
+        if len(bad):
+            i = int(bad[0])
+            raise InputError(f"/contacts/element[{i}, 1] is {int(e[i])} on a body contact, where it must be -1", path)
+        first = np.where(hair, offsets[np.where(hair, on, 0)], 0)
+        last = np.where(hair, offsets[np.where(hair, on, 0) + 1], 0)
+        bad = np.flatnonzero(hair & ((e < first) | (e >= last)))
+        if len(bad):
+            i = int(bad[0])
+            raise InputError(f"/contacts/element[{i}, {side}] is {int(e[i])}, not an element of strand {int(on[i])} "
+                             f"(its elements are {int(first[i])} to {int(last[i]) - 1} in /helices)", path)
+        # the arc length from the root lies on that element (up to the tolerance of arc lengths)
+        k = np.where(hair, e, 0)
+        lo = starts[k] - starts[first]
+        hi = lo + lengths[k] if len(lengths) else lo
+        tol = ARC_TOLERANCE_M + ARC_TOLERANCE_RELATIVE * hi
+        bad = np.flatnonzero(hair & ((s[:, side] < lo - tol) | (s[:, side] > hi + tol)))
+        if len(bad):
+            i = int(bad[0])
+            raise InputError(f"/contacts/element[{i}, {side}] is element {int(e[i])}, which runs from {lo[i]:.6g} to "
+                             f"{hi[i]:.6g} m along strand {int(on[i])}, but /contacts/s[{i}, {side}] is "
+                             f"{s[i, side]:.6g} m", path)
 
 
 def _check_model(path, model: Group) -> None:

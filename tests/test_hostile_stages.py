@@ -213,6 +213,16 @@ def _uint_strand(fh):
     replace(fh, "contacts/strand", a)
 
 
+def _element_beside(fh):
+    """The first contact's element moved to the next element of the same strand, away from its arc length."""
+    element = fh["contacts/element"][()]
+    strand = int(fh["contacts/strand"][0, 0])
+    offsets = fh["helices/offsets"][()]
+    e = int(element[0, 0])
+    element[0, 0] = e + 1 if e + 1 < offsets[strand + 1] else e - 1
+    replace(fh, "contacts/element", element)
+
+
 # id: (source file, edit, commands, fragments of the message)
 CASES = {
     # the three bugs: heap corruption in invert, an internal error in simulate; silent acceptance; exit 1
@@ -238,6 +248,14 @@ CASES = {
         "model.h5", edit("contacts/s", setitem((0, 0), -1e-3)), ["status --check"], ["/contacts/s[0, 0] is -0.001 m"]),
     "arc length on the body side": (
         "model.h5", edit("contacts/s", setitem((0, 1), 0.01)), ["info"], ["on a body contact", "must be 0"]),
+    "contact element not on its strand": (
+        "model.h5", edit("contacts/element", setitem((0, 0), -5)), ["simulate", "status --check"],
+        ["/contacts/element[0, 0] is -5, not an element of strand"]),
+    "contact element that does not hold its arc length": (
+        "model.h5", _element_beside, ["verify"], ["/contacts/element[0, 0] is element", "but /contacts/s[0, 0] is"]),
+    "contact element on the body side": (
+        "model.h5", edit("contacts/element", setitem((0, 1), 3)), ["info"],
+        ["/contacts/element[0, 1] is 3 on a body contact", "must be -1"]),
     "negative friction": ("model.h5", edit("contacts/mu", setitem(3, -0.3)), ["fit"], ["/contacts/mu[3]", ">= 0"]),
     # infinite friction is read (test_infinite_friction_is_read_and_inverted); NaN and -inf are not
     "nan friction": ("model.h5", edit("contacts/mu", setitem(2, np.nan)), ["invert"],
