@@ -827,11 +827,11 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
                                        ("body", "contacts", "dynamics"),
                                        {"init": init, "seconds": run_seconds, "fps": run_fps,
                                         "tolerance_m": tolerance, "full": full})
+    notes.append(_simulation_features(run, init).line())
     if output is not None and _up_to_date(obj, if_stale, output, run["record"]):
         verdict = _recorded_verdict(output, tolerance, run_seconds)
         notes.append(f"the verdict recorded in {output}")
     else:
-        notes.append(_simulation_features(run, init).line())
         stop = None if full else (lambda log: log.displacement > tolerance)
         frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=stop)
         verdict = judge(frames, tolerance, run_seconds)
