@@ -148,6 +148,10 @@ def _fmt_s(x: float) -> str:
     return f"{x:.1f} s" if x >= 10 else f"{x:.2f} s"
 
 
+def _ms(x: float) -> str:
+    return f"{x:,.0f}" if x >= 100 else f"{x:.3g}"
+
+
 def _gib(b: float) -> str:
     return f"{b / 1024 ** 3:.2f}"
 
@@ -221,14 +225,14 @@ def markdown(points: list[dict], seconds: float) -> str:
             f"{p['strands']:,}", f"{p['elements']:,}", f"{p['contacts_body']:,} / {p['contacts_hair']:,}",
             f"{(p['contacts_body'] + p['contacts_hair']) / p['strands']:.1f}",
             _fmt_s(st["fit"]["wall"]), _fmt_s(st["detect"]["wall"]),
-            f"{_fmt_s(st['invert']['wall'])} ({_fmt_s(p['solve_seconds'])})", f"{1e3 * per_sweep:.0f}",
+            f"{_fmt_s(st['invert']['wall'])} ({_fmt_s(p['solve_seconds'])})", _ms(1e3 * per_sweep),
             _fmt_s(st["verify"]["wall"]),
             " / ".join(_gib(st[s]["rss"]) for s in STAGES),
             _fmt_s(end_to_end(p, DEFAULT_SWEEPS)),
         ])
     n = np.array([p["strands"] for p in points], float)
     big = n >= FIT_FROM
-    exps = []
+    exps, steps = [], []
     for label, ys in (
             ("fit", [p["stages"]["fit"]["wall"] for p in points]),
             ("detect", [p["stages"]["detect"]["wall"] for p in points]),
@@ -241,6 +245,9 @@ def markdown(points: list[dict], seconds: float) -> str:
             ("peak memory, verify", [p["stages"]["verify"]["rss"] for p in points])):
         k = slope(n[big], np.asarray(ys, float)[big])
         exps.append(f"{label} {k:.2f}" if k is not None else f"{label} -")
+        if len(n) >= 2:
+            last = slope(n[-2:], np.asarray(ys, float)[-2:])
+            steps.append(f"{label} {last:.2f}" if last is not None else f"{label} -")
     largest = points[-1]
     peak = max(largest["stages"][s]["rss"] for s in STAGES)
     measured = end_to_end(largest, largest["sweeps"])
@@ -274,7 +281,9 @@ def markdown(points: list[dict], seconds: float) -> str:
                f"fit + detect + invert at {DEFAULT_SWEEPS:,} sweeps"], rows),
         "",
         f"Exponents (slope of log time, or log count or memory, against log strands, from {FIT_FROM:,} strands "
-        "up): " + "; ".join(exps) + ".",
+        "up): " + "; ".join(exps) + ". Between the two largest heads "
+        f"({int(n[-2]):,} and {int(n[-1]):,} strands), where a larger head is most of all a denser one: "
+        + "; ".join(steps) + ".",
         "",
         table(["target", "measured", "target", ""], target_rows, ["l", "r", "r", "l"]),
         "",
