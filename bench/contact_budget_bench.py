@@ -33,11 +33,11 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from common import WORK, log, smoke, table  # type: ignore
     import full_head  # type: ignore
-    from full_head_bench import HAIRINV, _spawn  # type: ignore
+    from full_head_bench import HAIRINV, spawn  # type: ignore
 else:
     from . import full_head
     from .common import WORK, log, smoke, table
-    from .full_head_bench import HAIRINV, _spawn
+    from .full_head_bench import HAIRINV, spawn
 
 TITLE = "What the contacts buy: fewer or more, on a dense head and on guides"
 BODY = ["--body-scale", str(full_head.SCALE)]
@@ -65,7 +65,7 @@ def _sets(overrides: list[str]) -> list[str]:
 
 
 def _run(args: list[str]) -> dict:
-    r = _spawn(args)
+    r = spawn(args)
     if r["code"] not in (0, 1):
         raise RuntimeError(f"hairinv {args[0]} exited {r['code']}: {r['stderr'].strip()[-400:]}")
     return r

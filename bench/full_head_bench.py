@@ -37,10 +37,10 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import IMG, ROOT, SMOKE, WORK, background_load, log, smoke, table  # type: ignore
+    from common import IMG, WORK, background_load, log, smoke, table  # type: ignore
     import full_head  # type: ignore
 else:
-    from .common import IMG, ROOT, SMOKE, WORK, background_load, log, smoke, table
+    from .common import IMG, WORK, background_load, log, smoke, table
     from . import full_head
 
 TITLE = "A full head: every stage against the strand count"
@@ -64,21 +64,13 @@ PLOT = IMG / "bench_full_head.png"
 BODY = ["--body-scale", str(full_head.SCALE)]
 
 
-def _timings(text: str) -> dict:
-    """The ``timings:`` line that ``hairinv -v`` prints: {stage: seconds}."""
-    for line in text.splitlines():
-        if line.startswith("timings:"):
-            return {k.strip(): float(v) for k, v in re.findall(r"([\w ]+?) ([\d.eE+-]+) s", line[len("timings:"):])}
-    return {}
-
-
-def _spawn(args: list[str]) -> dict:
+def spawn(args: list[str]) -> dict:
     """One hairinv command in its own process: wall seconds, its own peak memory (bytes, ``os.wait4``),
     exit code, output, and the share of the CPU other processes used just before it started."""
     busy = background_load(0.2)
     start = time.perf_counter()
     with tempfile.TemporaryFile("w+") as fo, tempfile.TemporaryFile("w+") as fe:
-        proc = subprocess.Popen([HAIRINV, "-v", "--no-progress", *args], stdout=fo, stderr=fe, text=True)
+        proc = subprocess.Popen([HAIRINV, "--no-progress", *args], stdout=fo, stderr=fe, text=True)
         _, status, usage = os.wait4(proc.pid, 0)
         proc.returncode = os.waitstatus_to_exitcode(status)
         wall = time.perf_counter() - start
@@ -86,7 +78,7 @@ def _spawn(args: list[str]) -> dict:
         fe.seek(0)
         out, err = fo.read(), fe.read()
     return {"wall": wall, "rss": usage.ru_maxrss * 1024.0, "code": proc.returncode, "stdout": out,
-            "stderr": err, "timings": _timings(out), "busy_before": busy}
+            "stderr": err, "busy_before": busy}
 
 
 def _grab(pattern: str, text: str, cast=float, default=None):
@@ -108,10 +100,10 @@ def measure(n: int, work: Path, base) -> dict:
     out = {"strands": n, "stages": {}}
     for stage, args in commands.items():
         log(f"{n} strands: {stage}")
-        r = _spawn(args)
+        r = spawn(args)
         if r["code"] not in (0, 1) or (stage != "verify" and r["code"] != 0):
             raise RuntimeError(f"hairinv {stage} on {n} strands exited {r['code']}: {r['stderr'].strip()[-400:]}")
-        out["stages"][stage] = {k: r[k] for k in ("wall", "rss", "code", "timings", "busy_before")}
+        out["stages"][stage] = {k: r[k] for k in ("wall", "rss", "code", "busy_before")}
         out["stages"][stage]["stdout"] = r["stdout"]
     summary = json.loads(subprocess.run([HAIRINV, "info", "--json", str(model)], capture_output=True, text=True,
                                         check=True).stdout)["groups"]

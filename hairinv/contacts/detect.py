@@ -293,7 +293,6 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
     wisp_radius = np.zeros(0)
     if settings.hair_hair and elements:
         wisp = settings.wisp and up is not None and settings.hair_max_distance > settings.hair_distance
-        hair_reach = float(settings.hair_max_distance if wisp else settings.hair_distance)
         ea, eb, sa, sb, pa, pb, ta, tb, dist, keep = _hair_candidates(
             samples, xs, Fs, omega, length, strand_of, is_last, count, settings, wisp)
         wisp_radius = np.full(count, float(settings.hair_distance))
@@ -522,14 +521,15 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, count: 
     ``hair_max_distance`` only where one element is on another strand (``2 hair_max_distance - hair_distance``
     between two of them, ``hair_distance`` between two dense ones). The pairs it keeps, the radii and so
     the contacts are those of one search to ``hair_max_distance`` for all (``two_pass=False``); a full head
-    of follow hairs, where every strand is dense, is searched to 1 mm instead of 3.
+    of follow hairs, where nearly every strand is dense, is searched to 1 mm instead of 3. The second search
+    skips the pairs of two dense strands: the first has found and refined them at the same reach.
     """
     near = float(settings.hair_distance)
     if not wisp:
         return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, near, near)
-    wide = float(settings.hair_max_distance)
+    far = float(settings.hair_max_distance)
     if not two_pass:
-        return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, wide, wide)
+        return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, far, far)
     first = _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, near, near)
     ea, eb, dist, keep = first[0], first[1], first[8], first[9]
     close = np.zeros(len(strand_of), dtype=bool)
@@ -543,15 +543,15 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, count: 
     if dense.all():
         return first
     sparse = ~dense[strand_of]
-    reach = np.where(sparse, 2.0 * wide - near, near)
-    second = _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, wide, sparse)
+    reach = np.where(sparse, 2.0 * far - near, near)
+    second = _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, far, sparse)
     # the pairs of two dense strands are the first search's (the same reach), the others the second's,
     # merged in the order of one search
     both_dense = ~sparse[ea] & ~sparse[eb]
     key = np.concatenate([ea[both_dense], second[0]]) * len(strand_of) + np.concatenate([eb[both_dense], second[1]])
     order = np.argsort(key, kind="stable")
     merged = [np.concatenate([a[both_dense], b])[order] for a, b in zip(first, second)]
-    merged[9] = _kept(*merged[:4], merged[8], wide, length, is_last)
+    merged[9] = _kept(*merged[:4], merged[8], far, length, is_last)
     return tuple(merged)
 
 

@@ -68,7 +68,6 @@ def validate_settings(settings: DynamicsSettings) -> None:
         raise InputError(f"dynamics.quadrature must be between 1 and 8, got {settings.quadrature}")
 
 
-
 @jit
 def _load_hessians(strands, lo, hi, bounds, root, frame0, q, length, offsets, arc, load, chol_ptr, held):
     """:func:`point_load_hessian` of ``strands[lo:hi]``, each strand's loads ``bounds[k]:bounds[k + 1]``
