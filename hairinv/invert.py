@@ -34,7 +34,8 @@ from .model import (UNSTABLE_MARGIN, Contacts, Helices, Material, Model, materia
                     stiffness)
 from .rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from .solver.blocks import _group_newton, strand_blocks
-from .solver.gauss_seidel import (CONVERGED, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
+from .solver.interior import mu_in_range, solve_interior
+from .solver.gauss_seidel import (MAX_ITERS, CONVERGED, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
                                   split_strands)
 from .solver.rows import ContactRows, contact_rows
 
@@ -43,6 +44,7 @@ __all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness"
 
 TARGETS = ("actual", "zero", "uniform", "tip", "gravity-only")
 STABILIZE = ("stiffen", "off")
+METHODS = ("sweeps", "interior-point")
 #: what the stability check holds: the contact forces fixed (every motion), or the loaded contact points
 STABLE_UNDER = ("forces", "supports")
 #: inversions with stiffened strands tried before the remaining unstable strands are reported: a
@@ -454,6 +456,13 @@ class InvertReport:
         return ("under its contact forces held fixed" if self.stable_under == "forces"
                 else "with its loaded contact points held")
 
+    def _steps(self) -> str:
+        r = self.result
+        if r.method != "interior-point":
+            return f"{r.sweeps} sweeps"
+        steps = f"{r.interior_steps} interior-point steps"
+        return steps + (f" and {r.sweeps} sweeps" if r.sweeps else "")
+
     def lines(self) -> list[str]:
         r = self.result
         if self.contacts == 0:
@@ -464,10 +473,13 @@ class InvertReport:
                 f"inverted {self.strands} strands (target {self.target}) with {self.contacts} contacts "
                 f"({self.body_contacts} body, {self.contacts - self.body_contacts} hair-hair); "
                 f"{self.carrying} carry force",
-                f"solver: {r.status} after {r.sweeps} sweeps in {r.seconds:.2f} s; "
+                f"solver: {r.status} after {self._steps()} in {r.seconds:.2f} s; "
                 f"residual {r.residual:.3g} N = {r.relative_residual:.2g} of the heaviest strand's weight "
                 f"({self.force_scale:.3g} N)",
             ]
+            if np.isfinite(r.rest_bound):
+                lines.append(f"the rest shape is within {r.rest_bound:.2g} 1/m (rms over elements) of the optimum, "
+                             "by the interior-point method's duality gap")
         lines += [
             f"rest shape: rms drift from the target {self.drift_rms:.4g} 1/m, "
             f"largest rest curvature {self.max_rest_curvature:.4g} 1/m",
@@ -551,6 +563,12 @@ def validate_settings(settings: SolverSettings) -> None:
         raise InputError(f"solver.max_seconds must be >= 0 (0: no limit), got {settings.max_seconds}")
     if settings.max_sweeps < 1 or settings.check_every < 1:
         raise InputError("solver.max_sweeps and solver.check_every must be >= 1")
+    if settings.method not in METHODS:
+        raise InputError(f"unknown solver.method {settings.method!r}; choose one of {', '.join(METHODS)}")
+    if not (np.isfinite(settings.rest_tolerance) and settings.rest_tolerance > 0):
+        raise InputError(f"solver.rest_tolerance must be a finite number > 0 (1/m), got {settings.rest_tolerance}")
+    if settings.max_iterations < 1:
+        raise InputError(f"solver.max_iterations must be >= 1, got {settings.max_iterations}")
     if settings.stable_under not in STABLE_UNDER:
         raise InputError(f"unknown solver.stable_under {settings.stable_under!r}; choose one of "
                          f"{', '.join(STABLE_UNDER)}")
@@ -631,13 +649,31 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         # D = w K^-2; b = H D (F_g - K (q - t))
         d = np.repeat(weight, 3) / stiff ** 2
         b = rows.matvec(d * (F_g - stiff * (q - target.ravel())))
-        if first and r0 is None and contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0):
+        if first and r0 is None and contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0) \
+                and settings.method == "sweeps":
             r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
+        interior = None
+        sweeps_cap = settings.max_sweeps
+        if settings.method == "interior-point" and contacts.n_contacts:
+            interior = solve_interior(rows, d, settings.gamma, b, contacts.mu, settings.rest_tolerance,
+                                      settings.max_iterations, settings.max_seconds)
+            # friction coefficients outside the steps' range (0, inf) were held within it there: the sweeps
+            # then solve the problem as declared, from those forces; otherwise the forces are final and the
+            # call below only measures their residual (and projects them onto the cones, a round-off move)
+            sweeps_cap = settings.max_sweeps if np.any(~mu_in_range(contacts.mu)) else 0
         result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, S,
-                               force_scale, settings.tolerance, settings.max_sweeps, settings.check_every, r0=r0,
+                               force_scale, settings.tolerance, sweeps_cap, settings.check_every,
+                               r0=r0 if interior is None else interior.r,
                                progress=progress, s=contacts.s, accelerate=settings.accelerate,
                                part_of=split_strands(helices.root, contacts.strand),
                                max_seconds=settings.max_seconds)
+        if interior is not None:
+            result.method = "interior-point"
+            result.interior_steps = interior.iterations
+            result.seconds += interior.seconds
+            if sweeps_cap == 0:
+                result.rest_bound = interior.rest_bound
+                result.status = CONVERGED if interior.status == CONVERGED else MAX_ITERS
         if result.status not in (CONVERGED,) and not np.all(np.isfinite(result.r)):
             raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
                            f"residual {result.residual:.3g} N")
@@ -758,7 +794,13 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     elif newton_start:
         report.notes.append("no contact couples two strands: each strand's contacts were first solved together "
                             "(Newton on their block), and the sweeps started from those forces")
-    if result.status != CONVERGED:
+    if result.status != CONVERGED and np.isfinite(result.rest_bound):
+        report.notes.append(
+            f"warning: the interior-point method stopped at {result.status} with the rest shape within "
+            f"{result.rest_bound:.2g} 1/m of the optimum (solver.rest_tolerance {settings.rest_tolerance:g}); the "
+            "model is an exact equilibrium, but its forces are not yet the best ones: raise solver.max_iterations "
+            "(or solver.max_seconds) or solver.rest_tolerance")
+    elif result.status != CONVERGED:
         report.notes.append(
             f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "
             f"(tolerance {settings.tolerance:g}); the model is an exact equilibrium, but its forces are not yet the "

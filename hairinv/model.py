@@ -277,7 +277,11 @@ class Model:
         attrs.update(gamma=self.gamma, target=self.target, iterations=self.result.sweeps,
                      residual=self.result.residual, seconds=self.result.seconds,
                      status=self.result.status, relative_residual=self.result.relative_residual,
-                     prior_sweeps=int(self.prior_sweeps))
+                     prior_sweeps=int(self.prior_sweeps), method=self.result.method)
+        if self.result.method == "interior-point":
+            attrs["interior_steps"] = int(self.result.interior_steps)
+            if np.isfinite(self.result.rest_bound):
+                attrs["rest_bound"] = float(self.result.rest_bound)
         data = {"omega_rest": self.omega_rest, "omega_target": self.omega_target,
                 "target_weight": self.target_weight, "force": self.force,
                 "residual_history": np.array(self.result.history, dtype=np.float64).reshape(-1, 2)}

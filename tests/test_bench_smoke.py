@@ -25,7 +25,8 @@ BENCH = ROOT / "bench"
 MODULES = sorted(p.stem for p in BENCH.glob("*_bench.py"))
 # the benchmarks that read the real grooms (the others generate theirs or use samples/)
 NEEDS_REAL = {"fit_bench", "fit_any_bench", "invert_bench", "solver_study_bench", "ipm_linear_algebra_bench",
-              "blender_bench", "dynamics_bench", "full_head_bench", "contact_budget_bench"}
+              "blender_bench", "dynamics_bench", "full_head_bench", "contact_budget_bench",
+              "interior_bench"}
 
 
 def _docs_state() -> dict:

@@ -67,6 +67,10 @@ class SolverResult:
     seconds : float
     colours : int
     local_failures : int, local solves that returned their best iterate unconverged in the last sweep
+    method : "sweeps", or "interior-point" when the forces come from :mod:`hairinv.solver.interior`
+    interior_steps : int, interior-point steps taken (0 for the sweeps)
+    rest_bound : float, 1/m, the interior-point method's bound on the rest shape's distance from the
+        optimum (rms over elements; NaN when there is none)
     """
 
     r: np.ndarray
@@ -79,6 +83,9 @@ class SolverResult:
     colours: int = 0
     local_failures: int = 0
     restarts: int = 0
+    method: str = "sweeps"
+    interior_steps: int = 0
+    rest_bound: float = float("nan")
 
 
 @jit

@@ -1,0 +1,474 @@
+"""A primal-dual interior-point method for the inverse cone QP.
+
+Solves ``min 1/2 r'W r + b'r`` over the Coulomb cones, ``W = G'G + gamma I``
+with ``G = D^1/2 H'`` (one row per coordinate of ``q``), the problem
+:func:`hairinv.solver.gauss_seidel.solve_cone_qp` solves by sweeps. Where
+the sweeps make slow progress on the part of the error spread over whole
+strands and clusters of strands, each step here corrects every force at
+once, and 30 to 50 steps reach the optimum.
+
+Variables. Each contact's force is scaled to the standard second-order
+cone: ``x_i = sqrt(rho_i) (mu_i r_N, r_T1, r_T2)`` with ``rho_i`` the
+diagonal scale of ``W_ii`` (so ``x_0 >= |x_1:3|`` is the Coulomb cone and
+the diagonal of the scaled ``W`` is about 1). The dual variable ``z`` (the
+contacts' velocities in the same scaling) lies in the same, self-dual cone.
+
+Steps (Mehrotra predictor-corrector, Nesterov-Todd scaling, as in
+Vandenberghe's "The CVXOPT linear and quadratic cone program solvers").
+Each step solves ``(P + S_nt) dx = v`` with ``P`` the scaled ``W`` and
+``S_nt`` block diagonal (3x3 a contact). By the Woodbury identity this is
+one system in the rod coordinates,
+
+    (I + G B^-1 G') w = G B^-1 v,    B = S_nt + gamma I (per contact),
+
+``n x n`` with ``n`` the number of coordinates of ``q``, sparse as the
+contacts couple the elements (a contact at element ``e`` touches elements
+``0..e`` of its strands). It is assembled from per-contact dense blocks in
+a pattern fixed once, factored by CHOLMOD's supernodal Cholesky (through
+cvxopt) with the symbolic analysis done once, and solved with two steps of
+iterative refinement against the force-space operator. Without cvxopt,
+scipy's SuperLU factors the same system.
+
+``B^-1`` is formed as ``W_nt (I + W_nt Gamma W_nt)^-1 W_nt`` from the
+scaling itself: near the optimum ``S_nt`` spans many orders of magnitude
+and inverting it first would lose them.
+
+Accuracy. The rest shape is ``q0 = q - (F_g + H'r)/K``; the objective is
+``1/2 |q0 - t|^2`` (plus ``gamma/2 |r|^2``) up to a constant, so for any
+``r`` in the cones ``|q0(r) - q0*|^2 <= 2 (f(r) - f*)``. With the iterate's
+duality gap ``x'z`` and dual residual ``rd = P x + q - z``, ``f(x) - f* <=
+x'z + rd'(x - x*)``; the reported rest-shape bound is
+``sqrt(2 (x'z + |rd'x|) / elements)``, rms over elements in 1/m, exact
+once the dual residual vanishes (it drops by the step length each step;
+below 1e-12 of ``|q|`` it is round-off of ``P x`` and its term is dropped).
+The benchmark and the tests measure this bound against the distance from
+a tight solve.
+
+The forces this returns are the start of the sweeps (``invert``'s
+``solver.method = "interior-point"``), which then meet the natural-map
+tolerance and decide the status as they do from any start.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
+
+from .._jit import jit
+from .rows import ContactRows
+
+__all__ = ["InteriorResult", "cholesky_backend", "mu_in_range", "solve_interior"]
+
+# The cone is scaled by mu: friction coefficients are held within these bounds in the interior-point
+# steps only (mu = 0 and mu = inf have no interior in this scaling); the sweeps that follow use mu itself.
+_MU_RANGE = (1e-3, 1e3)
+_STEP_FRACTION = 0.99
+_REFINEMENT = 2
+# a dual residual (relative to |q|) below this is taken as round-off in the rest-shape bound
+_ROUND_OFF = 1e-12
+# steps without a new smallest bound before the method stops at its best iterate
+_PATIENCE = 12
+_J = np.diag([1.0, -1.0, -1.0])
+_SIGN = np.array([1.0, -1.0, -1.0])
+
+
+def mu_in_range(mu: np.ndarray) -> np.ndarray:
+    """Contacts whose friction coefficient the interior-point steps take as it is."""
+    mu = np.asarray(mu, dtype=np.float64)
+    return (mu >= _MU_RANGE[0]) & (mu <= _MU_RANGE[1])
+
+
+@dataclass
+class InteriorResult:
+    """What the interior-point method reached.
+
+    Attributes
+    ----------
+    r : (C, 3) float64, forces in the cones (the last iterate, which is strictly inside them)
+    iterations : int
+    status : str, "CONVERGED" (the rest-shape bound met), "MAX_ITERS", "TIME" (max_seconds) or
+        "STALLED" (a step made no progress or the factorisation broke down: the last good iterate)
+    rest_bound : float, 1/m, rms over elements, see the module docstring
+    relative_gap : float, ``x'z / max(1, |f|)``
+    dual_residual : float, ``|rd| / max(1, |q|)`` in the scaled variables
+    seconds : float
+    history : list of (iteration, seconds, rest_bound)
+    backend : str, the sparse Cholesky used
+    """
+
+    r: np.ndarray
+    iterations: int
+    status: str
+    rest_bound: float
+    relative_gap: float
+    dual_residual: float
+    seconds: float
+    history: list = field(default_factory=list)
+    backend: str = ""
+
+
+def cholesky_backend() -> str:
+    """"cholmod" (cvxopt's CHOLMOD, supernodal) when cvxopt imports, else "superlu" (scipy)."""
+    try:
+        import cvxopt.cholmod  # noqa: F401
+    except ImportError:  # pragma: no cover - cvxopt is a dependency; the fallback is for trimmed installs
+        return "superlu"
+    return "cholmod"
+
+
+@jit
+def _pattern_positions(ptr, cols, Sp, Si, pos):
+    """For each contact and each pair (a, b) of its columns with cols[a] >= cols[b], the index of
+    entry (cols[a], cols[b]) in the lower-triangular CSC arrays (Sp, Si), in loop order."""
+    k = 0
+    for i in range(ptr.shape[0] - 1):
+        lo = ptr[i]
+        m = ptr[i + 1] - lo
+        for a in range(m):
+            ra = cols[lo + a]
+            for c in range(m):
+                rb = cols[lo + c]
+                if rb > ra:
+                    continue
+                first = Sp[rb]
+                last = Sp[rb + 1]
+                while first < last:
+                    mid = (first + last) >> 1
+                    if Si[mid] < ra:
+                        first = mid + 1
+                    else:
+                        last = mid
+                pos[k] = first
+                k += 1
+    return k
+
+
+@jit
+def _assemble(ptr, cols, g, Binv, Sp, pos, Sx):
+    """``Sx``: the lower triangle of ``I + G Binv G'`` in the CSC pattern (Sp, pos)."""
+    Sx[:] = 0.0
+    for j in range(Sp.shape[0] - 1):
+        Sx[Sp[j]] = 1.0  # the diagonal entry comes first in each (sorted) column
+    k = 0
+    F = np.empty((64, 3))
+    for i in range(ptr.shape[0] - 1):
+        lo = ptr[i]
+        m = ptr[i + 1] - lo
+        if m > F.shape[0]:
+            F = np.empty((m, 3))
+        for a in range(m):
+            for t in range(3):
+                F[a, t] = g[lo + a, 0] * Binv[i, 0, t] + g[lo + a, 1] * Binv[i, 1, t] + g[lo + a, 2] * Binv[i, 2, t]
+        for a in range(m):
+            ra = cols[lo + a]
+            for c in range(m):
+                if cols[lo + c] > ra:
+                    continue
+                Sx[pos[k]] += F[a, 0] * g[lo + c, 0] + F[a, 1] * g[lo + c, 1] + F[a, 2] * g[lo + c, 2]
+                k += 1
+
+
+@jit
+def _matvec(ptr, cols, g, x, out):
+    """``out = G x``: x (C, 3) scaled forces, out (n,)."""
+    out[:] = 0.0
+    for i in range(ptr.shape[0] - 1):
+        for j in range(ptr[i], ptr[i + 1]):
+            out[cols[j]] += g[j, 0] * x[i, 0] + g[j, 1] * x[i, 1] + g[j, 2] * x[i, 2]
+
+
+@jit
+def _rmatvec(ptr, cols, g, y, out):
+    """``out = G' y``: y (n,), out (C, 3)."""
+    for i in range(ptr.shape[0] - 1):
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for j in range(ptr[i], ptr[i + 1]):
+            yj = y[cols[j]]
+            a0 += g[j, 0] * yj
+            a1 += g[j, 1] * yj
+            a2 += g[j, 2] * yj
+        out[i, 0] = a0
+        out[i, 1] = a1
+        out[i, 2] = a2
+
+
+def _jdet(x: np.ndarray) -> np.ndarray:
+    return x[:, 0] ** 2 - np.sum(x[:, 1:] ** 2, axis=1)
+
+
+def _jprod(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Jordan product of the second-order cone, row by row."""
+    out = np.empty_like(x)
+    out[:, 0] = np.sum(x * y, axis=1)
+    out[:, 1:] = x[:, :1] * y[:, 1:] + y[:, :1] * x[:, 1:]
+    return out
+
+
+def _jdiv(lam: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``u`` with ``lam o u = v`` (lam in the interior)."""
+    u = np.empty_like(v)
+    u[:, 0] = (lam[:, 0] * v[:, 0] - np.sum(lam[:, 1:] * v[:, 1:], axis=1)) / _jdet(lam)
+    u[:, 1:] = (v[:, 1:] - u[:, :1] * lam[:, 1:]) / lam[:, :1]
+    return u
+
+
+def _max_step(u: np.ndarray, v: np.ndarray) -> float:
+    """Largest ``a >= 0`` with ``u + a v`` in every cone (``u`` interior); inf when unbounded."""
+    a = _jdet(v)
+    b = u[:, 0] * v[:, 0] - np.sum(u[:, 1:] * v[:, 1:], axis=1)
+    c = _jdet(u)
+    disc = b * b - a * c
+    root = np.sqrt(np.maximum(disc, 0.0))
+    best = np.inf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lin = np.where(b != 0.0, -c / (2.0 * b), np.inf)
+        for t in (np.where(a != 0.0, (-b - root) / a, lin), np.where(a != 0.0, (-b + root) / a, lin)):
+            ok = (disc >= 0.0) & (t > 0.0) & np.isfinite(t)
+            if ok.any():
+                best = min(best, float(t[ok].min()))
+        down = v[:, 0] < 0.0
+        if down.any():
+            best = min(best, float((-u[down, 0] / v[down, 0]).min()))
+    return best
+
+
+def _nt_scaling(s: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nesterov-Todd scaling ``W`` (and its inverse) of each cone: ``W z = W^-1 s``, both symmetric."""
+    sn = np.sqrt(_jdet(s))
+    zn = np.sqrt(_jdet(z))
+    sb = s / sn[:, None]
+    zb = z / zn[:, None]
+    g = np.sqrt((1.0 + np.sum(sb * zb, axis=1)) / 2.0)
+    w = (sb + zb * _SIGN) / (2.0 * g[:, None])
+    v = w.copy()
+    v[:, 0] += 1.0
+    v /= np.sqrt(2.0 * v[:, :1])
+    beta = np.sqrt(sn / zn)
+    W = beta[:, None, None] * (2.0 * v[:, :, None] * v[:, None, :] - _J)
+    Jv = v * _SIGN
+    Winv = (1.0 / beta)[:, None, None] * (2.0 * Jv[:, :, None] * Jv[:, None, :] - _J)
+    return W, Winv
+
+
+def _mv(M: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return np.einsum("cij,cj->ci", M, x)
+
+
+class _Factor:
+    """The rod-coordinate system ``I + G B^-1 G'``: its pattern, analysis and numeric factor."""
+
+    def __init__(self, ptr, cols, n: int, backend: str):
+        self.backend = backend
+        C = len(ptr) - 1
+        counts = np.diff(ptr)
+        incidence = scipy.sparse.csr_matrix((np.ones(len(cols)), (np.repeat(np.arange(C), counts), cols)),
+                                            shape=(C, n))
+        pattern = (incidence.T @ incidence + scipy.sparse.eye(n, format="csr")).tocsc()
+        lower = scipy.sparse.tril(pattern, format="csc")
+        lower.sort_indices()
+        self.Sp = lower.indptr.astype(np.int64)
+        self.Si = lower.indices.astype(np.int64)
+        self.pos = np.empty(int(np.sum(counts * (counts + 1) // 2)), dtype=np.int64)
+        used = _pattern_positions(ptr, cols, self.Sp, self.Si, self.pos)
+        if used != len(self.pos):  # two columns of one contact are the same coordinate: count again
+            self.pos = self.pos[:used]
+        self.Sx = np.zeros(len(self.Si))
+        self.n = n
+        self._columns = np.repeat(np.arange(n), np.diff(self.Sp))
+        if backend == "cholmod":
+            import cvxopt
+            import cvxopt.cholmod
+
+            self._cvxopt = cvxopt
+            self._cholmod = cvxopt.cholmod
+            cvxopt.cholmod.options["supernodal"] = 2
+            self.A = cvxopt.spmatrix(np.ones(len(self.Si)), cvxopt.matrix(self.Si), cvxopt.matrix(self._columns),
+                                     (n, n))
+            self.F = cvxopt.cholmod.symbolic(self.A)
+
+    def factor(self, ptr, cols, g, Binv) -> None:
+        _assemble(ptr, cols, g, Binv, self.Sp, self.pos, self.Sx)
+        if self.backend == "cholmod":
+            self.A.V = self._cvxopt.matrix(self.Sx)
+            try:
+                self._cholmod.numeric(self.A, self.F)
+            except ArithmeticError:
+                # round-off made a pivot non-positive (the system is I + a positive semidefinite matrix, so
+                # mathematically never): a relative shift of the diagonal, corrected by the refinement
+                self.Sx[self.Sp[:-1]] *= 1.0 + 1e-10
+                self.A.V = self._cvxopt.matrix(self.Sx)
+                self._cholmod.numeric(self.A, self.F)
+        else:
+            lower = scipy.sparse.csc_matrix((self.Sx, self.Si, self.Sp), shape=(self.n, self.n))
+            full = (lower + lower.T - scipy.sparse.diags(lower.diagonal())).tocsc()
+            self.lu = scipy.sparse.linalg.splu(full, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                               options={"SymmetricMode": True})
+
+    def solve(self, w: np.ndarray) -> np.ndarray:
+        if self.backend == "cholmod":
+            b = self._cvxopt.matrix(w)
+            self._cholmod.solve(self.F, b)
+            return np.asarray(b).ravel()
+        return self.lu.solve(w)
+
+
+def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np.ndarray,
+                   rest_tolerance: float = 1e-3, max_iterations: int = 80, max_seconds: float = 0.0,
+                   backend: str | None = None, progress=None) -> InteriorResult:
+    """Minimise ``1/2 r'W r + b'r`` over the cones, ``W = H diag(d) H' + gamma I``, by interior point.
+
+    Parameters
+    ----------
+    rows : ContactRows, ``H`` (3C x n)
+    d : (n,) float64, positive (``K^-2``)
+    gamma : float or (C,) float64
+    b : (C, 3) float64
+    mu : (C,) float64, friction coefficients (0 and inf allowed, see ``_MU_RANGE``)
+    rest_tolerance : float, 1/m, stop once the rest-shape bound (module docstring) is below it
+    max_iterations : int
+    max_seconds : float, stop at the next iteration after this much time (0: no limit)
+    backend : "cholmod" or "superlu", default :func:`cholesky_backend`
+    progress : callable(iteration, rest_bound), optional
+    """
+    started = time.perf_counter()
+    C = rows.n_contacts
+    n = rows.n_dofs
+    backend = backend or cholesky_backend()
+    if C == 0:
+        return InteriorResult(np.zeros((0, 3)), 0, "CONVERGED", 0.0, 0.0, 0.0, 0.0, [], backend)
+    d = np.asarray(d, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64).reshape(C, 3)
+    gamma = np.broadcast_to(np.asarray(gamma, dtype=np.float64), (C,))
+    m = np.clip(np.asarray(mu, dtype=np.float64), *_MU_RANGE)
+    sqd = np.sqrt(d)
+    ptr, cols = rows.ptr, rows.cols
+    contact_of = np.repeat(np.arange(C), np.diff(ptr))
+    # G~ = D^1/2 H' with each contact's columns scaled to the standard cone
+    rho = np.zeros(C)
+    np.add.at(rho, contact_of, np.sum(rows.vals ** 2, axis=1) * d[cols])
+    rho = rho / 3.0 + gamma
+    rho = np.where(rho > 0.0, rho, 1.0)
+    scale = np.stack([1.0 / m, np.ones(C), np.ones(C)], axis=1) / np.sqrt(rho)[:, None]  # r = scale * x
+    g = np.ascontiguousarray(rows.vals * sqd[cols][:, None] * scale[contact_of])
+    q = b * scale
+    gam = gamma[:, None] * scale ** 2
+    elements = max(n // 3, 1)
+    factor = _Factor(ptr, cols, n, backend)
+    y = np.empty(n)
+    Px = np.empty((C, 3))
+
+    def apply_P(x: np.ndarray) -> np.ndarray:
+        _matvec(ptr, cols, g, x, y)
+        _rmatvec(ptr, cols, g, y, Px)
+        return Px + gam * x
+
+    start = max(1.0, float(np.sqrt(np.mean(q ** 2))))
+    x = np.zeros((C, 3))
+    x[:, 0] = start
+    z = x.copy()
+    history = []
+    with np.errstate(all="ignore"):
+        status, it, best = _iterate(x, z, q, gam, C, apply_P, elements, max_iterations, max_seconds, started, factor,
+                                    ptr, cols, g, n, history, progress, rest_tolerance)
+    bound, xb, relgap, dres, _ = best
+    return InteriorResult(xb * scale, it, status, bound, relgap, dres, time.perf_counter() - started, history,
+                          backend)
+
+
+def _iterate(x, z, q, gam, C, apply_P, elements, max_iterations, max_seconds, started, factor, ptr, cols, g, n,
+             history, progress, rest_tolerance):
+    """The predictor-corrector steps; returns (status, steps, (bound, x, relgap, dres, step) of the best)."""
+    e = np.zeros((C, 3))
+    e[:, 0] = 1.0
+    status = "MAX_ITERS"
+    best = (np.inf, x, 0.0, np.inf, 0)
+    it = 0
+    for it in range(max_iterations + 1):
+        P = apply_P(x)
+        rd = P + q - z
+        gap = float(np.sum(x * z))
+        f = 0.5 * float(np.sum(x * P)) + float(np.sum(q * x))
+        relgap = gap / max(1.0, abs(f))
+        dres = float(np.linalg.norm(rd)) / max(1.0, float(np.linalg.norm(q)))
+        # the dual residual's term, until that residual is round-off of the product P x (forces the rest
+        # shape does not feel, fixed by gamma alone, may grow large enough to make that round-off dominate)
+        slack = abs(float(np.sum(rd * x))) if dres > _ROUND_OFF else 0.0
+        bound = float(np.sqrt(2.0 * max(gap + slack, 0.0) / elements))
+        if not np.isfinite(bound):
+            status = "STALLED"
+            break
+        history.append((it, time.perf_counter() - started, bound))
+        if bound < best[0]:
+            best = (bound, x.copy(), relgap, dres, it)
+        if progress is not None:
+            progress(it, bound)
+        if bound <= rest_tolerance:
+            status = "CONVERGED"
+            break
+        if it == max_iterations:
+            break
+        if it - best[4] >= _PATIENCE:
+            # no new best for that many steps: the steps wander along forces the rest shape barely feels
+            # (fixed by gamma alone, below round-off of the Newton systems); keep the best iterate
+            status = "STALLED"
+            break
+        if not (np.all(_jdet(x) > 0.0) and np.all(_jdet(z) > 0.0) and np.all(x[:, 0] > 0.0) and np.all(z[:, 0] > 0.0)):
+            status = "STALLED"  # round-off put an iterate on a cone's boundary: no scaling exists there
+            break
+        if max_seconds and time.perf_counter() - started > max_seconds:
+            status = "TIME"
+            break
+        Wm, Wi = _nt_scaling(x, z)
+        lam = _mv(Wm, z)
+        Dnt = np.einsum("cij,cjk->cik", Wi, Wi)
+        inner = np.eye(3) + np.einsum("cij,cj,cjk->cik", Wm, gam, Wm)
+        Binv = np.einsum("cij,cjk,ckl->cil", Wm, np.linalg.inv(inner), Wm)
+        Binv = 0.5 * (Binv + Binv.transpose(0, 2, 1))
+        try:
+            factor.factor(ptr, cols, g, Binv)
+        except (ArithmeticError, RuntimeError):
+            status = "STALLED"
+            break
+        DB = Dnt.copy()
+        DB[:, 0, 0] += gam[:, 0]
+        DB[:, 1, 1] += gam[:, 1]
+        DB[:, 2, 2] += gam[:, 2]
+        w_dofs = np.empty(n)
+        back = np.empty((C, 3))
+
+        def newton(v: np.ndarray) -> np.ndarray:
+            # (P + Dnt) dx = v by Woodbury, then refinement against the operator itself
+            def once(v):
+                t = _mv(Binv, v)
+                _matvec(ptr, cols, g, t, w_dofs)
+                _rmatvec(ptr, cols, g, factor.solve(w_dofs), back)
+                return t - _mv(Binv, back)
+
+            dx = once(v)
+            for _ in range(_REFINEMENT):
+                dx = dx + once(v - (apply_P(dx) - gam * dx + _mv(DB, dx)))
+            return dx
+
+        def direction(t: np.ndarray):
+            Wt = _mv(Wi, t)
+            dx = newton(Wt - rd)
+            return dx, Wt - _mv(Dnt, dx)
+
+        dxa, dza = direction(-lam)
+        aa = min(1.0, _max_step(x, dxa), _max_step(z, dza))
+        sigma = min(1.0, max(0.0, float(np.sum((x + aa * dxa) * (z + aa * dza))) / gap)) ** 3
+        rc = -_jprod(lam, lam) - _jprod(_mv(Wi, dxa), _mv(Wm, dza)) + sigma * (gap / C) * e
+        dx, dz = direction(_jdiv(lam, rc))
+        a = min(1.0, _STEP_FRACTION * min(_max_step(x, dx), _max_step(z, dz)))
+        if not (a > 0.0) or not np.all(np.isfinite(dx)) or not np.all(np.isfinite(dz)):
+            status = "STALLED"
+            break
+        x = x + a * dx
+        z = z + a * dz
+    return status, it, best

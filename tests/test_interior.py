@@ -1,0 +1,166 @@
+"""The interior-point method (``solver.method = "interior-point"``) on the inverse problem.
+
+Checked against the mathematics, not against itself:
+
+- optimality conditions of its answer on the dense problem (forces in the
+  Coulomb cones, ``W r + b`` in the dual cones, complementarity);
+- the rest shape against Clarabel's on the same SOCQP, and the duality-gap
+  bound it reports against the distance it actually has from the optimum
+  (computed here from a tight solve);
+- extremes: mu 0 and 1e6 (outside the range its steps take as they are: the
+  sweeps finish), gamma tiny and huge, a single contact;
+- the two factorisations (CHOLMOD, SuperLU) give the same steps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hairinv.errors import InputError
+from hairinv.invert import generalized_gravity, invert, stiffness
+from hairinv.config import SolverSettings
+from hairinv.solver.interior import solve_interior
+from hairinv.solver.rows import contact_rows
+
+from test_invert import (UP, check_optimality, dense_problem, make_contacts, material, resting_scene, solve,
+                         three_strands_on_the_body, two_strand_scene)
+
+
+def sag(helices, mat) -> float:
+    """1/m, the largest curvature change gravity alone would cause (20 to 50 1/m in these scenes)."""
+    return float(np.abs(generalized_gravity(helices, mat).ravel() / stiffness(helices, mat)).max())
+
+
+def ip(helices, mat, share: float = 1e-5) -> dict:
+    """Interior-point settings with the rest-shape tolerance ``share`` of the scene's sag: at the paper's
+    gamma (1e-16 of W's diagonal) the steps reach 1e-9 to 1e-6 of it before round-off stops them."""
+    return {"method": "interior-point", "rest_tolerance": share * sag(helices, mat), "max_iterations": 200}
+
+
+def four_strands_in_a_pile():
+    """Three strands on the body and a fourth lying across all three (hair-hair contacts at three places)."""
+    helices, body = three_strands_on_the_body(0.3)
+    from test_invert import horizontal_strand, strands
+
+    specs = [horizontal_strand(curl=c, root=(0.0, 0.0, z)) for c, z in ((0.0, 0.0), (2.0, 0.05), (-4.0, 0.1))]
+    specs.append((np.array([0.09, 0.004, -0.02]), (0.0, 0.0, 1.0), np.zeros((6, 3)), np.full(6, 0.025)))
+    helices = strands(specs)
+    tilted = UP + np.array([0.3, 0.0, 0.2])
+    c = [(0, s, -1, 0.0, UP, 0.3) for s in (0.06, 0.08, 0.1)]
+    c += [(1, s, -1, 0.0, tilted / np.linalg.norm(tilted), 0.3) for s in (0.05, 0.07, 0.09, 0.11)]
+    c += [(2, s, -1, 0.0, UP, 0.3) for s in (0.07, 0.09, 0.115)]
+    c += [(k, 0.09, 3, 0.02 + 0.05 * k, -UP, 0.3) for k in range(3)]  # strand 3 above strands 0-2
+    c += [(3, 0.14, -1, 0.0, UP, 0.3)]
+    return helices, make_contacts(helices, c)
+
+
+SCENES = [resting_scene, two_strand_scene, four_strands_in_a_pile]
+
+
+def rest_of(helices, mat, H, r):
+    K = stiffness(helices, mat)
+    return helices.omega.ravel() - (generalized_gravity(helices, mat).ravel() + H.T @ r.ravel()) / K
+
+
+def rms(dq) -> float:
+    return float(np.sqrt(np.mean(np.sum(dq.reshape(-1, 3) ** 2, axis=1))))
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_meets_the_optimality_conditions(scene):
+    helices, contacts = scene() if scene is four_strands_in_a_pile else scene(mu=0.3)
+    mat = material()
+    settings = ip(helices, mat)
+    model, report = solve(helices, contacts, mat, **settings)
+    r = report.result
+    assert r.status == "CONVERGED" and r.method == "interior-point" and r.interior_steps > 0 and r.sweeps == 0
+    assert r.rest_bound <= settings["rest_tolerance"]
+    W, b, _, _ = dense_problem(helices, contacts, mat, model)
+    check_optimality(W, b, model.force, contacts.mu, rtol=1e-6)
+
+
+@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("mu", [0.3, 2.0])
+def test_rest_shape_matches_clarabel_and_the_bound_holds(scene, mu):
+    pytest.importorskip("clarabel")
+    import scipy.sparse
+
+    from hairinv.solver.reference import solve_socqp_clarabel
+
+    helices, contacts = scene() if scene is four_strands_in_a_pile else scene(mu=mu)
+    contacts.mu[:] = mu
+    mat = material()
+    tight, report = solve(helices, contacts, mat)  # the sweeps, to 1e-10 of a strand's weight
+    _, b, H, d = dense_problem(helices, contacts, mat, tight)
+    r_ref, info = solve_socqp_clarabel(scipy.sparse.csr_matrix(H), d, 1e-3, b, contacts.mu, tol=1e-13)
+    q_ref = rest_of(helices, mat, H, r_ref)
+    scale = sag(helices, mat)
+    if info["status"] == "Solved":
+        assert np.abs(tight.omega_rest.ravel() - q_ref).max() <= 1e-6 * scale
+    # looser runs: the distance they report bounds the one they have from the optimum
+    rows = contact_rows(helices, contacts)
+    bounds = []
+    for tol in (1e-1 * scale, 1e-3 * scale, 1e-5 * scale):
+        res = solve_interior(rows, d, 1e-3, b.reshape(-1, 3), contacts.mu, rest_tolerance=tol)
+        assert res.status == "CONVERGED" and res.rest_bound <= tol
+        assert rms(rest_of(helices, mat, H, res.r) - tight.omega_rest.ravel()) <= res.rest_bound + 1e-9 * scale
+        bounds.append(res.rest_bound)
+    assert bounds == sorted(bounds, reverse=True)
+
+
+@pytest.mark.parametrize("mu", [0.0, 1e6, np.inf])
+def test_friction_outside_the_steps_range_is_finished_by_the_sweeps(mu):
+    helices, contacts = two_strand_scene(mu=mu)
+    mat = material()
+    model, report = solve(helices, contacts, mat, **ip(helices, mat))
+    r = report.result
+    assert r.status == "CONVERGED" and r.interior_steps > 0
+    assert np.isnan(r.rest_bound)  # the steps solved another cone: no bound for this problem
+    W, b, _, _ = dense_problem(helices, contacts, mat, model)
+    check_optimality(W, b, model.force, contacts.mu, rtol=1e-7)
+    if mu == 0.0:
+        assert np.all(model.force[:, 1:] == 0.0)
+
+
+@pytest.mark.parametrize("gamma", [1e-12, 1e9])
+def test_extreme_gamma(gamma):
+    helices, contacts = four_strands_in_a_pile()
+    mat = material()
+    model, report = solve(helices, contacts, mat, gamma=gamma, **ip(helices, mat))
+    assert report.result.status == "CONVERGED"
+    assert np.all(np.isfinite(model.force)) and np.all(np.isfinite(model.omega_rest))
+    W, b, _, _ = dense_problem(helices, contacts, mat, model)
+    check_optimality(W, b, model.force, contacts.mu, rtol=1e-6)
+
+
+def test_a_single_contact_and_none():
+    helices, contacts = resting_scene(n_contacts=1)
+    mat = material()
+    model, report = solve(helices, contacts, mat, **ip(helices, mat))
+    assert report.result.status == "CONVERGED"
+    W, b, _, _ = dense_problem(helices, contacts, mat, model)
+    check_optimality(W, b, model.force, contacts.mu, rtol=1e-6)
+    empty, report = solve(helices, None, mat, **ip(helices, mat))
+    assert report.result.status == "CONVERGED" and report.contacts == 0
+
+
+def test_superlu_takes_the_same_steps_as_cholmod():
+    helices, contacts = four_strands_in_a_pile()
+    mat = material()
+    probe, _ = solve(helices, contacts, mat)
+    _, b, H, d = dense_problem(helices, contacts, mat, probe)
+    rows = contact_rows(helices, contacts)
+    tol = 1e-3 * sag(helices, mat)  # well above round-off, where both take the same steps
+    a = solve_interior(rows, d, 1e-3, b.reshape(-1, 3), contacts.mu, rest_tolerance=tol, backend="cholmod")
+    s = solve_interior(rows, d, 1e-3, b.reshape(-1, 3), contacts.mu, rest_tolerance=tol, backend="superlu")
+    assert a.status == s.status == "CONVERGED" and a.iterations == s.iterations
+    assert rms(rest_of(helices, mat, H, a.r) - rest_of(helices, mat, H, s.r)) <= 1e-9 * sag(helices, mat)
+
+
+def test_settings_are_checked():
+    helices, contacts = resting_scene()
+    for bad in ({"method": "newton"}, {"rest_tolerance": 0.0}, {"rest_tolerance": float("nan")},
+                {"max_iterations": 0}):
+        with pytest.raises(InputError):
+            invert(helices, contacts, material(), SolverSettings(**bad))
