@@ -805,7 +805,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
             f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "
             f"(tolerance {settings.tolerance:g}); the model is an exact equilibrium, but its forces are not yet the "
             "best ones: invert this model again to continue from its forces, or raise solver.max_sweeps "
-            "(or solver.max_seconds) or the tolerance")
+            "(or solver.max_seconds) or the tolerance, or solve to the optimum with --set solver.method=interior-point "
+            "(docs/inverse.md)")
     return model, report
 
 

@@ -25,7 +25,7 @@ one system in the rod coordinates,
 contacts couple the elements (a contact at element ``e`` touches elements
 ``0..e`` of its strands). It is assembled from per-contact dense blocks in
 a pattern fixed once, factored by CHOLMOD's supernodal Cholesky (through
-cvxopt) with the symbolic analysis done once, and solved with two steps of
+cvxopt) with the symbolic analysis done once, and solved with one step of
 iterative refinement against the force-space operator. Without cvxopt,
 scipy's SuperLU factors the same system.
 
@@ -67,7 +67,7 @@ __all__ = ["InteriorResult", "cholesky_backend", "mu_in_range", "solve_interior"
 # steps only (mu = 0 and mu = inf have no interior in this scaling); the sweeps that follow use mu itself.
 _MU_RANGE = (1e-3, 1e3)
 _STEP_FRACTION = 0.99
-_REFINEMENT = 2
+_REFINEMENT = 1
 # a dual residual (relative to |q|) below this is taken as round-off in the rest-shape bound
 _ROUND_OFF = 1e-12
 # steps without a new smallest bound before the method stops at its best iterate
