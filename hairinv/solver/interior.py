@@ -358,39 +358,67 @@ def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: n
     g = np.ascontiguousarray(rows.vals * sqd[cols][:, None] * scale[contact_of])
     q = b * scale
     gam = gamma[:, None] * scale ** 2
-    elements = max(n // 3, 1)
-    factor = _Factor(ptr, cols, n, backend)
-    y = np.empty(n)
-    Px = np.empty((C, 3))
-
-    def apply_P(x: np.ndarray) -> np.ndarray:
-        _matvec(ptr, cols, g, x, y)
-        _rmatvec(ptr, cols, g, y, Px)
-        return Px + gam * x
-
+    problem = _Scaled(ptr, cols, g, gam, q, n, _Factor(ptr, cols, n, backend))
     start = max(1.0, float(np.sqrt(np.mean(q ** 2))))
     x = np.zeros((C, 3))
     x[:, 0] = start
-    z = x.copy()
     history = []
     with np.errstate(all="ignore"):
-        status, it, best = _iterate(x, z, q, gam, C, apply_P, elements, max_iterations, max_seconds, started, factor,
-                                    ptr, cols, g, n, history, progress, rest_tolerance)
+        status, it, best = _iterate(problem, x, x.copy(), rest_tolerance, max_iterations, max_seconds, started,
+                                    history, progress)
     bound, xb, relgap, dres, _ = best
     return InteriorResult(xb * scale, it, status, bound, relgap, dres, time.perf_counter() - started, history,
                           backend)
 
 
-def _iterate(x, z, q, gam, C, apply_P, elements, max_iterations, max_seconds, started, factor, ptr, cols, g, n,
-             history, progress, rest_tolerance):
-    """The predictor-corrector steps; returns (status, steps, (bound, x, relgap, dres, step) of the best)."""
+class _Scaled:
+    """The problem in the scaled variables: ``min 1/2 x'P x + q'x`` over the standard cones,
+    ``P = G'G + diag(gam)`` with ``G`` stored per contact (``ptr``, ``cols``, ``g``: (nnz, 3))."""
+
+    def __init__(self, ptr, cols, g, gam, q, n: int, factor: _Factor):
+        self.ptr, self.cols, self.g, self.gam, self.q = ptr, cols, g, gam, q
+        self.n = n
+        self.C = len(q)
+        self.elements = max(n // 3, 1)
+        self.factor = factor
+        self._y = np.empty(n)
+        self._Px = np.empty((self.C, 3))
+        self._back = np.empty((self.C, 3))
+
+    def P(self, x: np.ndarray) -> np.ndarray:
+        _matvec(self.ptr, self.cols, self.g, x, self._y)
+        _rmatvec(self.ptr, self.cols, self.g, self._y, self._Px)
+        return self._Px + self.gam * x
+
+    def factor_step(self, Binv: np.ndarray) -> None:
+        self.factor.factor(self.ptr, self.cols, self.g, Binv)
+
+    def newton(self, Binv: np.ndarray, D: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``(P + D) dx = v`` (``D`` the cones' scaling, ``Binv = (D + diag(gam))^-1``) by Woodbury through
+        the factored rod-coordinate system, then refinement against the operator itself."""
+        def once(v):
+            t = _mv(Binv, v)
+            _matvec(self.ptr, self.cols, self.g, t, self._y)
+            _rmatvec(self.ptr, self.cols, self.g, self.factor.solve(self._y), self._back)
+            return t - _mv(Binv, self._back)
+
+        dx = once(v)
+        for _ in range(_REFINEMENT):
+            dx = dx + once(v - (self.P(dx) + _mv(D, dx)))
+        return dx
+
+
+def _iterate(problem: _Scaled, x, z, rest_tolerance, max_iterations, max_seconds, started, history, progress):
+    """The predictor-corrector steps from ``(x, z)``; returns (status, steps, (bound, x, relgap, dres, step) of
+    the best iterate)."""
+    C, q, gam = problem.C, problem.q, problem.gam
     e = np.zeros((C, 3))
     e[:, 0] = 1.0
     status = "MAX_ITERS"
     best = (np.inf, x, 0.0, np.inf, 0)
     it = 0
     for it in range(max_iterations + 1):
-        P = apply_P(x)
+        P = problem.P(x)
         rd = P + q - z
         gap = float(np.sum(x * z))
         f = 0.5 * float(np.sum(x * P)) + float(np.sum(q * x))
@@ -399,7 +427,7 @@ def _iterate(x, z, q, gam, C, apply_P, elements, max_iterations, max_seconds, st
         # the dual residual's term, until that residual is round-off of the product P x (forces the rest
         # shape does not feel, fixed by gamma alone, may grow large enough to make that round-off dominate)
         slack = abs(float(np.sum(rd * x))) if dres > _ROUND_OFF else 0.0
-        bound = float(np.sqrt(2.0 * max(gap + slack, 0.0) / elements))
+        bound = float(np.sqrt(2.0 * max(gap + slack, 0.0) / problem.elements))
         if not np.isfinite(bound):
             status = "STALLED"
             break
@@ -426,39 +454,21 @@ def _iterate(x, z, q, gam, C, apply_P, elements, max_iterations, max_seconds, st
             break
         Wm, Wi = _nt_scaling(x, z)
         lam = _mv(Wm, z)
-        Dnt = np.einsum("cij,cjk->cik", Wi, Wi)
+        D = np.einsum("cij,cjk->cik", Wi, Wi)
+        # (D + diag(gam))^-1 from the scaling itself: W (I + W diag(gam) W)^-1 W
         inner = np.eye(3) + np.einsum("cij,cj,cjk->cik", Wm, gam, Wm)
         Binv = np.einsum("cij,cjk,ckl->cil", Wm, np.linalg.inv(inner), Wm)
         Binv = 0.5 * (Binv + Binv.transpose(0, 2, 1))
         try:
-            factor.factor(ptr, cols, g, Binv)
+            problem.factor_step(Binv)
         except (ArithmeticError, RuntimeError):
             status = "STALLED"
             break
-        DB = Dnt.copy()
-        DB[:, 0, 0] += gam[:, 0]
-        DB[:, 1, 1] += gam[:, 1]
-        DB[:, 2, 2] += gam[:, 2]
-        w_dofs = np.empty(n)
-        back = np.empty((C, 3))
-
-        def newton(v: np.ndarray) -> np.ndarray:
-            # (P + Dnt) dx = v by Woodbury, then refinement against the operator itself
-            def once(v):
-                t = _mv(Binv, v)
-                _matvec(ptr, cols, g, t, w_dofs)
-                _rmatvec(ptr, cols, g, factor.solve(w_dofs), back)
-                return t - _mv(Binv, back)
-
-            dx = once(v)
-            for _ in range(_REFINEMENT):
-                dx = dx + once(v - (apply_P(dx) - gam * dx + _mv(DB, dx)))
-            return dx
 
         def direction(t: np.ndarray):
             Wt = _mv(Wi, t)
-            dx = newton(Wt - rd)
-            return dx, Wt - _mv(Dnt, dx)
+            dx = problem.newton(Binv, D, Wt - rd)
+            return dx, Wt - _mv(D, dx)
 
         dxa, dza = direction(-lam)
         aa = min(1.0, _max_step(x, dxa), _max_step(z, dza))
