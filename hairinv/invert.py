@@ -645,6 +645,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                              f"({contacts.n_contacts}), got shape {start.shape}")
         r0 = project_forces(start, contacts.mu)
 
+    notes: list[str] = []
+
     def solve(stiff: np.ndarray, r0: np.ndarray | None, first: bool):
         # D = w K^-2; b = H D (F_g - K (q - t))
         d = np.repeat(weight, 3) / stiff ** 2
@@ -657,10 +659,16 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         if settings.method == "interior-point" and contacts.n_contacts:
             interior = solve_interior(rows, d, settings.gamma, b, contacts.mu, settings.rest_tolerance,
                                       settings.max_iterations, settings.max_seconds)
+            if interior.status == "TOO_LARGE":
+                notes.append(f"the interior-point method's factorisation would cost over {interior.gflop:g} GFlop a step "
+                             "on this groom (strands touching along much of their length): solved by the sweeps "
+                             "instead (docs/inverse.md)")
+                interior = None
             # friction coefficients outside the steps' range (0, inf) were held within it there: the sweeps
             # then solve the problem as declared, from those forces; otherwise the forces are final and the
             # call below only measures their residual (and projects them onto the cones, a round-off move)
-            sweeps_cap = settings.max_sweeps if np.any(~mu_in_range(contacts.mu)) else 0
+            if interior is not None and np.all(mu_in_range(contacts.mu)):
+                sweeps_cap = 0
         result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, S,
                                force_scale, settings.tolerance, sweeps_cap, settings.check_every,
                                r0=r0 if interior is None else interior.r,
@@ -788,6 +796,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     if not np.linalg.norm(material.gravity) > 0.0 and contacts.n_contacts:
         report.notes.append(f"the scene has no gravity: the solver's tolerance is relative to the heaviest strand's "
                             f"weight under {tolerance_gravity(material):g} m/s^2 ({force_scale:.3g} N)")
+    report.notes += sorted(set(notes), key=notes.index)
     if warm:
         report.notes.append(f"the solver started from the given forces (after {prior} earlier sweeps), at relative "
                             f"residual {first_residual / force_scale:.2g}")

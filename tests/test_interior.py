@@ -164,3 +164,36 @@ def test_settings_are_checked():
                 {"max_iterations": 0}):
         with pytest.raises(InputError):
             invert(helices, contacts, material(), SolverSettings(**bad))
+
+
+def test_factor_cost_is_counted_exactly_and_too_large_falls_back_to_the_sweeps():
+    """The count is checked against the factor of a dense Cholesky of the same pattern under the same order;
+    a groom over the cap is refused by the method and solved by the sweeps, with a note."""
+    import scipy.sparse
+
+    from hairinv.solver import interior
+
+    helices, contacts = four_strands_in_a_pile()
+    rows = contact_rows(helices, contacts)
+    factor = interior._Factor(rows.ptr, rows.cols, rows.n_dofs, "cholmod")
+    # a random SPD matrix with the system's pattern, factored densely: its non-zero pattern is the factor's
+    lower = scipy.sparse.csc_matrix((np.random.default_rng(0).uniform(0.1, 1.0, len(factor.Si)), factor.Si,
+                                     factor.Sp), shape=(rows.n_dofs,) * 2)
+    full = (lower + lower.T).toarray()
+    full += np.diag(np.abs(full).sum(axis=1) + 1.0)
+    p = factor.order
+    L = np.linalg.cholesky(full[np.ix_(p, p)])
+    counts = np.count_nonzero(np.abs(L) > 0.0, axis=0)
+    assert factor.flops == float(np.sum(counts.astype(float) ** 2))
+    mat = material()
+    res = solve_interior(rows, np.ones(rows.n_dofs), 1e-3, np.ones((contacts.n_contacts, 3)), contacts.mu,
+                         max_gflop=0.5 * factor.flops / 1e9)
+    assert res.status == "TOO_LARGE" and np.all(res.r == 0.0)
+    original = interior.MAX_GFLOP
+    try:
+        interior.MAX_GFLOP = 0.5 * factor.flops / 1e9
+        fallback, rep = solve(helices, contacts, mat, method="interior-point")
+    finally:
+        interior.MAX_GFLOP = original
+    assert rep.result.method == "sweeps" and rep.result.sweeps > 0 and rep.result.status == "CONVERGED"
+    assert any("solved by the sweeps instead" in n for n in rep.notes)

@@ -61,7 +61,7 @@ import scipy.sparse.linalg
 from .._jit import jit
 from .rows import ContactRows
 
-__all__ = ["InteriorResult", "cholesky_backend", "mu_in_range", "solve_interior"]
+__all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "mu_in_range", "solve_interior"]
 
 # The cone is scaled by mu: friction coefficients are held within these bounds in the interior-point
 # steps only (mu = 0 and mu = inf have no interior in this scaling); the sweeps that follow use mu itself.
@@ -72,6 +72,10 @@ _REFINEMENT = 1
 _ROUND_OFF = 1e-12
 # steps without a new smallest bound before the method stops at its best iterate
 _PATIENCE = 12
+# The most one factorisation may cost, in GFlop (sum of the factor's squared column counts). ruby short's
+# 25,468 contacts need 19 (0.6 s a step on 2 cores); a groom whose strands all touch each other along their
+# length (a bun) makes the system nearly dense, and its factorisation would take minutes a step.
+MAX_GFLOP = 60.0
 _J = np.diag([1.0, -1.0, -1.0])
 _SIGN = np.array([1.0, -1.0, -1.0])
 
@@ -90,14 +94,16 @@ class InteriorResult:
     ----------
     r : (C, 3) float64, forces in the cones (the last iterate, which is strictly inside them)
     iterations : int
-    status : str, "CONVERGED" (the rest-shape bound met), "MAX_ITERS", "TIME" (max_seconds) or
-        "STALLED" (a step made no progress or the factorisation broke down: the last good iterate)
+    status : str, "CONVERGED" (the rest-shape bound met), "MAX_ITERS", "TIME" (max_seconds),
+        "STALLED" (a step made no progress or the factorisation broke down: the best iterate) or
+        "TOO_LARGE" (the factorisation would cost more than ``max_gflop``: nothing solved, ``r`` zero)
     rest_bound : float, 1/m, rms over elements, see the module docstring
     relative_gap : float, ``x'z / max(1, |f|)``
     dual_residual : float, ``|rd| / max(1, |q|)`` in the scaled variables
     seconds : float
     history : list of (iteration, seconds, rest_bound)
     backend : str, the sparse Cholesky used
+    gflop : float, the cost of one factorisation (sum of the squared column counts of the factor), 1e9
     """
 
     r: np.ndarray
@@ -109,6 +115,7 @@ class InteriorResult:
     seconds: float
     history: list = field(default_factory=list)
     backend: str = ""
+    gflop: float = float("nan")
 
 
 def cholesky_backend() -> str:
@@ -260,10 +267,50 @@ def _mv(M: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.einsum("cij,cj->ci", M, x)
 
 
+@jit
+def _factor_flops(n, Up, Ui, limit):
+    """``sum_j c_j^2`` over the column counts ``c_j`` of the Cholesky factor of the symmetric pattern whose
+    upper triangle is (Up, Ui), by columns (elimination tree, then each row's subtree); -1 as soon as
+    the sum passes ``limit``, so that the count costs at most what the limit allows."""
+    parent = np.full(n, -1, np.int64)
+    ancestor = np.full(n, -1, np.int64)
+    for k in range(n):
+        for p in range(Up[k], Up[k + 1]):
+            i = Ui[p]
+            while i != -1 and i < k:
+                nxt = ancestor[i]
+                ancestor[i] = k
+                if nxt == -1:
+                    parent[i] = k
+                i = nxt
+    counts = np.ones(n, np.int64)
+    mark = np.full(n, -1, np.int64)
+    entries = n
+    for k in range(n):
+        mark[k] = k
+        for p in range(Up[k], Up[k + 1]):
+            i = Ui[p]
+            while i < k and mark[i] != k:
+                counts[i] += 1
+                entries += 1
+                mark[i] = k
+                i = parent[i]
+        if float(entries) * float(entries) / n > limit:  # sum c^2 >= (sum c)^2 / n: already over
+            return -1.0
+    flops = 0.0
+    for j in range(n):
+        flops += float(counts[j]) * float(counts[j])
+    return flops if flops <= limit else -1.0
+
+
+class TooLarge(Exception):
+    """The rod-coordinate system's factorisation would cost more than the method allows."""
+
+
 class _Factor:
     """The rod-coordinate system ``I + G B^-1 G'``: its pattern, analysis and numeric factor."""
 
-    def __init__(self, ptr, cols, n: int, backend: str):
+    def __init__(self, ptr, cols, n: int, backend: str, max_flops: float = np.inf):
         self.backend = backend
         C = len(ptr) - 1
         counts = np.diff(ptr)
@@ -281,6 +328,15 @@ class _Factor:
         self.Sx = np.zeros(len(self.Si))
         self.n = n
         self._columns = np.repeat(np.arange(n), np.diff(self.Sp))
+        self.order = self._ordering(pattern, backend)
+        # the factor's cost under that ordering, counted before any factorisation
+        permuted = pattern[self.order][:, self.order]
+        upper = scipy.sparse.triu(permuted, format="csc")
+        upper.sort_indices()
+        limit = float(max_flops) if np.isfinite(max_flops) else 1e300
+        self.flops = _factor_flops(n, upper.indptr.astype(np.int64), upper.indices.astype(np.int64), limit)
+        if self.flops < 0:
+            raise TooLarge(f"over {max_flops / 1e9:.3g} GFlop")
         if backend == "cholmod":
             import cvxopt
             import cvxopt.cholmod
@@ -290,7 +346,23 @@ class _Factor:
             cvxopt.cholmod.options["supernodal"] = 2
             self.A = cvxopt.spmatrix(np.ones(len(self.Si)), cvxopt.matrix(self.Si), cvxopt.matrix(self._columns),
                                      (n, n))
-            self.F = cvxopt.cholmod.symbolic(self.A)
+            self.F = cvxopt.cholmod.symbolic(self.A, p=cvxopt.matrix(self.order))
+
+    @staticmethod
+    def _ordering(pattern, backend: str) -> np.ndarray:
+        """A fill-reducing ordering of the pattern: AMD (cvxopt's) with CHOLMOD, else reverse Cuthill-McKee."""
+        n = pattern.shape[0]
+        if backend == "cholmod":
+            import cvxopt
+            import cvxopt.amd
+
+            lower = scipy.sparse.tril(pattern, format="coo")
+            A = cvxopt.spmatrix(np.ones(lower.nnz), cvxopt.matrix(lower.row.astype(np.int64)),
+                                cvxopt.matrix(lower.col.astype(np.int64)), (n, n))
+            return np.asarray(cvxopt.amd.order(A), dtype=np.int64).ravel()
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+        return np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=np.int64)
 
     def factor(self, ptr, cols, g, Binv) -> None:
         _assemble(ptr, cols, g, Binv, self.Sp, self.pos, self.Sx)
@@ -320,7 +392,7 @@ class _Factor:
 
 def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np.ndarray,
                    rest_tolerance: float = 1e-3, max_iterations: int = 80, max_seconds: float = 0.0,
-                   backend: str | None = None, progress=None) -> InteriorResult:
+                   backend: str | None = None, progress=None, max_gflop: float | None = None) -> InteriorResult:
     """Minimise ``1/2 r'W r + b'r`` over the cones, ``W = H diag(d) H' + gamma I``, by interior point.
 
     Parameters
@@ -335,13 +407,16 @@ def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: n
     max_seconds : float, stop at the next iteration after this much time (0: no limit)
     backend : "cholmod" or "superlu", default :func:`cholesky_backend`
     progress : callable(iteration, rest_bound), optional
+    max_gflop : float, the most a factorisation may cost (counted first, from the ordering's elimination
+        tree; default ``MAX_GFLOP``); above it nothing is solved, the status is "TOO_LARGE" and ``gflop``
+        is that cap
     """
     started = time.perf_counter()
     C = rows.n_contacts
     n = rows.n_dofs
     backend = backend or cholesky_backend()
     if C == 0:
-        return InteriorResult(np.zeros((0, 3)), 0, "CONVERGED", 0.0, 0.0, 0.0, 0.0, [], backend)
+        return InteriorResult(np.zeros((0, 3)), 0, "CONVERGED", 0.0, 0.0, 0.0, 0.0, [], backend, 0.0)
     d = np.asarray(d, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64).reshape(C, 3)
     gamma = np.broadcast_to(np.asarray(gamma, dtype=np.float64), (C,))
@@ -358,7 +433,13 @@ def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: n
     g = np.ascontiguousarray(rows.vals * sqd[cols][:, None] * scale[contact_of])
     q = b * scale
     gam = gamma[:, None] * scale ** 2
-    problem = _Scaled(ptr, cols, g, gam, q, n, _Factor(ptr, cols, n, backend))
+    max_gflop = MAX_GFLOP if max_gflop is None else float(max_gflop)
+    try:
+        factor = _Factor(ptr, cols, n, backend, max_gflop * 1e9)
+    except TooLarge:
+        return InteriorResult(np.zeros((C, 3)), 0, "TOO_LARGE", np.nan, np.nan, np.nan,
+                              time.perf_counter() - started, [], backend, max_gflop)
+    problem = _Scaled(ptr, cols, g, gam, q, n, factor)
     start = max(1.0, float(np.sqrt(np.mean(q ** 2))))
     x = np.zeros((C, 3))
     x[:, 0] = start
@@ -368,7 +449,7 @@ def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: n
                                     history, progress)
     bound, xb, relgap, dres, _ = best
     return InteriorResult(xb * scale, it, status, bound, relgap, dres, time.perf_counter() - started, history,
-                          backend)
+                          backend, factor.flops / 1e9)
 
 
 class _Scaled:
