@@ -127,48 +127,14 @@ def form_system(G: sp.csr_matrix, Binv: sp.bsr_matrix) -> sp.csc_matrix:
 # exact fill of a Cholesky factor under a permutation (elimination tree, row subtrees)
 
 
-def _numba():
-    from numba import njit
-    return njit(cache=True)
-
-
-def _etree_counts_py(n, Ap, Ai):
-    parent = np.full(n, -1, np.int64)
-    ancestor = np.full(n, -1, np.int64)
-    for k in range(n):
-        for p in range(Ap[k], Ap[k + 1]):
-            i = Ai[p]
-            while i != -1 and i < k:
-                nxt = ancestor[i]
-                ancestor[i] = k
-                if nxt == -1:
-                    parent[i] = k
-                i = nxt
-    counts = np.ones(n, np.int64)  # the diagonal
-    mark = np.full(n, -1, np.int64)
-    for k in range(n):
-        mark[k] = k
-        for p in range(Ap[k], Ap[k + 1]):
-            i = Ai[p]
-            while i < k and mark[i] != k:
-                counts[i] += 1  # L[k, i] != 0
-                mark[i] = k
-                i = parent[i]
-    return counts
-
-
-_etree_counts = None
-
-
 def factor_counts(S: sp.csc_matrix, perm: np.ndarray) -> np.ndarray:
     """Column counts of the Cholesky factor of ``S[perm][:, perm]`` (diagonal included)."""
-    global _etree_counts
-    if _etree_counts is None:
-        _etree_counts = _numba()(_etree_counts_py)
+    from hairinv.solver.interior import column_counts
+
     P = S[perm][:, perm]
     U = sp.triu(P, format="csc")  # column k: rows i <= k
     U.sort_indices()
-    return _etree_counts(U.shape[0], U.indptr.astype(np.int64), U.indices.astype(np.int64))
+    return column_counts(U.shape[0], U.indptr.astype(np.int64), U.indices.astype(np.int64), np.inf)
 
 
 # ---------------------------------------------------------------------------

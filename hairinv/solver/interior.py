@@ -59,9 +59,9 @@ import scipy.sparse
 import scipy.sparse.linalg
 
 from .._jit import jit
-from .rows import ContactRows
+from .rows import ContactRows, _rows_matvec, _rows_rmatvec
 
-__all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "mu_in_range", "solve_interior"]
+__all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "column_counts", "mu_in_range", "solve_interior"]
 
 # The cone is scaled by mu: friction coefficients are held within these bounds in the interior-point
 # steps only (mu = 0 and mu = inf have no interior in this scaling); the sweeps that follow use mu itself.
@@ -179,32 +179,6 @@ def _assemble(ptr, cols, g, Binv, Sp, pos, Sx):
                 k += 1
 
 
-@jit
-def _matvec(ptr, cols, g, x, out):
-    """``out = G x``: x (C, 3) scaled forces, out (n,)."""
-    out[:] = 0.0
-    for i in range(ptr.shape[0] - 1):
-        for j in range(ptr[i], ptr[i + 1]):
-            out[cols[j]] += g[j, 0] * x[i, 0] + g[j, 1] * x[i, 1] + g[j, 2] * x[i, 2]
-
-
-@jit
-def _rmatvec(ptr, cols, g, y, out):
-    """``out = G' y``: y (n,), out (C, 3)."""
-    for i in range(ptr.shape[0] - 1):
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        for j in range(ptr[i], ptr[i + 1]):
-            yj = y[cols[j]]
-            a0 += g[j, 0] * yj
-            a1 += g[j, 1] * yj
-            a2 += g[j, 2] * yj
-        out[i, 0] = a0
-        out[i, 1] = a1
-        out[i, 2] = a2
-
-
 def _jdet(x: np.ndarray) -> np.ndarray:
     return x[:, 0] ** 2 - np.sum(x[:, 1:] ** 2, axis=1)
 
@@ -268,10 +242,11 @@ def _mv(M: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 @jit
-def _factor_flops(n, Up, Ui, limit):
-    """``sum_j c_j^2`` over the column counts ``c_j`` of the Cholesky factor of the symmetric pattern whose
-    upper triangle is (Up, Ui), by columns (elimination tree, then each row's subtree); -1 as soon as
-    the sum passes ``limit``, so that the count costs at most what the limit allows."""
+def column_counts(n, Up, Ui, limit):
+    """Column counts (diagonal included) of the Cholesky factor of the symmetric pattern whose upper
+    triangle is (Up, Ui), by columns: the elimination tree, then each row's subtree. Stops early, returning
+    an empty array, as soon as ``sum c_j^2`` (the factorisation's flops, up to a constant) must pass
+    ``limit``, so that the count costs at most what the limit allows."""
     parent = np.full(n, -1, np.int64)
     ancestor = np.full(n, -1, np.int64)
     for k in range(n):
@@ -296,11 +271,8 @@ def _factor_flops(n, Up, Ui, limit):
                 mark[i] = k
                 i = parent[i]
         if float(entries) * float(entries) / n > limit:  # sum c^2 >= (sum c)^2 / n: already over
-            return -1.0
-    flops = 0.0
-    for j in range(n):
-        flops += float(counts[j]) * float(counts[j])
-    return flops if flops <= limit else -1.0
+            return np.zeros(0, np.int64)
+    return counts
 
 
 class TooLarge(Exception):
@@ -334,8 +306,9 @@ class _Factor:
         upper = scipy.sparse.triu(permuted, format="csc")
         upper.sort_indices()
         limit = float(max_flops) if np.isfinite(max_flops) else 1e300
-        self.flops = _factor_flops(n, upper.indptr.astype(np.int64), upper.indices.astype(np.int64), limit)
-        if self.flops < 0:
+        counts = column_counts(n, upper.indptr.astype(np.int64), upper.indices.astype(np.int64), limit)
+        self.flops = float(np.sum(counts.astype(np.float64) ** 2))
+        if len(counts) == 0 or self.flops > limit:
             raise TooLarge(f"over {max_flops / 1e9:.3g} GFlop")
         if backend == "cholmod":
             import cvxopt
@@ -466,10 +439,19 @@ class _Scaled:
         self._Px = np.empty((self.C, 3))
         self._back = np.empty((self.C, 3))
 
+    def _G(self, x: np.ndarray) -> np.ndarray:
+        """``G x`` (n,) for scaled forces ``x`` (C, 3): the rows' transposed product (:mod:`.rows`)."""
+        self._y[:] = 0.0
+        _rows_rmatvec(self.ptr, self.cols, self.g, x, self._y)
+        return self._y
+
+    def _Gt(self, y: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``G' y`` (C, 3) into ``out``."""
+        _rows_matvec(self.ptr, self.cols, self.g, y, out)
+        return out
+
     def P(self, x: np.ndarray) -> np.ndarray:
-        _matvec(self.ptr, self.cols, self.g, x, self._y)
-        _rmatvec(self.ptr, self.cols, self.g, self._y, self._Px)
-        return self._Px + self.gam * x
+        return self._Gt(self._G(x), self._Px) + self.gam * x
 
     def factor_step(self, Binv: np.ndarray) -> None:
         self.factor.factor(self.ptr, self.cols, self.g, Binv)
@@ -479,9 +461,7 @@ class _Scaled:
         the factored rod-coordinate system, then refinement against the operator itself."""
         def once(v):
             t = _mv(Binv, v)
-            _matvec(self.ptr, self.cols, self.g, t, self._y)
-            _rmatvec(self.ptr, self.cols, self.g, self.factor.solve(self._y), self._back)
-            return t - _mv(Binv, self._back)
+            return t - _mv(Binv, self._Gt(self.factor.solve(self._G(t)), self._back))
 
         dx = once(v)
         for _ in range(_REFINEMENT):
