@@ -480,6 +480,10 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
 @click.option("--no-stability-check", "no_stability_check", is_flag=True,
               help="Skip the stability check (and so stiffening): no margins, no unstable strands reported "
                    "[solver.check_stability = false, solver.stabilize = off].")
+@click.option("--method", type=click.Choice(["sweeps", "interior-point"]), default=None,
+              help="Contact solver: sweeps (the default: Gauss-Seidel, stopped by solver.tolerance) or "
+                   "interior-point (to the optimum, stopped once the rest shape is within solver.rest_tolerance "
+                   "1/m of it) [solver.method; docs/inverse.md].")
 @import_options
 @body_options
 @contact_options
@@ -487,8 +491,9 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
 @if_stale_option
 @click.pass_obj
 @handle_errors
-def invert(obj, style, body, output, target, gamma, stabilize, no_stability_check, units, scale, up, flip, guides,
-           seed, body_distance, hair_distance, mu, no_hair_hair, quality, config_file, sets, if_stale, body_frame):
+def invert(obj, style, body, output, target, gamma, stabilize, no_stability_check, method, units, scale, up, flip,
+           guides, seed, body_distance, hair_distance, mu, no_hair_hair, quality, config_file, sets, if_stale,
+           body_frame):
     """Invert STYLE resting on BODY: find the rest shape and contact forces
     that make the input shape a static equilibrium.
 
@@ -515,6 +520,8 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
         solver_extra["stabilize"] = "off"
     if stabilize is not None:
         solver_extra["stabilize"] = stabilize
+    if method is not None:
+        solver_extra["method"] = method
     settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed),
                                        "body": body_frame,
                                        "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair),

@@ -90,6 +90,23 @@ def test_invert_runs_every_missing_stage(inverted):
     assert inputs == ["wavy.h5", "body.obj"]
 
 
+def test_interior_point_from_the_command_line(inverted):
+    """--method interior-point: the report states the rest-shape bound, /model records it, the equilibrium
+    holds as with the sweeps, and the sweeps' model of the same stage lies within that bound."""
+    folder, _ = inverted
+    result = hairinv(folder, "invert", "model.h5", "body.obj", "--method", "interior-point", "-o", "ip.h5")
+    assert result.returncode == 0, result.stderr
+    assert "interior-point steps" in result.stdout and "of the optimum" in result.stdout
+    with h5py.File(folder / "ip.h5", "r") as fh:
+        attrs = dict(fh["model"].attrs)
+        assert attrs["method"] == "interior-point" and attrs["interior_steps"] > 0
+        assert 0.0 <= attrs["rest_bound"] <= 0.05 and attrs["status"] == "CONVERGED"
+    residual, cone = equilibrium_residual(folder / "ip.h5")
+    assert residual < EQUILIBRIUM and cone < CONE
+    with h5py.File(folder / "model.h5", "r") as fh:
+        assert fh["model"].attrs["method"] == "sweeps"
+
+
 def test_inverted_model_is_an_equilibrium_inside_the_cones(inverted):
     folder, _ = inverted
     residual, cone = equilibrium_residual(folder / "model.h5")
