@@ -377,16 +377,18 @@ def _stage_progress(enabled: bool):
 
 
 class SolverProgress(Progress):
-    """A bar of Gauss-Seidel sweeps showing the relative residual, on a terminal only."""
+    """A bar of Gauss-Seidel sweeps showing the relative residual (or of interior-point steps showing the
+    rest-shape bound, 1/m), on a terminal only."""
 
-    def __init__(self, total: int, enabled: bool):
-        super().__init__(total, "invert", enabled, unit="sweep")
+    def __init__(self, total: int, enabled: bool, unit: str = "sweep", measure: str = "residual"):
+        super().__init__(total, "invert", enabled, unit=unit)
+        self.measure = measure
 
     def __call__(self, sweeps: int, relative: float) -> None:
         if self.bar is not None:
             self.bar.update(sweeps - self.bar.n)
-            self.bar.set_postfix_str(f"residual {relative:.1e}")
-        self.extra = f", residual {relative:.1e}"
+            self.bar.set_postfix_str(f"{self.measure} {relative:.1e}")
+        self.extra = f", {self.measure} {relative:.1e}"
         self._advance(sweeps)
 
 
@@ -547,7 +549,10 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
                                                 scene.helices.n_strands)
         if line:
             _say(obj, line)
-    bar = SolverProgress(settings.solver.max_sweeps, obj["progress"])
+    if settings.solver.method == "interior-point":
+        bar = SolverProgress(settings.solver.max_iterations, obj["progress"], "step", "rest shape within (1/m)")
+    else:
+        bar = SolverProgress(settings.solver.max_sweeps, obj["progress"])
     try:
         model, report = run_invert(scene.helices, scene.contacts, material, settings.solver, progress=bar,
                                    start=start, prior_sweeps=prior, stiffening=factor)

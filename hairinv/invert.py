@@ -601,7 +601,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     contacts : Contacts or None; ignored for the gravity-only target
     material : Material
     settings : SolverSettings
-    progress : callable(sweeps, relative residual), optional
+    progress : callable(sweeps, relative residual), optional; with ``settings.method = "interior-point"``
+        called as (step, rest-shape bound in 1/m)
     start : (C, 3) float64, optional, forces to start the solver from (an earlier model's, one per
         contact), projected onto the cones first; the problem is convex, so the answer is the same
         optimum to the tolerance, reached sooner from a good start
@@ -658,7 +659,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         sweeps_cap = settings.max_sweeps
         if settings.method == "interior-point" and contacts.n_contacts:
             interior = solve_interior(rows, d, settings.gamma, b, contacts.mu, settings.rest_tolerance,
-                                      settings.max_iterations, settings.max_seconds)
+                                      settings.max_iterations, settings.max_seconds, progress=progress)
             if interior.status == "TOO_LARGE":
                 notes.append(f"the interior-point method's factorisation would cost over {interior.gflop:g} GFlop a step "
                              "on this groom (strands touching along much of their length): solved by the sweeps "
@@ -672,7 +673,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, S,
                                force_scale, settings.tolerance, sweeps_cap, settings.check_every,
                                r0=r0 if interior is None else interior.r,
-                               progress=progress, s=contacts.s, accelerate=settings.accelerate,
+                               progress=progress if interior is None else None, s=contacts.s,
+                               accelerate=settings.accelerate,
                                part_of=split_strands(helices.root, contacts.strand),
                                max_seconds=settings.max_seconds)
         if interior is not None:
