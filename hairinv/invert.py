@@ -638,7 +638,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
     force_scale = material.linear_density * tolerance_gravity(material) * float(strand_length.max())
     r0 = None
-    warm = start is not None and contacts.n_contacts > 0  # a start for no contacts has nothing to start
+    # a start for no contacts has nothing to start; the interior-point method takes none
+    warm = start is not None and contacts.n_contacts > 0 and settings.method == "sweeps"
     if warm:
         start = np.asarray(start, dtype=np.float64)
         if start.shape != (contacts.n_contacts, 3) or not np.all(np.isfinite(start)):
@@ -846,6 +847,9 @@ def warm_start(group: stages.Group, material: Material, settings: SolverSettings
     if differ:
         return None, 0, f"the model in {source} was inverted with another {', '.join(differ)}: starting afresh", None
     prior = int(a.get("prior_sweeps", 0)) + int(a.get("iterations", 0))
+    if settings.method == "interior-point":
+        return (None, 0, f"the interior-point method starts afresh: it takes no starting forces (the model in "
+                f"{source} has some)", factor if settings.stabilize == "stiffen" else None)
     line = (f"starting from the forces of the model in {source} ({prior} sweeps, {a.get('status', 'status unknown')}, "
             f"relative residual {float(a.get('relative_residual', np.nan)):.2g}); --set solver.warm_start=false "
             "starts afresh")

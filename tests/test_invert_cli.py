@@ -105,6 +105,8 @@ def test_interior_point_from_the_command_line(inverted):
     assert residual < EQUILIBRIUM and cone < CONE
     with h5py.File(folder / "model.h5", "r") as fh:
         assert fh["model"].attrs["method"] == "sweeps"
+    # the input was a model: its forces are not a start for this method, and the report says so
+    assert "starts afresh" in result.stdout and "started from the given forces" not in result.stdout
 
 
 def test_inverted_model_is_an_equilibrium_inside_the_cones(inverted):
