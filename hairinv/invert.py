@@ -34,9 +34,9 @@ from .model import (UNSTABLE_MARGIN, Contacts, Helices, Material, Model, materia
                     stiffness)
 from .rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from .solver.blocks import _group_newton, strand_blocks
-from .solver.interior import mu_in_range, solve_interior
-from .solver.gauss_seidel import (MAX_ITERS, CONVERGED, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
+from .solver.gauss_seidel import (CONVERGED, MAX_ITERS, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
                                   split_strands)
+from .solver.interior import mu_in_range, solve_interior
 from .solver.rows import ContactRows, contact_rows
 
 __all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness", "generalized_gravity",
@@ -662,9 +662,9 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
             interior = solve_interior(rows, d, settings.gamma, b, contacts.mu, settings.rest_tolerance,
                                       settings.max_iterations, settings.max_seconds, progress=progress)
             if interior.status == "TOO_LARGE":
-                notes.append(f"the interior-point method's factorisation would cost over {interior.gflop:g} GFlop a step "
-                             "on this groom (strands touching along much of their length): solved by the sweeps "
-                             "instead (docs/inverse.md)")
+                notes.append(f"the interior-point method's factorisation would cost over {interior.gflop:g} GFlop "
+                             "a step on this groom (very large, or strands touching along much of their length): "
+                             "solved by the sweeps instead (docs/inverse.md)")
                 interior = None
             # friction coefficients outside the steps' range (0, inf) were held within it there: the sweeps
             # then solve the problem as declared, from those forces; otherwise the forces are final and the

@@ -197,3 +197,14 @@ def test_factor_cost_is_counted_exactly_and_too_large_falls_back_to_the_sweeps()
         interior.MAX_GFLOP = original
     assert rep.result.method == "sweeps" and rep.result.sweeps > 0 and rep.result.status == "CONVERGED"
     assert any("solved by the sweeps instead" in n for n in rep.notes)
+
+
+def test_a_groom_too_large_to_lay_out_is_declined_before_anything_is_built(monkeypatch):
+    from hairinv.solver import interior
+
+    helices, contacts = four_strands_in_a_pile()
+    rows = contact_rows(helices, contacts)
+    counts = np.diff(rows.ptr)
+    monkeypatch.setattr(interior, "_MAX_PAIRS", int(np.sum(counts * (counts + 1) // 2)) - 1)
+    res = solve_interior(rows, np.ones(rows.n_dofs), 1e-3, np.ones((contacts.n_contacts, 3)), contacts.mu)
+    assert res.status == "TOO_LARGE" and np.all(res.r == 0.0)

@@ -76,6 +76,10 @@ _PATIENCE = 12
 # 25,468 contacts need 19 (0.6 s a step on 2 cores); a groom whose strands all touch each other along their
 # length (a bun) makes the system nearly dense, and its factorisation would take minutes a step.
 MAX_GFLOP = 60.0
+# The most pairs of coordinates the contacts may touch together (sum over contacts of m (m + 1) / 2 for m
+# columns): the system's pattern and its assembly map grow with it (8 bytes a pair). ruby short has 8 million;
+# a full head of 100,000 strands some 600 million, whose factorisation would be far over MAX_GFLOP anyway.
+_MAX_PAIRS = 100_000_000
 _J = np.diag([1.0, -1.0, -1.0])
 _SIGN = np.array([1.0, -1.0, -1.0])
 
@@ -286,6 +290,9 @@ class _Factor:
         self.backend = backend
         C = len(ptr) - 1
         counts = np.diff(ptr)
+        pairs = int(np.sum(counts * (counts + 1) // 2))
+        if pairs > _MAX_PAIRS:  # before building anything: the pattern alone would take gigabytes
+            raise TooLarge(f"{pairs} coordinate pairs")
         incidence = scipy.sparse.csr_matrix((np.ones(len(cols)), (np.repeat(np.arange(C), counts), cols)),
                                             shape=(C, n))
         pattern = (incidence.T @ incidence + scipy.sparse.eye(n, format="csr")).tocsc()
@@ -293,7 +300,7 @@ class _Factor:
         lower.sort_indices()
         self.Sp = lower.indptr.astype(np.int64)
         self.Si = lower.indices.astype(np.int64)
-        self.pos = np.empty(int(np.sum(counts * (counts + 1) // 2)), dtype=np.int64)
+        self.pos = np.empty(pairs, dtype=np.int64)
         used = _pattern_positions(ptr, cols, self.Sp, self.Si, self.pos)
         if used != len(self.pos):  # two columns of one contact are the same coordinate: count again
             self.pos = self.pos[:used]
