@@ -5,7 +5,8 @@ Each stage is run over a sweep of its knobs on the same grooms, and each point i
 * fit: ``fit.tolerance`` and ``fit.max_elements`` on the sample wavy and curly grooms and 400 strands of
   ruby long: time of ``hairinv.fit.fit_groom`` against the mean and largest vertex distance and the fitted
   length over the polyline's;
-* invert: ``solver.tolerance``, ``solver.max_sweeps`` and ``solver.max_seconds`` on 200 guides of the sample
+* invert: ``solver.rest_tolerance`` of the interior-point method, and ``solver.tolerance``, ``solver.max_sweeps``
+  and ``solver.max_seconds`` of the sweeps, on 200 guides of the sample
   wavy groom on the sample bust and 300 guides of ruby short on its head: time of ``invert`` against the
   rms distance of the rest shape ``q0`` from the exact optimum's (Clarabel, an interior-point solver, at
   a tight tolerance, polished by sweeps), 1/m over elements;
@@ -62,6 +63,7 @@ RUBY_INV_GUIDES = smoke(300, 10)
 INV_TOLERANCES = smoke((1e-2, 1e-3, 1e-4, 1e-5), (1e-2, 1e-4))  # 1e-6: the final preset
 INV_SWEEPS = smoke((20, 50, 100, 200, 500, 1000, 2000, 5000), (10, 50))
 INV_BUDGETS = smoke((0.01, 0.03, 0.1, 0.3), (0.01,))
+INV_REST = smoke((1.0, 0.5, 0.2, 0.05, 0.02, 0.005, 0.001), (0.5, 0.05))  # 1/m, the interior-point method
 UNCAPPED = 100_000  # sweeps: a tolerance run stops on its tolerance
 TINY = 1e-12  # a run to a sweep count or a time budget: no tolerance stops it first
 REFERENCE_CLARABEL = 1e-10
@@ -293,7 +295,8 @@ def invert_stage() -> dict:
         r_ref, info = solve_socqp_clarabel(prob.H, prob.d, prob.gamma, prob.b.ravel(), contacts.mu,
                                            tol=REFERENCE_CLARABEL)
         clarabel_seconds = time.perf_counter() - started
-        polish = dataclasses.replace(solver, tolerance=REFERENCE_POLISH, max_sweeps=REFERENCE_POLISH_SWEEPS)
+        polish = dataclasses.replace(solver, method="sweeps", tolerance=REFERENCE_POLISH,
+                                     max_sweeps=REFERENCE_POLISH_SWEEPS)
         polished, report = invert(helices, contacts, material, polish, check_stability=False, start=r_ref)
         candidates = [(prob.objective(r_ref), "Clarabel", r_ref), (prob.objective(polished.force), "polished",
                                                                    polished.force)]
@@ -317,21 +320,29 @@ def invert_stage() -> dict:
             reference_relres=prob.natural_residual(r_star) / scale, clarabel_gap=(prob.objective(r_ref) - f_star),
             f_star=f_star, drift=prob.drift(r_star), gravity_only=gravity_only))
         invert(helices, contacts, material, solver, check_stability=False)  # warm
-        runs = ([dict(kind="tolerance", tolerance=t, max_sweeps=UNCAPPED, max_seconds=0.0) for t in INV_TOLERANCES]
-                + [dict(kind="sweeps", tolerance=TINY, max_sweeps=s, max_seconds=0.0) for s in INV_SWEEPS]
-                + [dict(kind="budget", tolerance=TINY, max_sweeps=UNCAPPED, max_seconds=b) for b in INV_BUDGETS]
-                + [dict(kind="preset", preset=q, tolerance=_preset(q).solver.tolerance,
+        sweeps = dict(method="sweeps", rest_tolerance=solver.rest_tolerance)
+        runs = ([dict(kind="rest", method="interior-point", rest_tolerance=t, tolerance=solver.tolerance,
+                      max_sweeps=solver.max_sweeps, max_seconds=0.0) for t in INV_REST]
+                + [dict(kind="tolerance", tolerance=t, max_sweeps=UNCAPPED, max_seconds=0.0, **sweeps)
+                   for t in INV_TOLERANCES]
+                + [dict(kind="sweeps", tolerance=TINY, max_sweeps=s, max_seconds=0.0, **sweeps) for s in INV_SWEEPS]
+                + [dict(kind="budget", tolerance=TINY, max_sweeps=UNCAPPED, max_seconds=b, **sweeps)
+                   for b in INV_BUDGETS]
+                + [dict(kind="preset", preset=q, method=_preset(q).solver.method,
+                        rest_tolerance=_preset(q).solver.rest_tolerance, tolerance=_preset(q).solver.tolerance,
                         max_sweeps=_preset(q).solver.max_sweeps, max_seconds=_preset(q).solver.max_seconds)
                    for q in QUALITIES])
         for run in runs:
-            ss = dataclasses.replace(solver, tolerance=run["tolerance"], max_sweeps=run["max_sweeps"],
+            ss = dataclasses.replace(solver, method=run["method"], rest_tolerance=run["rest_tolerance"],
+                                     tolerance=run["tolerance"], max_sweeps=run["max_sweeps"],
                                      max_seconds=run["max_seconds"])
             log(f"invert: {name}, {run}")
             seconds, (model, rep), n = _timed(lambda: invert(helices, contacts, material, ss, check_stability=False))
             rms, worst = distance(model.force)
             res = rep.result
             out["rows"].append(dict(groom=name, seconds=seconds, runs=n, solver_seconds=float(res.seconds),
-                                    sweeps=int(res.sweeps), status=str(res.status),
+                                    sweeps=int(res.sweeps), status=str(res.status), used=str(res.method),
+                                    steps=int(res.interior_steps), bound=float(res.rest_bound),
                                     relres=float(res.relative_residual), rms=rms, max=worst,
                                     gap=(prob.objective(model.force) - f_star) / abs(f_star) if f_star else 0.0,
                                     **{"preset": None, **run}))
@@ -346,6 +357,7 @@ def invert_plot(result: dict, path: Path) -> None:
     for ax, problem in zip(axes[0], result["problems"]):
         rows = [r for r in result["rows"] if r["groom"] == problem["groom"]]
         for kind, colour, label, tag in (
+                ("rest", "tab:green", "solver.rest_tolerance (interior point)", lambda r: f"{r['rest_tolerance']:g}"),
                 ("tolerance", "tab:blue", "solver.tolerance (max_sweeps unlimited)", lambda r: f"{r['tolerance']:g}"),
                 ("sweeps", "tab:red", "solver.max_sweeps (no tolerance)", lambda r: f"{r['max_sweeps']}"),
                 ("budget", "tab:gray", "solver.max_seconds (no tolerance)", lambda r: f"{r['max_seconds']:g} s")):
@@ -366,18 +378,22 @@ def invert_plot(result: dict, path: Path) -> None:
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].set_ylabel("rest shape: rms |q0 - q0*| over elements (1/m)")
     axes[0][0].legend(fontsize=8, loc="lower left")
-    fig.suptitle("invert: the solver's knobs against the rest shape's distance from the exact optimum", fontsize=11)
+    fig.suptitle("invert: the solvers' knobs against the rest shape's distance from the exact optimum", fontsize=11)
     _save(fig, path)
 
 
 def invert_section(result: dict) -> list[str]:
     rows = []
     for r in result["rows"]:
-        what = {"tolerance": f"tolerance {r['tolerance']:g}",
-                "sweeps": f"max_sweeps {r['max_sweeps']}",
-                "budget": f"max_seconds {r['max_seconds']:g}",
-                "preset": f"**{r['preset']}** (tolerance {r['tolerance']:g}, max_sweeps {r['max_sweeps']})"}[r["kind"]]
-        rows.append([r["groom"], what, f"{1e3 * r['seconds']:.0f}", f"{r['sweeps']} ({r['status']})",
+        what = {"rest": f"interior point, rest_tolerance {r['rest_tolerance']:g}",
+                "tolerance": f"sweeps, tolerance {r['tolerance']:g}",
+                "sweeps": f"sweeps, max_sweeps {r['max_sweeps']}",
+                "budget": f"sweeps, max_seconds {r['max_seconds']:g}",
+                "preset": f"**{r['preset']}** (method {r['method']}, rest_tolerance {r['rest_tolerance']:g}; sweeps: "
+                          f"tolerance {r['tolerance']:g}, max_sweeps {r['max_sweeps']})"}[r["kind"]]
+        work = (f"{r['steps']} steps, bound {_g(r['bound'], 2)}" if r["used"] == "interior-point"
+                else f"{r['sweeps']} sweeps")
+        rows.append([r["groom"], what, f"{1e3 * r['seconds']:.0f}", f"{work} ({r['status']})",
                      f"{r['relres']:.1e}", f"{r['gap']:.1e}", _g(r["rms"], 3), _g(r["max"], 3)])
     probs = []
     for p in result["problems"]:
@@ -392,7 +408,7 @@ def invert_section(result: dict) -> list[str]:
             f"Its rest shape lies {_g(p['drift'], 3)} 1/m (rms) from the input curvature; the gravity-only rest shape "
             f"(no contact forces) lies {_g(p['gravity_only'][0], 3)} 1/m from it")
     return [
-        "### invert: `solver.tolerance`, `solver.max_sweeps`, `solver.max_seconds`",
+        "### invert: `solver.rest_tolerance`, `solver.tolerance`, `solver.max_sweeps`, `solver.max_seconds`",
         "",
         "`invert` (the `default` settings otherwise, without the stability check, so that the rest shape is the "
         "one the forces give at the material's stiffness) on guide subsets (`import.guides`) of two grooms: "
@@ -400,13 +416,15 @@ def invert_section(result: dict) -> list[str]:
         "The error is the rms over elements of `|q0 - q0*|`, 1/m, between the rest shape of the run and the "
         "reference's (`q0 = q - K^-1 (F_g + H^T r)`, docs/inverse.md): the rest shape is what the simulation "
         "starts from, so this is what changes the hair's behaviour; the largest element's distance is given too, "
-        "and the objective gap `(f - f*) / |f*|`. Tolerance runs have no sweep cap; sweep-cap and time-budget "
+        "and the objective gap `(f - f*) / |f*|`. The interior-point runs (`solver.method = interior-point`) stop on "
+        "their bound on that distance (`rest_tolerance`, the bound reached in the table); the sweeps' runs "
+        "(`solver.method = sweeps`) on their knobs: tolerance runs have no sweep cap; sweep-cap and time-budget "
         f"runs have a tolerance of {TINY:g} so that nothing else stops them. Time: the whole `invert` call, median "
         f"of {REPEATS} runs when under {QUICK:g} s, else one.",
         "",
         "![invert: time against the rest shape's distance from the optimum](img/bench_trade_invert.png)",
         "",
-        table(["groom", "setting", "time (ms)", "sweeps (status)", "relative residual", "objective gap",
+        table(["groom", "setting", "time (ms)", "work (status)", "relative residual", "objective gap",
                "rms ‖q0 − q0*‖ (1/m)", "largest ‖q0 − q0*‖ (1/m)"], rows, ["l", "l", "r", "r", "r", "r", "r", "r"]),
     ]
 

@@ -391,6 +391,14 @@ class SolverProgress(Progress):
         self.extra = f", {self.measure} {relative:.1e}"
         self._advance(sweeps)
 
+    def interior(self, steps: int) -> "SolverProgress":
+        """The same bar counting interior-point steps and showing the rest-shape bound (solver.method = auto)."""
+        self.total, self.unit, self.measure, self.n, self.extra = int(steps), "step", "rest shape within (1/m)", 0, ""
+        if self.bar is not None:
+            self.bar.unit = "step"
+            self.bar.reset(total=steps)
+        return self
+
 
 def _contact_extra(body_distance, hair_distance, mu, no_hair_hair) -> dict:
     extra = {}
@@ -482,10 +490,11 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
 @click.option("--no-stability-check", "no_stability_check", is_flag=True,
               help="Skip the stability check (and so stiffening): no margins, no unstable strands reported "
                    "[solver.check_stability = false, solver.stabilize = off].")
-@click.option("--method", type=click.Choice(["sweeps", "interior-point"]), default=None,
-              help="Contact solver: sweeps (the default: Gauss-Seidel, stopped by solver.tolerance) or "
-                   "interior-point (to the optimum, stopped once the rest shape is within solver.rest_tolerance "
-                   "1/m of it) [solver.method; docs/inverse.md].")
+@click.option("--method", type=click.Choice(["auto", "sweeps", "interior-point"]), default=None,
+              help="Contact solver: interior-point (to the optimum, stopped once the rest shape is within "
+                   "solver.rest_tolerance 1/m of it), sweeps (Gauss-Seidel, stopped by solver.tolerance) or auto "
+                   "(the default: the interior point unless the groom would make its steps costly) "
+                   "[solver.method; docs/inverse.md].")
 @import_options
 @body_options
 @contact_options

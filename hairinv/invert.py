@@ -36,6 +36,7 @@ from .rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from .solver.blocks import _group_newton, strand_blocks
 from .solver.gauss_seidel import (CONVERGED, MAX_ITERS, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
                                   split_strands)
+from .solver import interior as interior_module
 from .solver.interior import mu_in_range, solve_interior
 from .solver.rows import ContactRows, contact_rows
 
@@ -44,12 +45,22 @@ __all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness"
 
 TARGETS = ("actual", "zero", "uniform", "tip", "gravity-only")
 STABILIZE = ("stiffen", "off")
-METHODS = ("sweeps", "interior-point")
+METHODS = ("auto", "sweeps", "interior-point")
+#: GFlop a step up to which ``solver.method = auto`` takes the interior-point method: ruby short whole (1,867
+#: strands, 25,468 contacts) needs 23, 0.8 s a step on 2 cores; above it the sweeps solve the groom
+AUTO_GFLOP = 30.0
 #: what the stability check holds: the contact forces fixed (every motion), or the loaded contact points
 STABLE_UNDER = ("forces", "supports")
 #: inversions with stiffened strands tried before the remaining unstable strands are reported: a
 #: strand's factor makes it stable on the supports it had; the new forces may load other contacts
 STABILIZE_ROUNDS = 8
+
+
+def _interior_progress(progress, max_iterations: int):
+    """The progress callable for the interior-point steps, called as (step, rest-shape bound): a bar that
+    counts sweeps switches to steps through its ``interior(max_iterations)`` when it has one."""
+    switch = getattr(progress, "interior", None)
+    return switch(max_iterations) if switch is not None else progress
 
 
 @jit
@@ -638,8 +649,9 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
     force_scale = material.linear_density * tolerance_gravity(material) * float(strand_length.max())
     r0 = None
-    # a start for no contacts has nothing to start; the interior-point method takes none
-    warm = start is not None and contacts.n_contacts > 0 and settings.method == "sweeps"
+    # a start for no contacts has nothing to start; the interior-point method takes none (with auto, the
+    # sweeps take it if the interior-point method declines the groom)
+    warm = start is not None and contacts.n_contacts > 0 and settings.method != "interior-point"
     if warm:
         start = np.asarray(start, dtype=np.float64)
         if start.shape != (contacts.n_contacts, 3) or not np.all(np.isfinite(start)):
@@ -648,29 +660,44 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         r0 = project_forces(start, contacts.mu)
 
     notes: list[str] = []
+    declined: list[float] = []
+
+    def steps(d: np.ndarray, b: np.ndarray):
+        """The interior-point solve, or None where the method is the sweeps or the groom too costly for it."""
+        if settings.method == "sweeps" or not contacts.n_contacts or declined:
+            return None
+        interior = solve_interior(rows, d, settings.gamma, b, contacts.mu, settings.rest_tolerance,
+                                  settings.max_iterations, settings.max_seconds,
+                                  max_gflop=None if settings.method == "interior-point" else AUTO_GFLOP,
+                                  progress=_interior_progress(progress, settings.max_iterations))
+        if interior.status != "TOO_LARGE":
+            return interior
+        cap = interior.gflop
+        declined.append(cap)
+        if settings.method == "interior-point":
+            notes.append(f"the interior-point method's factorisation would cost over {cap:g} GFlop a step on this "
+                         "groom (very large, or strands touching along much of their length): solved by the "
+                         "sweeps instead (docs/inverse.md)")
+        else:
+            notes.append(f"solver.method = auto: the sweeps solved this groom, whose interior-point factorisation "
+                         f"would cost over {cap:g} GFlop a step (solver.method = interior-point takes up to "
+                         f"{interior_module.MAX_GFLOP:g}; docs/inverse.md)")
+        return None
 
     def solve(stiff: np.ndarray, r0: np.ndarray | None, first: bool):
         # D = w K^-2; b = H D (F_g - K (q - t))
         d = np.repeat(weight, 3) / stiff ** 2
         b = rows.matvec(d * (F_g - stiff * (q - target.ravel())))
-        if first and r0 is None and contacts.n_contacts and not np.any(contacts.strand[:, 1] >= 0) \
-                and settings.method == "sweeps":
+        interior = steps(d, b)
+        if interior is None and first and r0 is None and contacts.n_contacts \
+                and not np.any(contacts.strand[:, 1] >= 0):
             r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
-        interior = None
         sweeps_cap = settings.max_sweeps
-        if settings.method == "interior-point" and contacts.n_contacts:
-            interior = solve_interior(rows, d, settings.gamma, b, contacts.mu, settings.rest_tolerance,
-                                      settings.max_iterations, settings.max_seconds, progress=progress)
-            if interior.status == "TOO_LARGE":
-                notes.append(f"the interior-point method's factorisation would cost over {interior.gflop:g} GFlop "
-                             "a step on this groom (very large, or strands touching along much of their length): "
-                             "solved by the sweeps instead (docs/inverse.md)")
-                interior = None
-            # friction coefficients outside the steps' range (0, inf) were held within it there: the sweeps
-            # then solve the problem as declared, from those forces; otherwise the forces are final and the
-            # call below only measures their residual (and projects them onto the cones, a round-off move)
-            if interior is not None and np.all(mu_in_range(contacts.mu)):
-                sweeps_cap = 0
+        # friction coefficients outside the steps' range (0, inf) were held within it there: the sweeps
+        # then solve the problem as declared, from those forces; otherwise the forces are final and the
+        # call below only measures their residual (and projects them onto the cones, a round-off move)
+        if interior is not None and np.all(mu_in_range(contacts.mu)):
+            sweeps_cap = 0
         result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, S,
                                force_scale, settings.tolerance, sweeps_cap, settings.check_every,
                                r0=r0 if interior is None else interior.r,
@@ -694,6 +721,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     stiff = stiffness(helices, material, factor)
     newton_start = r0 is None
     result, carrying, r0 = solve(stiff, r0, True)
+    afresh = warm and result.method == "interior-point"  # auto took the interior point: the start went unused
+    warm = warm and not afresh
     first_residual = result.history[0][1] if result.history else np.nan
     newton_start = newton_start and r0 is not None
     unstable = unstable_g = unstable_held = 0
@@ -800,6 +829,9 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         report.notes.append(f"the scene has no gravity: the solver's tolerance is relative to the heaviest strand's "
                             f"weight under {tolerance_gravity(material):g} m/s^2 ({force_scale:.3g} N)")
     report.notes += sorted(set(notes), key=notes.index)
+    if afresh:
+        report.notes.append("the interior-point method solved this groom afresh: it takes no starting forces (those "
+                            "given were not used)")
     if warm:
         report.notes.append(f"the solver started from the given forces (after {prior} earlier sweeps), at relative "
                             f"residual {first_residual / force_scale:.2g}")
@@ -847,6 +879,9 @@ def warm_start(group: stages.Group, material: Material, settings: SolverSettings
     if differ:
         return None, 0, f"the model in {source} was inverted with another {', '.join(differ)}: starting afresh", None
     prior = int(a.get("prior_sweeps", 0)) + int(a.get("iterations", 0))
+    if settings.method == "auto":  # the sweeps take them if the interior-point method declines the groom
+        return (np.asarray(group["force"], dtype=np.float64), prior, "",
+                factor if settings.stabilize == "stiffen" else None)
     if settings.method == "interior-point":
         return (None, 0, f"the interior-point method starts afresh: it takes no starting forces (the model in "
                 f"{source} has some)", factor if settings.stabilize == "stiffen" else None)

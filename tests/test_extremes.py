@@ -11,8 +11,10 @@ at element ends and at the root, two identical contacts, two strands lying on ea
 strand lying along the body, and one groom read in m, cm, mm and inches.
 
 For every inversion: all results finite, the forces in their cones, the input an equilibrium,
-and the solver's status honest (``CONVERGED`` only where the natural-map residual, recomputed
-here, meets the tolerance; ``MAX_ITERS`` only where the sweeps ran out).
+and the solver's status honest (for the sweeps, ``CONVERGED`` only where the natural-map residual,
+recomputed here, meets the tolerance, ``MAX_ITERS`` only where they ran out; for the interior-point
+method, the default's choice on these scenes, ``CONVERGED`` only where its rest-shape bound meets
+``rest_tolerance``, and the bound holds against the sweeps' rest shape).
 """
 
 from __future__ import annotations
@@ -255,9 +257,11 @@ def weight_of(helices, mat):
     return mat.linear_density * (g if g > 0 else 9.81) * lengths.max()
 
 
-def checked_inversion(helices, contacts, mat, tolerance=1e-8, max_sweeps=20000, **solver):
-    """Invert, then check everything the module docstring promises, independently; returns (model, report)."""
-    settings = SolverSettings(**{"tolerance": tolerance, "max_sweeps": max_sweeps, **solver})
+def checked_inversion(helices, contacts, mat, tolerance=1e-8, max_sweeps=20000, method="sweeps", **solver):
+    """Invert, then check everything the module docstring promises, independently; returns (model, report).
+    With the interior-point method (``method`` interior-point or auto), its status is checked against the
+    rest shape of the sweeps at ``tolerance`` (:func:`interior_status_is_honest`)."""
+    settings = SolverSettings(**{"tolerance": tolerance, "max_sweeps": max_sweeps, "method": method, **solver})
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)  # no inf * 0 or 0 / 0 on the way
         model, report = invert(helices, contacts, mat, settings)
@@ -291,11 +295,28 @@ def checked_inversion(helices, contacts, mat, tolerance=1e-8, max_sweeps=20000, 
         assert result.status in ("CONVERGED", "MAX_ITERS")
         # the residual reported is that of the forces returned
         assert abs(result.residual - residual) <= 1e-3 * target + 1e-6 * residual
-        if result.status == "CONVERGED":
+        if np.isfinite(result.rest_bound):  # the interior-point steps decided the status
+            interior_status_is_honest(helices, contacts, mat, settings, model, result)
+        elif result.status == "CONVERGED":
             assert residual <= target * (1 + 1e-6)
         else:
             assert result.sweeps == max_sweeps and residual > target * (1 - 1e-6)
     return model, report
+
+
+def interior_status_is_honest(helices, contacts, mat, settings, model, result):
+    """The interior-point method's CONVERGED means its rest-shape bound is within ``rest_tolerance``, and the
+    bound holds: the rest shape is at most that far (rms over elements, 1/m) from the one the sweeps reach
+    at the same settings' tolerance (when they converge, and up to what that tolerance resolves)."""
+    bound = result.rest_bound
+    assert np.isfinite(bound) and bound >= 0.0
+    assert (result.status == "CONVERGED") == (bound <= settings.rest_tolerance)
+    tight = dataclasses.replace(settings, method="sweeps")
+    reference, report = invert(helices, contacts, mat, tight)
+    if report.result.status == "CONVERGED":
+        distance = np.sqrt(np.mean(np.sum((model.omega_rest - reference.omega_rest) ** 2, axis=1)))
+        sag = np.abs(generalized_gravity(helices, mat).ravel() / stiffness(helices, mat)).max()
+        assert distance <= bound + 1e-6 * max(sag, 1.0)
 
 
 @pytest.mark.parametrize("mu", [0.0, 2.0, np.inf])
@@ -470,6 +491,55 @@ def test_a_strand_lying_entirely_along_the_body():
     assert report.result.status == "CONVERGED"
     assert np.abs(model.omega_rest - helices.omega).max() < 2e-3 * np.abs(baseline.omega_rest - helices.omega).max()
     assert model.force[:, 0].sum() == pytest.approx(mat.linear_density * 9.81 * 0.16, rel=0.1)
+
+
+def _extreme_scene(case):
+    """(helices, contacts, material, solver settings) of the extremes above, for the default method."""
+    mat = material()
+    if case.startswith("gamma"):
+        return (*two_strand_scene(), mat, {"gamma": float(case.split()[1])})
+    if case.startswith("E"):
+        return (*two_strand_scene(), material(youngs_modulus=float(case.split()[1])), {})
+    if case.startswith("mu"):
+        return (*two_strand_scene(mu=float(case.split()[1])), mat, {})
+    if case == "on each other":
+        helices = strands([horizontal_strand(n=4, total=0.1, curl=3.0), horizontal_strand(n=4, total=0.1, curl=3.0)])
+        specs = [(0, s, -1, 0.0, UP, 0.3) for s in (0.05, 0.09)]
+        specs += [(0, s, 1, s, -UP, 0.3) for s in (0.0, 0.03, 0.05, 0.075, 0.1)]
+        return helices, make_contacts(helices, specs), mat, {}
+    if case == "along the body":
+        helices = strands([horizontal_strand(n=8, total=0.16)])
+        return helices, make_contacts(helices, [(0, s, -1, 0.0, UP, 0.3) for s in np.linspace(0.0, 0.16, 17)]), mat, {}
+    if case == "element ends and root":
+        helices = strands([horizontal_strand(n=4, total=0.12, curl=2.0)])
+        return helices, make_contacts(helices, [(0, s, -1, 0.0, UP, 0.3) for s in (0.0, 0.03, 0.06, 0.09, 0.12)]), \
+            mat, {}
+    if case == "strand of 1 mm":
+        helices = strands([horizontal_strand(n=4, total=1e-3, curl=1e3)])
+        return helices, make_contacts(helices, [(0, f * 1e-3, -1, 0.0, UP, 0.3) for f in (0.5, 0.8, 1.0)]), mat, {}
+    if case == "no gravity":
+        weightless = dataclasses.replace(Material.from_settings(MaterialSettings(), UP), gravity=np.zeros(3))
+        helices = strands([horizontal_strand(n=5, total=0.1, curl=-20.0),
+                           horizontal_strand(n=4, total=0.08, curl=5.0, root=(0.0, 0.0, 0.001))])
+        contacts = make_contacts(helices, [(0, 0.08, -1, 0.0, UP, 0.3), (0, 0.05, 1, 0.05, -UP, 0.3),
+                                           (1, 0.07, -1, 0.0, UP, 0.3)])
+        return helices, contacts, weightless, {"target": "zero"}
+    raise ValueError(case)
+
+
+@pytest.mark.parametrize("case", ["gamma 1e-12", "gamma 1e9", "E 1e6", "E 1e12", "mu 0", "mu inf", "on each other",
+                                  "along the body", "element ends and root", "strand of 1 mm", "no gravity"])
+def test_the_default_method_at_the_extremes(case):
+    """solver.method = auto takes the interior-point method on these small scenes: every result finite, the
+    equilibrium exact, forces in the cones, and its status honest (its bound, at 1e-4 of the scene's sag,
+    holds against the sweeps' rest shape at 1e-8); friction outside its range is finished by the sweeps."""
+    helices, contacts, mat, extra = _extreme_scene(case)
+    # 1/m, the largest curvature change the weight would cause (at 9.81 m/s^2 in the scene without gravity)
+    sag = np.abs(generalized_gravity(helices, material()).ravel() / stiffness(helices, mat)).max()
+    model, report = checked_inversion(helices, contacts, mat, method=SolverSettings().method,
+                                      rest_tolerance=1e-4 * sag, max_iterations=200, **extra)
+    assert report.result.method == "interior-point"
+    assert report.result.status == "CONVERGED"
 
 
 def _floor(width=4.0):

@@ -9,10 +9,13 @@ Checked against the mathematics, not against itself:
   (computed here from a tight solve);
 - extremes: mu 0 and 1e6 (outside the range its steps take as they are: the
   sweeps finish), gamma tiny and huge, a single contact;
-- the two factorisations (CHOLMOD, SuperLU) give the same steps.
+- the two factorisations (CHOLMOD, SuperLU) give the same steps;
+- ``solver.method = auto`` takes it where its factorisation is affordable, the sweeps elsewhere.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -208,3 +211,28 @@ def test_a_groom_too_large_to_lay_out_is_declined_before_anything_is_built(monke
     monkeypatch.setattr(interior, "_MAX_PAIRS", int(np.sum(counts * (counts + 1) // 2)) - 1)
     res = solve_interior(rows, np.ones(rows.n_dofs), 1e-3, np.ones((contacts.n_contacts, 3)), contacts.mu)
     assert res.status == "TOO_LARGE" and np.all(res.r == 0.0)
+
+
+def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_elsewhere(monkeypatch):
+    """solver.method = auto (the default): the interior-point method on a small groom, ignoring a start (and
+    saying so); over ``AUTO_GFLOP`` the sweeps, from that start, with a note. Either answer is the optimum."""
+    import hairinv.invert as inv
+
+    helices, contacts = four_strands_in_a_pile()
+    mat = material()
+    assert SolverSettings().method == "auto"
+    tight, _ = solve(helices, contacts, mat)  # the sweeps to 1e-10 of a strand's weight
+    scale = sag(helices, mat)
+    auto = SolverSettings(rest_tolerance=1e-6 * scale, max_iterations=200)
+    start = tight.force * 0.5
+    model, rep = invert(helices, contacts, mat, auto, start=start)
+    assert rep.result.method == "interior-point" and rep.result.status == "CONVERGED" and rep.result.sweeps == 0
+    assert rms(model.omega_rest - tight.omega_rest) <= rep.result.rest_bound + 1e-9 * scale
+    assert any("afresh" in n for n in rep.notes) and not any("started from the given" in n for n in rep.notes)
+    monkeypatch.setattr(inv, "AUTO_GFLOP", 1e-12)
+    swept, rep = invert(helices, contacts, mat, dataclasses.replace(auto, tolerance=1e-10, max_sweeps=20000),
+                        start=start)
+    assert rep.result.method == "sweeps" and rep.result.status == "CONVERGED"
+    assert any("solver.method = auto: the sweeps solved this groom" in n for n in rep.notes)
+    assert any("started from the given forces" in n for n in rep.notes)
+    assert np.abs(swept.omega_rest - tight.omega_rest).max() <= 1e-6 * scale

@@ -124,7 +124,8 @@ def two_strand_scene(mu=0.3):
 
 
 def solve(helices, contacts, mat=None, **solver):
-    settings = SolverSettings(**{"tolerance": TIGHT, "max_sweeps": 20000, **solver})
+    """Invert by the sweeps to ``TIGHT`` (the interior-point method's own tests: tests/test_interior.py)."""
+    settings = SolverSettings(**{"tolerance": TIGHT, "max_sweeps": 20000, "method": "sweeps", **solver})
     model, report = invert(helices, contacts, mat or material(), settings)
     return model, report
 
@@ -477,7 +478,7 @@ def test_a_start_far_from_the_optimum_reaches_the_same_optimum():
     the cones and converges to the optimum a cold start finds; the optimum, given as the start, takes no sweep."""
     helices, contacts = two_strand_scene(mu=0.3)
     mat = material()
-    settings = SolverSettings(tolerance=TIGHT, max_sweeps=20000)
+    settings = SolverSettings(tolerance=TIGHT, max_sweeps=20000, method="sweeps")
     cold, _ = invert(helices, contacts, mat, settings)
     wild = np.random.default_rng(0).normal(size=(contacts.n_contacts, 3)) * 10 * np.abs(cold.force).max()
     warm, report = invert(helices, contacts, mat, settings, start=wild, prior_sweeps=7)

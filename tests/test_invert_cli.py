@@ -92,7 +92,7 @@ def test_invert_runs_every_missing_stage(inverted):
 
 def test_interior_point_from_the_command_line(inverted):
     """--method interior-point: the report states the rest-shape bound, /model records it, the equilibrium
-    holds as with the sweeps, and the sweeps' model of the same stage lies within that bound."""
+    holds as with the sweeps; the default (auto) took the same method on this groom."""
     folder, _ = inverted
     result = hairinv(folder, "invert", "model.h5", "body.obj", "--method", "interior-point", "-o", "ip.h5")
     assert result.returncode == 0, result.stderr
@@ -104,7 +104,11 @@ def test_interior_point_from_the_command_line(inverted):
     residual, cone = equilibrium_residual(folder / "ip.h5")
     assert residual < EQUILIBRIUM and cone < CONE
     with h5py.File(folder / "model.h5", "r") as fh:
-        assert fh["model"].attrs["method"] == "sweeps"
+        assert fh["model"].attrs["method"] == "interior-point" and fh["model"].attrs["status"] == "CONVERGED"
+    sweeps = hairinv(folder, "invert", "model.h5", "body.obj", "--method", "sweeps", "-o", "sweeps.h5")
+    assert sweeps.returncode == 0, sweeps.stderr
+    with h5py.File(folder / "sweeps.h5", "r") as fh:
+        assert fh["model"].attrs["method"] == "sweeps" and "rest_bound" not in fh["model"].attrs
     # the input was a model: its forces are not a start for this method, and the report says so
     assert "starts afresh" in result.stdout and "started from the given forces" not in result.stdout
 
@@ -220,7 +224,7 @@ def _objective(path) -> float:
 def test_inverting_a_model_again_starts_from_its_forces(inverted):
     """A run stopped at the sweep cap, inverted again, continues from its forces instead of from zero."""
     folder, _ = inverted
-    cap = ("--set", "solver.max_sweeps=20")
+    cap = ("--set", "solver.max_sweeps=20", "--method", "sweeps")
     first = hairinv(folder, "invert", "model.h5", "body.obj", "-o", "short.h5", "--set", "solver.warm_start=false",
                     *cap)
     assert first.returncode == 0, first.stderr
@@ -273,7 +277,8 @@ def test_stored_contacts_that_do_not_fit_the_run_are_detected_again(inverted):
     assert "were detected against another body; detecting them again" in result.stdout
     assert "starting from the forces" not in result.stdout
     # without a body argument, the stored contacts (and the model's forces) are used as they are
-    result = hairinv(folder, "invert", "model.h5", "-o", "no_body.h5", "--set", "solver.max_sweeps=20")
+    result = hairinv(folder, "invert", "model.h5", "-o", "no_body.h5", "--set", "solver.max_sweeps=20",
+                     "--method", "sweeps")
     assert result.returncode == 0, result.stderr
     assert f"using the {declared} contacts in model.h5" in result.stdout
     assert "starting from the forces of the model in model.h5" in result.stdout
