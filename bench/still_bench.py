@@ -170,8 +170,9 @@ def parse_invert(text: str) -> dict:
         (int(m.group(1)), int(m.group(2)), float(m.group(3))) if m else (0, 0, 0.0))
     m = re.search(r"; (\d+) carry force", text)
     r["carrying"] = int(m.group(1)) if m else 0
-    m = re.search(r"solver: (\S+) after (\d+) sweeps", text)
-    r["solver"], r["sweeps"] = (m.group(1), int(m.group(2))) if m else (None, None)
+    m = re.search(r"solver: (\S+) after (\d+) (sweeps|interior-point steps)", text)
+    r["solver"], r["sweeps"], r["solver_work"] = (
+        (m.group(1), int(m.group(2)), "steps" if m.group(3) != "sweeps" else "sweeps") if m else (None, None, None))
     m = re.search(r"stiffened (\d+) of (\d+) strands .*?factor median " + _NUM + r", 90th percentile " + _NUM
                   + r", max " + _NUM, text)
     r["stiffened_report"] = (int(m.group(1)), float(m.group(3)), float(m.group(5))) if m else None
@@ -320,7 +321,7 @@ def row(r: dict) -> list[str]:
     cells = head + [
         str(r["strands"]), str(within), str(r["layer"]), str(r["file_inside"]), f"{r['hair']} ({r['wisp']})",
         str(r["carrying"]), _f(r["layer_gap_median_mm"], "{:.2f}"), stiffened,
-        _f(r["gravity_only_factor"], "{:.3g}"), f"{r['solver']} ({r['sweeps']})" if r["solver"] else "–",
+        _f(r["gravity_only_factor"], "{:.3g}"), f"{r['solver']} ({r['sweeps']} {r['solver_work']})" if r["solver"] else "–",
         str(r["unstable"]), f"{r['invert_seconds']:.1f}"]
     if r["status"] == "timed out":
         return cells + [f"timed out in verify after {r['verify_seconds']:.0f} s "
@@ -334,7 +335,7 @@ def row(r: dict) -> list[str]:
 
 HEADER = ["groom", "set", "strands", "body within body_distance", "body, layer rule", "body, inside",
           "hair-hair (wisp rule)", "carrying force", "layer gap median (mm)", "strands stiffened (factor median / max)",
-          "gravity-only factor", "solver stop (sweeps)", "unstable after invert",
+          "gravity-only factor", "solver stop (interior-point steps or sweeps)", "unstable after invert",
           "invert (s)", "verify", "largest displacement (mm)", "stopped at (s)", "strands moved", "verify (s)"]
 
 
