@@ -587,6 +587,8 @@ def validate_settings(settings: SolverSettings) -> None:
         raise InputError(f"unknown solver.stabilize {settings.stabilize!r}; choose one of {', '.join(STABILIZE)}")
     if not (np.isfinite(settings.stiffen_margin) and settings.stiffen_margin > 1.0):
         raise InputError(f"solver.stiffen_margin must be a finite number > 1, got {settings.stiffen_margin}")
+    if not (np.isfinite(settings.friction_reserve) and 0.0 <= settings.friction_reserve < 1.0):
+        raise InputError(f"solver.friction_reserve must be a number in [0, 1), got {settings.friction_reserve}")
     if not settings.check_stability and settings.stabilize == "stiffen":
         raise InputError("solver.check_stability = false skips the check that stiffening needs: set "
                          "solver.stabilize = off with it (--stabilize off)")
@@ -646,6 +648,9 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     target = target_shape(helices, settings.target)
     F_g = generalized_gravity(helices, material).ravel()
     rows = contact_rows(helices, contacts, run=lambda work, count: run_chunks(work, count, 2048))
+    # the cones the forces are found in: the declared friction less its reserve (mu = 0 and inf stay)
+    mu = contacts.mu * (1.0 - settings.friction_reserve) if contacts.n_contacts else contacts.mu
+    solved = dataclasses.replace(contacts, mu=mu) if contacts.n_contacts else contacts
     strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
     force_scale = material.linear_density * tolerance_gravity(material) * float(strand_length.max())
     r0 = None
@@ -657,7 +662,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         if start.shape != (contacts.n_contacts, 3) or not np.all(np.isfinite(start)):
             raise InputError(f"the starting forces must be finite, one row of 3 per contact "
                              f"({contacts.n_contacts}), got shape {start.shape}")
-        r0 = project_forces(start, contacts.mu)
+        r0 = project_forces(start, mu)
 
     notes: list[str] = []
     declined: list[float] = []
@@ -666,7 +671,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         """The interior-point solve, or None where the method is the sweeps or the groom too costly for it."""
         if settings.method == "sweeps" or not contacts.n_contacts or declined:
             return None
-        interior = solve_interior(rows, d, settings.gamma, b, contacts.mu, settings.rest_tolerance,
+        interior = solve_interior(rows, d, settings.gamma, b, mu, settings.rest_tolerance,
                                   settings.max_iterations, settings.max_seconds,
                                   max_gflop=None if settings.method == "interior-point" else AUTO_GFLOP,
                                   progress=_interior_progress(progress, settings.max_iterations))
@@ -691,14 +696,14 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         interior = steps(d, b)
         if interior is None and first and r0 is None and contacts.n_contacts \
                 and not np.any(contacts.strand[:, 1] >= 0):
-            r0 = _strands_at_once(rows, d, settings.gamma, b, contacts, settings.tolerance * force_scale)
+            r0 = _strands_at_once(rows, d, settings.gamma, b, solved, settings.tolerance * force_scale)
         sweeps_cap = settings.max_sweeps
         # friction coefficients outside the steps' range (0, inf) were held within it there: the sweeps
         # then solve the problem as declared, from those forces; otherwise the forces are final and the
         # call below only measures their residual (and projects them onto the cones, a round-off move)
-        if interior is not None and np.all(mu_in_range(contacts.mu)):
+        if interior is not None and np.all(mu_in_range(mu)):
             sweeps_cap = 0
-        result = solve_cone_qp(rows, d, settings.gamma, b, contacts.mu, contacts.strand, S,
+        result = solve_cone_qp(rows, d, settings.gamma, b, mu, contacts.strand, S,
                                force_scale, settings.tolerance, sweeps_cap, settings.check_every,
                                r0=r0 if interior is None else interior.r,
                                progress=progress if interior is None else None, s=contacts.s,
