@@ -273,7 +273,8 @@ def checked_inversion(helices, contacts, mat, tolerance=1e-8, max_sweeps=20000, 
         assert not np.any(np.isnan(model.stability_margin))
     if contacts is None:
         contacts = Contacts.empty()
-    r, mu = model.force, contacts.mu
+    # the cones the forces were found in: the declared friction less its reserve (inside the declared cones)
+    r, mu = model.force, contacts.mu * (1.0 - settings.friction_reserve)
     assert np.all(r[:, 0] >= 0.0)
     finite = np.isfinite(mu)
     assert np.all(np.hypot(r[finite, 1], r[finite, 2]) <= mu[finite] * r[finite, 0] * (1 + 1e-12))

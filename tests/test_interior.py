@@ -221,7 +221,8 @@ def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_els
     helices, contacts = four_strands_in_a_pile()
     mat = material()
     assert SolverSettings().method == "auto"
-    tight, _ = solve(helices, contacts, mat)  # the sweeps to 1e-10 of a strand's weight
+    # the sweeps to 1e-10 of a strand's weight, with the default's friction reserve
+    tight, _ = solve(helices, contacts, mat, friction_reserve=SolverSettings().friction_reserve)
     scale = sag(helices, mat)
     auto = SolverSettings(rest_tolerance=1e-6 * scale, max_iterations=200)
     start = tight.force * 0.5

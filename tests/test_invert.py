@@ -124,8 +124,10 @@ def two_strand_scene(mu=0.3):
 
 
 def solve(helices, contacts, mat=None, **solver):
-    """Invert by the sweeps to ``TIGHT`` (the interior-point method's own tests: tests/test_interior.py)."""
-    settings = SolverSettings(**{"tolerance": TIGHT, "max_sweeps": 20000, "method": "sweeps", **solver})
+    """Invert by the sweeps to ``TIGHT`` (the interior-point method's own tests: tests/test_interior.py), with
+    the friction as declared (no reserve: ``test_friction_reserve`` tests the reserve)."""
+    settings = SolverSettings(**{"tolerance": TIGHT, "max_sweeps": 20000, "method": "sweeps", "friction_reserve": 0.0,
+                                 **solver})
     model, report = invert(helices, contacts, mat or material(), settings)
     return model, report
 
@@ -209,6 +211,48 @@ def test_optimality_conditions(scene, mu):
     check_optimality(W, b, model.force, contacts.mu, rtol=1e-7)
     if mu == 0.0:
         assert np.all(model.force[:, 1:] == 0.0)
+
+
+@pytest.mark.parametrize("scene", [resting_scene, two_strand_scene])
+@pytest.mark.parametrize("reserve", [0.1, 0.5])
+def test_friction_reserve(scene, reserve):
+    """solver.friction_reserve: the forces are the optimum over the cones of mu (1 - reserve), checked by the
+    optimality conditions there and against Clarabel on those cones, so every loaded contact keeps that
+    margin inside its declared cone; and the model is still an exact equilibrium of the input shape."""
+    pytest.importorskip("clarabel")
+    import scipy.sparse
+
+    from hairinv.solver.reference import solve_socqp_clarabel
+
+    helices, contacts = scene(mu=0.3)
+    mat = material()
+    # gamma of the order of W's diagonal: the forces are unique and well conditioned (test_matches_clarabel)
+    probe, _ = solve(helices, contacts, mat, max_sweeps=1)
+    gamma = float(np.mean(np.diag(dense_problem(helices, contacts, mat, probe)[0])))
+    model, report = solve(helices, contacts, mat, gamma=gamma, friction_reserve=reserve)
+    assert report.result.status == "CONVERGED"
+    W, b, H, d = dense_problem(helices, contacts, mat, model)
+    reduced = contacts.mu * (1.0 - reserve)
+    check_optimality(W, b, model.force, reduced, 1e-6)
+    r_ref, _ = solve_socqp_clarabel(scipy.sparse.csr_matrix(H), d, gamma, b, reduced, tol=1e-13)
+    np.testing.assert_allclose(model.force, r_ref, rtol=0, atol=1e-6 * np.abs(r_ref).max())
+    r = model.force
+    assert np.all(np.hypot(r[:, 1], r[:, 2]) <= (1.0 - reserve) * contacts.mu * r[:, 0] * (1 + 1e-12))
+    # the answer changes exactly where the declared problem's optimum uses more friction than the reserve leaves
+    declared, _ = solve(helices, contacts, mat, gamma=gamma)
+    rd = declared.force
+    beyond = np.hypot(rd[:, 1], rd[:, 2]) > (1.0 - reserve) * contacts.mu * rd[:, 0] * (1 + 1e-6)
+    changed = np.abs(declared.force - r).max() > 1e-6 * np.abs(r).max()
+    assert changed == bool(np.any(beyond))
+    grad, scale = energy_gradient(helices, contacts, model, mat)
+    assert np.abs(grad).max() <= FINITE_DIFFERENCE * scale
+
+
+def test_friction_reserve_is_checked():
+    helices, contacts = resting_scene()
+    for bad in (-0.1, 1.0, np.nan):
+        with pytest.raises(InputError, match="friction_reserve"):
+            invert(helices, contacts, material(), SolverSettings(friction_reserve=bad))
 
 
 @pytest.mark.parametrize("scene", [resting_scene, two_strand_scene])
@@ -478,7 +522,7 @@ def test_a_start_far_from_the_optimum_reaches_the_same_optimum():
     the cones and converges to the optimum a cold start finds; the optimum, given as the start, takes no sweep."""
     helices, contacts = two_strand_scene(mu=0.3)
     mat = material()
-    settings = SolverSettings(tolerance=TIGHT, max_sweeps=20000, method="sweeps")
+    settings = SolverSettings(tolerance=TIGHT, max_sweeps=20000, method="sweeps", friction_reserve=0.0)
     cold, _ = invert(helices, contacts, mat, settings)
     wild = np.random.default_rng(0).normal(size=(contacts.n_contacts, 3)) * 10 * np.abs(cold.force).max()
     warm, report = invert(helices, contacts, mat, settings, start=wild, prior_sweeps=7)
