@@ -102,8 +102,10 @@ BUSY = 0.10
 
 
 def settings_for(guides: int = 0):
-    """The ``default`` quality settings, ruby's scale and +Y up, and optionally a guide subset."""
-    return apply(resolve(QUALITY), {"import": {"scale": SCALE, "up": "y", "guides": int(guides), "seed": SEED}})
+    """The ``default`` quality settings, ruby's scale and +Y up, and optionally a guide subset; the friction as
+    declared (``solver.friction_reserve = 0``), so that ``invert`` solves the problem Clarabel is given."""
+    return apply(resolve(QUALITY), {"import": {"scale": SCALE, "up": "y", "guides": int(guides), "seed": SEED},
+                                    "solver": {"friction_reserve": 0.0}})
 
 
 def follow_hairs(groom: Groom, count: int, radius: float, seed: int) -> Groom:
