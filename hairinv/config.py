@@ -166,8 +166,8 @@ class SolverSettings:
     (docs/inverse.md; the equilibrium itself is exact whatever the residual, it measures optimality)."""
     max_sweeps: int = 2000
     """Largest number of Gauss-Seidel sweeps over all contacts."""
-    method: str = "auto"
-    """auto (the interior-point method where its factorisation costs at most ``hairinv.invert.AUTO_GFLOP``
+    method: str = "sweeps"
+    """sweeps (the default; see docs/inverse.md for why not auto on real grooms yet), auto (the interior-point method where its factorisation costs at most ``hairinv.invert.AUTO_GFLOP``
     a step, the sweeps otherwise), sweeps (block Gauss-Seidel over the contacts, stopped by ``tolerance``)
     or interior-point (a primal-dual interior-point method, one sparse Cholesky factorisation a step,
     stopped by ``rest_tolerance``: it reaches the optimum where the sweeps stall, at the cost of factoring a

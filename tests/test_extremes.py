@@ -530,14 +530,14 @@ def _extreme_scene(case):
 
 @pytest.mark.parametrize("case", ["gamma 1e-12", "gamma 1e9", "E 1e6", "E 1e12", "mu 0", "mu inf", "on each other",
                                   "along the body", "element ends and root", "strand of 1 mm", "no gravity"])
-def test_the_default_method_at_the_extremes(case):
+def test_auto_at_the_extremes(case):
     """solver.method = auto takes the interior-point method on these small scenes: every result finite, the
     equilibrium exact, forces in the cones, and its status honest (its bound, at 1e-4 of the scene's sag,
     holds against the sweeps' rest shape at 1e-8); friction outside its range is finished by the sweeps."""
     helices, contacts, mat, extra = _extreme_scene(case)
     # 1/m, the largest curvature change the weight would cause (at 9.81 m/s^2 in the scene without gravity)
     sag = np.abs(generalized_gravity(helices, material()).ravel() / stiffness(helices, mat)).max()
-    model, report = checked_inversion(helices, contacts, mat, method=SolverSettings().method,
+    model, report = checked_inversion(helices, contacts, mat, method="auto",
                                       rest_tolerance=1e-4 * sag, max_iterations=200, **extra)
     assert report.result.method == "interior-point"
     assert report.result.status == "CONVERGED"

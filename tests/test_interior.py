@@ -214,17 +214,16 @@ def test_a_groom_too_large_to_lay_out_is_declined_before_anything_is_built(monke
 
 
 def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_elsewhere(monkeypatch):
-    """solver.method = auto (the default): the interior-point method on a small groom, ignoring a start (and
+    """solver.method = auto: the interior-point method on a small groom, ignoring a start (and
     saying so); over ``AUTO_GFLOP`` the sweeps, from that start, with a note. Either answer is the optimum."""
     import hairinv.invert as inv
 
     helices, contacts = four_strands_in_a_pile()
     mat = material()
-    assert SolverSettings().method == "auto"
     # the sweeps to 1e-10 of a strand's weight, with the default's friction reserve
     tight, _ = solve(helices, contacts, mat, friction_reserve=SolverSettings().friction_reserve)
     scale = sag(helices, mat)
-    auto = SolverSettings(rest_tolerance=1e-6 * scale, max_iterations=200)
+    auto = SolverSettings(method="auto", rest_tolerance=1e-6 * scale, max_iterations=200)
     start = tight.force * 0.5
     model, rep = invert(helices, contacts, mat, auto, start=start)
     assert rep.result.method == "interior-point" and rep.result.status == "CONVERGED" and rep.result.sweeps == 0
