@@ -167,11 +167,12 @@ class SolverSettings:
     max_sweeps: int = 2000
     """Largest number of Gauss-Seidel sweeps over all contacts."""
     method: str = "sweeps"
-    """sweeps (the default; see docs/inverse.md for why not auto on real grooms yet), auto (the interior-point method where its factorisation costs at most ``hairinv.invert.AUTO_GFLOP``
-    a step, the sweeps otherwise), sweeps (block Gauss-Seidel over the contacts, stopped by ``tolerance``)
-    or interior-point (a primal-dual interior-point method, one sparse Cholesky factorisation a step,
-    stopped by ``rest_tolerance``: it reaches the optimum where the sweeps stall, at the cost of factoring a
-    system as large as the groom's coordinates; docs/inverse.md)."""
+    """sweeps (the default: block Gauss-Seidel over the contacts, stopped by ``tolerance``), interior-point
+    (a primal-dual interior-point method, one sparse Cholesky factorisation a step, stopped by
+    ``rest_tolerance``: it reaches the optimum where the sweeps stall, at the cost of factoring a system as
+    large as the groom's coordinates) or auto (the interior-point method where its factorisation costs at most
+    ``hairinv.invert.AUTO_GFLOP`` a step, the sweeps otherwise). docs/inverse.md says why the sweeps stay the
+    default on real grooms."""
     rest_tolerance: float = 0.05
     """1/m. interior-point stops once its duality gap bounds the distance of the rest shape from the
     optimum (rms over elements) below this. The sweeps have no such bound and ignore it."""

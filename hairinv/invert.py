@@ -58,9 +58,18 @@ STABILIZE_ROUNDS = 8
 
 def _interior_progress(progress, max_iterations: int):
     """The progress callable for the interior-point steps, called as (step, rest-shape bound): a bar that
-    counts sweeps switches to steps through its ``interior(max_iterations)`` when it has one."""
+    counts sweeps switches to steps through its ``interior(max_iterations)`` at the first step, so a groom the
+    interior-point method declines (solver.method = auto) keeps a bar of sweeps."""
     switch = getattr(progress, "interior", None)
-    return switch(max_iterations) if switch is not None else progress
+    if progress is None or switch is None:
+        return progress
+    bar = []
+
+    def report(step: int, bound: float) -> None:
+        if not bar:
+            bar.append(switch(max_iterations))
+        bar[0](step, bound)
+    return report
 
 
 @jit
@@ -649,8 +658,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     F_g = generalized_gravity(helices, material).ravel()
     rows = contact_rows(helices, contacts, run=lambda work, count: run_chunks(work, count, 2048))
     # the cones the forces are found in: the declared friction less its reserve (mu = 0 and inf stay)
-    mu = contacts.mu * (1.0 - settings.friction_reserve) if contacts.n_contacts else contacts.mu
-    solved = dataclasses.replace(contacts, mu=mu) if contacts.n_contacts else contacts
+    mu = contacts.mu * (1.0 - settings.friction_reserve)
+    solved = dataclasses.replace(contacts, mu=mu)
     strand_length = np.add.reduceat(helices.length, helices.offsets[:-1])
     force_scale = material.linear_density * tolerance_gravity(material) * float(strand_length.max())
     r0 = None

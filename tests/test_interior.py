@@ -225,13 +225,32 @@ def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_els
     scale = sag(helices, mat)
     auto = SolverSettings(method="auto", rest_tolerance=1e-6 * scale, max_iterations=200)
     start = tight.force * 0.5
-    model, rep = invert(helices, contacts, mat, auto, start=start)
+
+    class Bar:
+        """Records the unit it counts in at each report, as the command's progress bar would show it."""
+
+        def __init__(self):
+            self.unit, self.seen = "sweep", []
+
+        def __call__(self, n, value):
+            self.seen.append(self.unit)
+
+        def interior(self, steps):
+            self.unit = "step"
+            return self
+
+    bar = Bar()
+    model, rep = invert(helices, contacts, mat, auto, start=start, progress=bar)
+    assert bar.seen and set(bar.seen) == {"step"}
     assert rep.result.method == "interior-point" and rep.result.status == "CONVERGED" and rep.result.sweeps == 0
     assert rms(model.omega_rest - tight.omega_rest) <= rep.result.rest_bound + 1e-9 * scale
     assert any("afresh" in n for n in rep.notes) and not any("started from the given" in n for n in rep.notes)
     monkeypatch.setattr(inv, "AUTO_GFLOP", 1e-12)
+    bar = Bar()
     swept, rep = invert(helices, contacts, mat, dataclasses.replace(auto, tolerance=1e-10, max_sweeps=20000),
-                        start=start)
+                        start=start, progress=bar)
+    # the declined interior-point method leaves the bar counting sweeps
+    assert bar.seen and set(bar.seen) == {"sweep"}
     assert rep.result.method == "sweeps" and rep.result.status == "CONVERGED"
     assert any("solver.method = auto: the sweeps solved this groom" in n for n in rep.notes)
     assert any("started from the given forces" in n for n in rep.notes)
