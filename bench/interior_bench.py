@@ -207,9 +207,11 @@ def run() -> str:
 
 def render(results, others, image: Path, total: float) -> str:
     parts = [f"## {TITLE}\n",
-             "`bench/interior_bench.py`. The same SOCQP as `invert` builds it for ruby short, solved by the "
-             "sweeps (the default `solver.method`), by the interior-point method (`solver.method = "
-             f"interior-point`, sparse Cholesky: {cholesky_backend()}) and by Clarabel, in one process. "
+             "`bench/interior_bench.py`. The same SOCQP as `invert` builds it for ruby short (default settings: "
+             "each contact weighs at least `solver.gamma_relative` of its diagonal; the friction as declared), "
+             "solved by the sweeps (`solver.method = sweeps`), by the interior-point method (`solver.method = "
+             f"interior-point`, which `auto`, the default, takes here; sparse Cholesky: {cholesky_backend()}) "
+             "and by Clarabel, in one process. "
              "Distance: rms over elements of `|q0 - q0*|`, 1/m, from the rest shape of the run with the lowest "
              "objective (marked *). Bound: what the interior-point method reports (its duality gap). Times are "
              "the solver's own (Clarabel: the call, with building its matrices).\n"]

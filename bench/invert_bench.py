@@ -50,7 +50,7 @@ from hairinv.config import apply, resolve  # noqa: E402
 from hairinv.contacts import detect_contacts  # noqa: E402
 from hairinv.fit import fit_groom  # noqa: E402
 from hairinv.groom import Groom, hair_unit_transform, load_body, load_groom  # noqa: E402
-from hairinv.invert import Material, generalized_gravity, invert, stiffness, target_shape  # noqa: E402
+from hairinv.invert import Material, contact_gamma, generalized_gravity, invert, stiffness, target_shape  # noqa: E402
 from hairinv.solver.reference import solve_socqp_clarabel  # noqa: E402
 from hairinv.solver.rows import contact_rows  # noqa: E402
 
@@ -151,7 +151,7 @@ def load_style(files: list[str], guides: int, follow: int, settings):
 
 @dataclass
 class Problem:
-    """``min 1/2 r'Wr + b'r`` over the Coulomb cones, ``W = H diag(d) H' + gamma I`` (hairinv.invert)."""
+    """``min 1/2 r'Wr + b'r`` over the Coulomb cones, ``W = H diag(d) H' + diag(gamma)`` (hairinv.invert)."""
 
     helices: object
     contacts: object
@@ -165,6 +165,8 @@ class Problem:
     H: object
     b: np.ndarray
     rho: np.ndarray
+    gamma: np.ndarray
+    """(C,) each contact's weight in the objective (``solver.gamma`` and ``solver.gamma_relative``)"""
 
     @classmethod
     def build(cls, helices, contacts, material, solver) -> "Problem":
@@ -176,17 +178,14 @@ class Problem:
         rows = contact_rows(helices, contacts)
         b = rows.matvec(d * (F_g - K * (q - target)))
         H = rows.to_sparse().tocsr()
+        gamma = contact_gamma(rows, d, solver.gamma, solver.gamma_relative)
         # rho_i = trace(W_ii) / 3, the solver's scaling of the natural map
-        rho = ((H.multiply(H) @ d).reshape(-1, 3).sum(axis=1) + 3.0 * solver.gamma) / 3.0
-        return cls(helices, contacts, material, solver, K, d, F_g, q, target, H, b, rho)
-
-    @property
-    def gamma(self) -> float:
-        return float(self.solver.gamma)
+        rho = ((H.multiply(H) @ d).reshape(-1, 3).sum(axis=1) + 3.0 * gamma) / 3.0
+        return cls(helices, contacts, material, solver, K, d, F_g, q, target, H, b, rho, gamma)
 
     def W(self, r: np.ndarray) -> np.ndarray:
         x = r.ravel()
-        return self.H @ (self.d * (self.H.T @ x)) + self.gamma * x
+        return self.H @ (self.d * (self.H.T @ x)) + np.repeat(self.gamma, 3) * x
 
     def objective(self, r: np.ndarray) -> float:
         x = r.ravel()

@@ -108,9 +108,9 @@ def nt_scaling(r: np.ndarray, u: np.ndarray, mu: np.ndarray, force_shift: float,
     return T[:, :, None] * Hs * T[:, None, :]
 
 
-def block_inverse(D: np.ndarray, gamma: float) -> sp.bsr_matrix:
-    """``(D + gamma I)^-1`` as a block-diagonal sparse matrix."""
-    B = np.linalg.inv(D + gamma * np.eye(3))
+def block_inverse(D: np.ndarray, gamma) -> sp.bsr_matrix:
+    """``(D + gamma I)^-1`` as a block-diagonal sparse matrix (``gamma`` one number or one per block)."""
+    B = np.linalg.inv(D + np.asarray(gamma, dtype=np.float64)[..., None, None] * np.eye(3))
     B = 0.5 * (B + np.transpose(B, (0, 2, 1)))
     C = len(B)
     return sp.bsr_matrix((B, np.arange(C), np.arange(C + 1)), shape=(3 * C, 3 * C))

@@ -187,7 +187,7 @@ def block_rounds(case: Case, size: int, rounds: int) -> dict:
             rS = r[S].ravel()
             held = f - p.d * (HS.T @ rS)
             bS = p.b.ravel()[idx] + HS @ held
-            WS = (HS.multiply(p.d[None, :]) @ HS.T).toarray() + p.gamma * np.eye(len(idx))
+            WS = (HS.multiply(p.d[None, :]) @ HS.T).toarray() + np.diag(np.repeat(p.gamma, 3)[idx])
             x, _ = solve_socqp_dense_clarabel(WS, bS, c.mu[S], tol=1e-10)
             x = ib.project_cones(x, c.mu[S]).ravel()
             solves += 1

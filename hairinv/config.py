@@ -161,18 +161,21 @@ class SolverSettings:
     (no contacts: q0 = q - K^-1 F_g, the baseline)."""
     gamma: float = 1e-3
     """N^-2 m^-2. Weight of the contact forces in the objective (paper: 1e-3 for every groom)."""
+    gamma_relative: float = 1e-4
+    """Each contact's weight in the objective is at least this fraction of its own diagonal of ``W`` (what a
+    force on that contact alone moves the rest shape by): it bounds the loops of opposed forces that the
+    paper's ``gamma`` leaves free (docs/inverse.md, "Bounded forces"). 0: the paper's problem."""
     tolerance: float = 1e-4
     """Stop when the natural-map residual is below this fraction of the heaviest strand's weight
     (docs/inverse.md; the equilibrium itself is exact whatever the residual, it measures optimality)."""
     max_sweeps: int = 2000
     """Largest number of Gauss-Seidel sweeps over all contacts."""
-    method: str = "sweeps"
-    """sweeps (the default: block Gauss-Seidel over the contacts, stopped by ``tolerance``), interior-point
-    (a primal-dual interior-point method, one sparse Cholesky factorisation a step, stopped by
-    ``rest_tolerance``: it reaches the optimum where the sweeps stall, at the cost of factoring a system as
-    large as the groom's coordinates) or auto (the interior-point method where its factorisation costs at most
-    ``hairinv.invert.AUTO_GFLOP`` a step, the sweeps otherwise). docs/inverse.md says why the sweeps stay the
-    default on real grooms."""
+    method: str = "auto"
+    """auto (the default: the interior-point method where its factorisation costs at most
+    ``hairinv.invert.AUTO_GFLOP`` a step, the sweeps otherwise), interior-point (a primal-dual interior-point
+    method, one sparse Cholesky factorisation a step, stopped by ``rest_tolerance``: it reaches the optimum
+    where the sweeps stall, at the cost of factoring a system as large as the groom's coordinates) or sweeps
+    (block Gauss-Seidel over the contacts, stopped by ``tolerance``). docs/inverse.md, "The solver"."""
     rest_tolerance: float = 0.05
     """1/m. interior-point stops once its duality gap bounds the distance of the rest shape from the
     optimum (rms over elements) below this. The sweeps have no such bound and ignore it."""

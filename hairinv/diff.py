@@ -548,7 +548,8 @@ class _Comparison:
                          np.arange(len(fo)), _largest(fo), _largest(fn))
 
     def objective(self, key, go: stages.Group, gn: stages.Group) -> None:
-        """``1/2 sum_e w_e |q0_e - q0target_e|^2 + gamma/2 |r|^2`` (docs/stage-files.md), with the rest shape a
+        """``1/2 sum_e w_e |q0_e - q0target_e|^2 + 1/2 sum_c gamma_c |r_c|^2`` (docs/stage-files.md; ``gamma_c`` is
+        ``/model/contact_gamma`` where the file has it, else ``gamma``), with the rest shape a
         simulation uses (the stiffened strands' own) when both files hold it, else ``omega_rest``. It may move
         by what its terms may move by, to first order: ``sum_e w_e |q0_e - q0target_e| tol_e + gamma sum_c
         |r_c| tol_c``, plus rtol of itself."""
@@ -562,10 +563,12 @@ class _Comparison:
             drift = np.linalg.norm(rest - target, axis=1)
             force = np.linalg.norm(g["force"].reshape(-1, 3), axis=1)
             gamma = float(g.attrs.get("gamma", 0.0))
-            objective = 0.5 * float(np.sum(weight * drift ** 2)) + 0.5 * gamma * float(np.sum(force ** 2))
+            if "contact_gamma" in g.datasets and len(g["contact_gamma"]) == len(force):
+                gamma = np.asarray(g["contact_gamma"], dtype=np.float64)  # each contact's own weight
+            objective = 0.5 * float(np.sum(weight * drift ** 2)) + 0.5 * float(np.sum(gamma * force ** 2))
             rtol = self.tol.rtol
             spread = (float(np.sum(weight * drift * (self.tol.curvature + rtol * np.linalg.norm(rest, axis=1))))
-                      + gamma * float(np.sum(force * (self.tol.force + rtol * force))) + rtol * abs(objective))
+                      + float(np.sum(gamma * force * (self.tol.force + rtol * force))) + rtol * abs(objective))
             return objective, spread
 
         oo, tol = value(go)

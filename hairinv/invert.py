@@ -549,7 +549,19 @@ class InvertReport:
 STRAND_NEWTON_ITERS = 50
 
 
-def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarray, contacts: Contacts,
+def contact_gamma(rows: ContactRows, d: np.ndarray, gamma: float, relative: float) -> np.ndarray:
+    """Each contact's weight in the objective, (C,): ``max(gamma, relative * W_ii)`` with ``W_ii`` the mean of
+    the diagonal of the contact's 3x3 block of ``H D H^T`` (what a force of 1 N on that contact alone moves the
+    rest shape by, squared). ``solver.gamma_relative`` (docs/inverse.md, "Bounded forces")."""
+    C = rows.n_contacts
+    if relative <= 0.0 or C == 0:
+        return np.full(C, float(gamma))
+    owner = np.repeat(np.arange(C), np.diff(rows.ptr))
+    diagonal = np.bincount(owner, weights=np.sum(rows.vals ** 2, axis=1) * d[rows.cols], minlength=C) / 3.0
+    return np.maximum(float(gamma), relative * diagonal)
+
+
+def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, contacts: Contacts,
                      target: float) -> np.ndarray:
     """Body contacts only: the strands do not interact, so each strand's contacts are solved together,
     by nonsmooth Newton on their dense block of ``W`` (:mod:`hairinv.solver.blocks`) to the natural-map
@@ -559,7 +571,7 @@ def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma: float, b: np.ndarr
     a few strands (2 to 19 of the 300) have blocks too ill-conditioned for the Newton steps."""
     n = contacts.n_contacts
     scaled = ContactRows(rows.ptr, rows.cols, rows.vals * np.sqrt(d[rows.cols])[:, None], rows.n_dofs)
-    gammas = np.full(n, float(gamma))
+    gammas = np.array(np.broadcast_to(np.asarray(gamma, dtype=np.float64), (n,)))
     members, group_ptr, block_ptr, blocks = strand_blocks(scaled, gammas, contacts.strand)
     Wd = np.empty((n, 3, 3))
     diagonal_blocks(scaled.ptr, scaled.cols, scaled.vals, np.ones(rows.n_dofs), gammas, Wd)
@@ -577,6 +589,8 @@ def validate_settings(settings: SolverSettings) -> None:
         raise InputError(f"unknown inversion target {settings.target!r}; choose one of {', '.join(TARGETS)}")
     if not settings.gamma > 0:
         raise InputError(f"solver.gamma must be > 0 (it makes the problem strictly convex), got {settings.gamma}")
+    if not 0.0 <= settings.gamma_relative < 1.0:
+        raise InputError(f"solver.gamma_relative must be in [0, 1), got {settings.gamma_relative}")
     if not settings.tolerance > 0:
         raise InputError(f"solver.tolerance must be > 0, got {settings.tolerance}")
     if settings.max_seconds < 0:
@@ -676,11 +690,11 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     notes: list[str] = []
     declined: list[float] = []
 
-    def steps(d: np.ndarray, b: np.ndarray):
+    def steps(d: np.ndarray, b: np.ndarray, gammas: np.ndarray):
         """The interior-point solve, or None where the method is the sweeps or the groom too costly for it."""
         if settings.method == "sweeps" or not contacts.n_contacts or declined:
             return None
-        interior = solve_interior(rows, d, settings.gamma, b, mu, settings.rest_tolerance,
+        interior = solve_interior(rows, d, gammas, b, mu, settings.rest_tolerance,
                                   settings.max_iterations, settings.max_seconds,
                                   max_gflop=None if settings.method == "interior-point" else AUTO_GFLOP,
                                   progress=_interior_progress(progress, settings.max_iterations))
@@ -698,21 +712,25 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                          f"{interior_module.MAX_GFLOP:g}; docs/inverse.md)")
         return None
 
+    solved_with: dict = {}
+
     def solve(stiff: np.ndarray, r0: np.ndarray | None, first: bool):
         # D = w K^-2; b = H D (F_g - K (q - t))
         d = np.repeat(weight, 3) / stiff ** 2
         b = rows.matvec(d * (F_g - stiff * (q - target.ravel())))
-        interior = steps(d, b)
+        gammas = contact_gamma(rows, d, settings.gamma, settings.gamma_relative)
+        solved_with["gamma"] = gammas
+        interior = steps(d, b, gammas)
         if interior is None and first and r0 is None and contacts.n_contacts \
                 and not np.any(contacts.strand[:, 1] >= 0):
-            r0 = _strands_at_once(rows, d, settings.gamma, b, solved, settings.tolerance * force_scale)
+            r0 = _strands_at_once(rows, d, gammas, b, solved, settings.tolerance * force_scale)
         sweeps_cap = settings.max_sweeps
         # friction coefficients outside the steps' range (0, inf) were held within it there: the sweeps
         # then solve the problem as declared, from those forces; otherwise the forces are final and the
         # call below only measures their residual (and projects them onto the cones, a round-off move)
         if interior is not None and np.all(mu_in_range(mu)):
             sweeps_cap = 0
-        result = solve_cone_qp(rows, d, settings.gamma, b, mu, contacts.strand, S,
+        result = solve_cone_qp(rows, d, gammas, b, mu, contacts.strand, S,
                                force_scale, settings.tolerance, sweeps_cap, settings.check_every,
                                r0=r0 if interior is None else interior.r,
                                progress=progress if interior is None else None, s=contacts.s,
@@ -823,6 +841,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                   factor, None if factor is None else omega_rest,
                   stability_margin=margin if check_stability else None, stable_under=settings.stable_under,
                   carrying_threshold=settings.tolerance * force_scale)
+    if declared == contacts.n_contacts and settings.gamma_relative > 0.0:
+        model.gamma_relative, model.contact_gamma = float(settings.gamma_relative), solved_with["gamma"]
     report = InvertReport(
         settings.target, contacts.n_contacts, contacts.n_body, int(carrying.sum()), result, force_scale,
         float(np.sqrt(np.mean(np.sum(drift ** 2, axis=1)))) if len(drift) else 0.0,
@@ -882,7 +902,8 @@ def warm_start(group: stages.Group, material: Material, settings: SolverSettings
         return None, 0, "", None
     a = group.attrs
     differ = [] if a.get("target") == settings.target else ["target"]
-    if not np.isclose(float(a["gamma"]), settings.gamma, rtol=1e-12, atol=0.0):
+    if not np.isclose(float(a["gamma"]), settings.gamma, rtol=1e-12, atol=0.0) \
+            or not np.isclose(float(a.get("gamma_relative", 0.0)), settings.gamma_relative, rtol=1e-12, atol=0.0):
         differ.append("gamma")
     stored = material_from_group(group).attrs()
     differ += [f"material ({key})" for key, value in material.attrs().items()

@@ -266,6 +266,10 @@ class Model:
     carrying_threshold: float | None = None
     """N: a contact carries force where its normal force exceeds this (the solver's tolerance times the
     heaviest strand's weight; below it a force is the solver's round-off)"""
+    gamma_relative: float = 0.0
+    """solver.gamma_relative the forces were found with (0: every contact weighs ``gamma``)"""
+    contact_gamma: np.ndarray | None = None
+    """(C,) float64, each contact's weight in the objective when ``gamma_relative`` > 0"""
 
     @property
     def rest(self) -> np.ndarray:
@@ -290,6 +294,9 @@ class Model:
             data["omega_rest_stiffened"] = np.asarray(self.omega_rest_stiffened, dtype=np.float64)
         if self.carrying_threshold is not None:
             attrs["carrying_threshold"] = float(self.carrying_threshold)
+        if self.gamma_relative > 0.0 and self.contact_gamma is not None:
+            attrs["gamma_relative"] = float(self.gamma_relative)
+            data["contact_gamma"] = np.asarray(self.contact_gamma, dtype=np.float64)
         if self.stability_margin is not None:
             data["stability_margin"] = np.asarray(self.stability_margin, dtype=np.float64)
             attrs["stable_under"] = self.stable_under

@@ -65,6 +65,7 @@ LAYOUT = {
         "stiffening": ("f", ("S",)),
         "omega_rest_stiffened": ("f", ("E", 3)),
         "stability_margin": ("f", ("S",)),
+        "contact_gamma": ("f", ("C",)),
     },
     FRAMES: {
         "time": ("f", ("F",)),
@@ -114,6 +115,7 @@ ATTRS = {
         "radius": ("positive", True),
         "gravity": ("vector0", True),  # all 0: a scene without gravity (material.gravity = 0)
         "gamma": ("positive", True),
+        "gamma_relative": ("nonnegative", False),
         "target": (MODEL_TARGETS, False),
         "iterations": ("count", False),
         "prior_sweeps": ("count", False),

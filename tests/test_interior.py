@@ -220,8 +220,11 @@ def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_els
 
     helices, contacts = four_strands_in_a_pile()
     mat = material()
-    # the sweeps to 1e-10 of a strand's weight, with the default's friction reserve
-    tight, _ = solve(helices, contacts, mat, friction_reserve=SolverSettings().friction_reserve)
+    # the sweeps to 1e-10 of a strand's weight, with the default's friction reserve and bounded forces
+    # (this pile needs about 30,000 sweeps there)
+    tight, rep = solve(helices, contacts, mat, friction_reserve=SolverSettings().friction_reserve,
+                       gamma_relative=SolverSettings().gamma_relative, max_sweeps=60000)
+    assert rep.result.status == "CONVERGED"
     scale = sag(helices, mat)
     auto = SolverSettings(method="auto", rest_tolerance=1e-6 * scale, max_iterations=200)
     start = tight.force * 0.5
@@ -247,7 +250,7 @@ def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_els
     assert any("afresh" in n for n in rep.notes) and not any("started from the given" in n for n in rep.notes)
     monkeypatch.setattr(inv, "AUTO_GFLOP", 1e-12)
     bar = Bar()
-    swept, rep = invert(helices, contacts, mat, dataclasses.replace(auto, tolerance=1e-10, max_sweeps=20000),
+    swept, rep = invert(helices, contacts, mat, dataclasses.replace(auto, tolerance=1e-10, max_sweeps=60000),
                         start=start, progress=bar)
     # the declined interior-point method leaves the bar counting sweeps
     assert bar.seen and set(bar.seen) == {"sweep"}

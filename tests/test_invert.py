@@ -125,9 +125,10 @@ def two_strand_scene(mu=0.3):
 
 def solve(helices, contacts, mat=None, **solver):
     """Invert by the sweeps to ``TIGHT`` (the interior-point method's own tests: tests/test_interior.py), with
-    the friction as declared (no reserve: ``test_friction_reserve`` tests the reserve)."""
+    the friction as declared (no reserve: ``test_friction_reserve`` tests the reserve) and the paper's single
+    ``gamma`` (``test_gamma_relative`` tests the per-contact one)."""
     settings = SolverSettings(**{"tolerance": TIGHT, "max_sweeps": 20000, "method": "sweeps", "friction_reserve": 0.0,
-                                 **solver})
+                                 "gamma_relative": 0.0, **solver})
     model, report = invert(helices, contacts, mat or material(), settings)
     return model, report
 
@@ -171,7 +172,8 @@ def dense_problem(helices, contacts, mat, model):
     d = model.target_weight.repeat(3) / K ** 2
     F_g = generalized_gravity(helices, mat).ravel()
     b = H @ (d * (F_g - K * (helices.omega.ravel() - model.omega_target.ravel())))
-    W = H @ (d[:, None] * H.T) + model.gamma * np.eye(len(H))
+    gamma = model.gamma if model.contact_gamma is None else np.repeat(model.contact_gamma, 3)
+    W = H @ (d[:, None] * H.T) + np.diag(np.broadcast_to(gamma, len(H)))
     return W, b, H, d
 
 
@@ -253,6 +255,54 @@ def test_friction_reserve_is_checked():
     for bad in (-0.1, 1.0, np.nan):
         with pytest.raises(InputError, match="friction_reserve"):
             invert(helices, contacts, material(), SolverSettings(friction_reserve=bad))
+    for bad in (-1e-4, 1.0, np.nan):
+        with pytest.raises(InputError, match="gamma_relative"):
+            invert(helices, contacts, material(), SolverSettings(gamma_relative=bad))
+
+
+@pytest.mark.parametrize("scene", [resting_scene, two_strand_scene])
+@pytest.mark.parametrize("relative", [1e-4, 1e-2])
+def test_gamma_relative(scene, relative):
+    """solver.gamma_relative: each contact weighs max(gamma, relative * the mean of its diagonal of H D H^T),
+    read here from the dense matrix; the sweeps' forces satisfy the optimality conditions of that problem,
+    and their objective and rest shape match Clarabel's given those weights; the interior point's rest shape lies within its own bound of
+    Clarabel's; the added weights' term is no larger than at the paper's optimum; and the model is an exact
+    equilibrium of the input shape."""
+    pytest.importorskip("clarabel")
+    import scipy.sparse
+
+    from hairinv.solver.reference import solve_socqp_clarabel
+
+    helices, contacts = scene(mu=0.3)
+    mat = material()
+    model, report = solve(helices, contacts, mat, gamma_relative=relative)
+    assert report.result.status == "CONVERGED" and model.gamma_relative == relative
+    W, b, H, d = dense_problem(helices, contacts, mat, model)
+    plain = H @ (d[:, None] * H.T)
+    expected = np.maximum(1e-3, relative * np.diag(plain).reshape(-1, 3).mean(axis=1))
+    np.testing.assert_allclose(model.contact_gamma, expected, rtol=1e-12)
+    check_optimality(W, b, model.force, contacts.mu, 1e-6)
+    r_ref, _ = solve_socqp_clarabel(scipy.sparse.csr_matrix(H), d, expected, b, contacts.mu, tol=1e-13)
+    objective = lambda r: 0.5 * r.ravel() @ W @ r.ravel() + b @ r.ravel()  # noqa: E731
+    assert objective(model.force) <= objective(r_ref) + 1e-9 * abs(objective(r_ref))
+    K = stiffness(helices, mat)
+    F_g = generalized_gravity(helices, mat).ravel()
+    rest_ref = helices.omega.ravel() - (F_g + H.T @ r_ref.ravel()) / K
+    scale_q = np.abs(F_g / K).max()
+    assert np.abs(model.omega_rest.ravel() - rest_ref).max() <= 1e-6 * scale_q
+    grad, scale = energy_gradient(helices, contacts, model, mat)
+    assert np.abs(grad).max() <= FINITE_DIFFERENCE * scale
+    # against the paper's problem: adding the two optimality inequalities, the weight added to each contact
+    # (gamma_c - gamma) can only lower sum_c (gamma_c - gamma) |r_c|^2
+    paper, _ = solve(helices, contacts, mat)
+    added = expected - 1e-3
+    assert np.sum(added * np.sum(model.force ** 2, axis=1)) \
+        <= np.sum(added * np.sum(paper.force ** 2, axis=1)) * (1 + 1e-6)
+    # the interior point on the same problem, within its bound of Clarabel's rest shape
+    steps, rep = solve(helices, contacts, mat, gamma_relative=relative, method="interior-point",
+                       rest_tolerance=1e-6 * scale_q)
+    distance = np.sqrt(np.mean(np.sum((steps.omega_rest.ravel() - rest_ref).reshape(-1, 3) ** 2, axis=1)))
+    assert rep.result.method == "interior-point" and distance <= rep.result.rest_bound + 1e-9 * scale_q
 
 
 @pytest.mark.parametrize("scene", [resting_scene, two_strand_scene])

@@ -142,7 +142,7 @@ def jacobian_normal_rows(helices, contacts, h=FD_STEP) -> np.ndarray:
 def test_frictionless_contacts_get_no_tangential_force_and_meet_the_frictionless_optimality_conditions(everything):
     """mu = 0 everywhere: the problem is min 1/2 r'Wr + b'r over r_T = 0, r_N >= 0, whose optimality
     conditions are r_N >= 0, u_N = (W r + b)_N >= 0, r_N u_N = 0. With q0 = q - K^-1 (F_g + H^T r),
-    W r + b = H K^-1 (t - q0) + gamma r (target t, unit weights), so u_N is read off the model's rest
+    W r + b = H K^-1 (t - q0) + gamma_c r (target t, unit weights), so u_N is read off the model's rest
     shape with H's normal rows by finite differences and K from the material's closed form."""
     scene = everything
     helices = scene.helices
@@ -162,8 +162,9 @@ def test_frictionless_contacts_get_no_tangential_force_and_meet_the_frictionless
                                              mat.shear_modulus * area / 2])).ravel()
     HN = jacobian_normal_rows(helices, contacts)
     d = (model.omega_target - model.omega_rest).ravel() / K
-    uN = HN @ d + model.gamma * r[:, 0]
-    scale = np.abs(HN) @ np.abs(d) + model.gamma * r[:, 0]
+    gamma = model.gamma if model.contact_gamma is None else model.contact_gamma  # each contact's weight
+    uN = HN @ d + gamma * r[:, 0]
+    scale = np.abs(HN) @ np.abs(d) + gamma * r[:, 0]
     assert np.all(uN >= -KKT * scale)  # the dual cone: no contact pulls
     carrying = r[:, 0] > 0
     assert np.all(np.abs(uN[carrying]) <= KKT * scale[carrying])  # complementarity: loaded contacts do not open

@@ -121,14 +121,14 @@ def _solve(P, q, A_eq, mu, tol: float):
     return np.asarray(solution.x, dtype=np.float64), info
 
 
-def solve_socqp_clarabel(H, d, gamma: float, b, mu, tol: float = 1e-10):
+def solve_socqp_clarabel(H, d, gamma, b, mu, tol: float = 1e-10):
     """Solve ``min 1/2 r'(H diag(d) H' + gamma I) r + b'r`` over the Coulomb cones with Clarabel.
 
     Parameters
     ----------
     H : (3C, n) scipy.sparse matrix (or array), contact rows
     d : (n,) float64, positive
-    gamma : float >= 0, regularisation
+    gamma : float >= 0, regularisation, or (C,) float64 >= 0, one per contact (``solver.gamma_relative``)
     b : (3C,) float64
     mu : (C,) float64 >= 0, friction coefficients (0 and inf allowed)
     tol : float, Clarabel's gap and feasibility tolerances
@@ -152,11 +152,12 @@ def solve_socqp_clarabel(H, d, gamma: float, b, mu, tol: float = 1e-10):
         raise ValueError("d must be positive")
     if b.shape != (m3,):
         raise ValueError(f"b must have shape ({m3},), got {b.shape}")
-    if not gamma >= 0.0:
+    gamma = np.broadcast_to(np.asarray(gamma, dtype=np.float64), (C,))
+    if not np.all(gamma >= 0.0):
         raise ValueError("gamma must be >= 0")
     mu = _check_mu(mu, C)
-    # x = (r, z):  1/2 |z|^2 + gamma/2 |r|^2 + b'r,  z - diag(sqrt d) H' r = 0
-    P = sp.block_diag([gamma * sp.identity(m3), sp.identity(n)], format="csc")
+    # x = (r, z):  1/2 |z|^2 + 1/2 sum_c gamma_c |r_c|^2 + b'r,  z - diag(sqrt d) H' r = 0
+    P = sp.block_diag([sp.diags(np.repeat(gamma, 3)), sp.identity(n)], format="csc")
     q = np.concatenate([b, np.zeros(n)])
     A_eq = sp.hstack([-(sp.diags(np.sqrt(d)) @ H.T), sp.identity(n)], format="csc")
     x, info = _solve(P, q, A_eq, mu, tol)
