@@ -148,6 +148,9 @@ def render(g: dict, runs: list[dict], whole: list, total: float) -> str:
                         "stiffened"], rows) + "\n")
     if whole:
         parts.append(f"### Ruby short, whole ({whole[0][1]:,} strands, {whole[0][2]:,} contacts), `invert` at the defaults\n")
+        parts.append("Drift here is `invert`'s report: of the rest shape the simulation uses, the stiffened strands' "
+                     "(a strand made far stiffer needs its rest shape changed far less, so heavy stiffening "
+                     "lowers it).\n")
         rows = [[f"{f:g}", inv["method"], f"{inv['steps']} ({inv['status']})", f"{inv['seconds']:.1f} s",
                  f"{inv['drift']:.3f}", f"{inv['stiffened']} (median {inv['median']:.2f}, max {inv['max']:.3g})"]
                 for f, _, _, inv in whole]

@@ -902,9 +902,10 @@ def warm_start(group: stages.Group, material: Material, settings: SolverSettings
         return None, 0, "", None
     a = group.attrs
     differ = [] if a.get("target") == settings.target else ["target"]
-    if not np.isclose(float(a["gamma"]), settings.gamma, rtol=1e-12, atol=0.0) \
-            or not np.isclose(float(a.get("gamma_relative", 0.0)), settings.gamma_relative, rtol=1e-12, atol=0.0):
+    if not np.isclose(float(a["gamma"]), settings.gamma, rtol=1e-12, atol=0.0):
         differ.append("gamma")
+    if not np.isclose(float(a.get("gamma_relative", 0.0)), settings.gamma_relative, rtol=1e-12, atol=0.0):
+        differ.append("solver.gamma_relative")
     stored = material_from_group(group).attrs()
     differ += [f"material ({key})" for key, value in material.attrs().items()
                if not np.allclose(stored[key], value, rtol=1e-12, atol=0.0)]

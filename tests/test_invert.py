@@ -598,3 +598,23 @@ def test_a_start_far_from_the_optimum_reaches_the_same_optimum():
     assert report.result.sweeps == 0 and np.array_equal(again.force, cold.force)
     with pytest.raises(InputError, match="one row of 3 per contact"):
         invert(helices, contacts, mat, settings, start=np.zeros((contacts.n_contacts + 1, 3)))
+
+
+def test_a_model_of_another_gamma_relative_is_not_a_start():
+    """Forces found with another solver.gamma_relative (or none: a file written before it) solve another
+    problem: inverting such a model again starts afresh and says why; the same fraction continues."""
+    from hairinv.invert import warm_start
+
+    helices, contacts = resting_scene()
+    mat = material()
+    old, _ = solve(helices, contacts, mat, gamma_relative=0.0)
+    group = old.group({}, [])
+    assert "gamma_relative" not in group.attrs and "contact_gamma" not in group.datasets
+    now = SolverSettings(method="sweeps")
+    forces, _, line, _ = warm_start(group, mat, now, "old.h5", helices.n_strands)
+    assert forces is None and "another solver.gamma_relative: starting afresh" in line
+    same, _ = solve(helices, contacts, mat, gamma_relative=now.gamma_relative, friction_reserve=now.friction_reserve)
+    group = same.group({}, [])
+    assert group.attrs["gamma_relative"] == now.gamma_relative and len(group.datasets["contact_gamma"]) == 3
+    forces, _, line, _ = warm_start(group, mat, dataclasses.replace(now, tolerance=TIGHT), "same.h5", helices.n_strands)
+    assert forces is not None and "starting afresh" not in line
