@@ -141,6 +141,8 @@ def _model(g: stages.Group) -> dict:
         "youngs_modulus_Pa": float(g.attrs.get("youngs_modulus", 0.0)),
         "radius_m": float(g.attrs.get("radius", 0.0)),
         "gamma": float(g.attrs.get("gamma", 0.0)),
+        # 0 for files written before solver.gamma_relative (every contact weighed gamma)
+        "gamma_relative": float(g.attrs.get("gamma_relative", 0.0)),
         "stabilize": None if stabilize is None else str(stabilize),
         "stable_under": None if under is None else str(under),
         "strands_stiffened": None if factor is None else len(stiffened),

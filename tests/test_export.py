@@ -743,6 +743,7 @@ def _assert_summary(summary, path):
         assert m["status"] == g["attrs"].get("status", "") and m["sweeps"] == g["attrs"]["iterations"]
         assert m["residual_N"] == g["attrs"]["residual"] and m["solve_seconds"] == g["attrs"]["seconds"]
         assert summary["timings_s"]["invert"] == g["attrs"]["seconds"]
+        assert m["gamma"] == g["attrs"]["gamma"] and m["gamma_relative"] == g["attrs"].get("gamma_relative", 0.0)
         rest = g.get("omega_rest_stiffened", g["omega_rest"])
         _assert_stats(m["drift_from_target_1_per_m"], np.linalg.norm(rest - g["omega_target"], axis=1))
         _assert_stats(m["rest_curvature_1_per_m"], np.sqrt(rest[:, 0] ** 2 + rest[:, 1] ** 2))
