@@ -50,7 +50,8 @@ from hairinv.config import apply, resolve  # noqa: E402
 from hairinv.contacts import detect_contacts  # noqa: E402
 from hairinv.fit import fit_groom  # noqa: E402
 from hairinv.groom import Groom, hair_unit_transform, load_body, load_groom  # noqa: E402
-from hairinv.invert import Material, contact_gamma, generalized_gravity, invert, stiffness, target_shape  # noqa: E402
+from hairinv.invert import (Material, contact_diagonal, contact_gamma, generalized_gravity, invert,  # noqa: E402
+                            stiffness, target_shape)
 from hairinv.solver.reference import solve_socqp_clarabel  # noqa: E402
 from hairinv.solver.rows import contact_rows  # noqa: E402
 
@@ -180,7 +181,7 @@ class Problem:
         H = rows.to_sparse().tocsr()
         gamma = contact_gamma(rows, d, solver.gamma, solver.gamma_relative)
         # rho_i = trace(W_ii) / 3, the solver's scaling of the natural map
-        rho = ((H.multiply(H) @ d).reshape(-1, 3).sum(axis=1) + 3.0 * gamma) / 3.0
+        rho = contact_diagonal(rows, d) + gamma
         return cls(helices, contacts, material, solver, K, d, F_g, q, target, H, b, rho, gamma)
 
     def W(self, r: np.ndarray) -> np.ndarray:

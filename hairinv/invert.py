@@ -549,16 +549,21 @@ class InvertReport:
 STRAND_NEWTON_ITERS = 50
 
 
-def contact_gamma(rows: ContactRows, d: np.ndarray, gamma: float, relative: float) -> np.ndarray:
-    """Each contact's weight in the objective, (C,): ``max(gamma, relative * W_ii)`` with ``W_ii`` the mean of
-    the diagonal of the contact's 3x3 block of ``H D H^T`` (what a force of 1 N on that contact alone moves the
-    rest shape by, squared). ``solver.gamma_relative`` (docs/inverse.md, "Bounded forces")."""
+def contact_diagonal(rows: ContactRows, d: np.ndarray) -> np.ndarray:
+    """``trace(H_i D H_i^T) / 3`` of every contact, (C,): the mean of the diagonal of its 3x3 block of ``W``
+    without ``gamma`` (what a force of 1 N on that contact alone moves the rest shape by, squared)."""
     C = rows.n_contacts
-    if relative <= 0.0 or C == 0:
-        return np.full(C, float(gamma))
-    owner = np.repeat(np.arange(C), np.diff(rows.ptr))
-    diagonal = np.bincount(owner, weights=np.sum(rows.vals ** 2, axis=1) * d[rows.cols], minlength=C) / 3.0
-    return np.maximum(float(gamma), relative * diagonal)
+    Wd = np.empty((C, 3, 3))
+    diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, np.zeros(C), Wd)
+    return np.trace(Wd, axis1=1, axis2=2) / 3.0
+
+
+def contact_gamma(rows: ContactRows, d: np.ndarray, gamma: float, relative: float) -> np.ndarray:
+    """Each contact's weight in the objective, (C,): ``max(gamma, relative * contact_diagonal)``
+    (``solver.gamma_relative``; docs/inverse.md, "Bounded forces")."""
+    if relative <= 0.0 or rows.n_contacts == 0:
+        return np.full(rows.n_contacts, float(gamma))
+    return np.maximum(float(gamma), relative * contact_diagonal(rows, d))
 
 
 def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, contacts: Contacts,
@@ -712,14 +717,11 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                          f"{interior_module.MAX_GFLOP:g}; docs/inverse.md)")
         return None
 
-    solved_with: dict = {}
-
     def solve(stiff: np.ndarray, r0: np.ndarray | None, first: bool):
         # D = w K^-2; b = H D (F_g - K (q - t))
         d = np.repeat(weight, 3) / stiff ** 2
         b = rows.matvec(d * (F_g - stiff * (q - target.ravel())))
         gammas = contact_gamma(rows, d, settings.gamma, settings.gamma_relative)
-        solved_with["gamma"] = gammas
         interior = steps(d, b, gammas)
         if interior is None and first and r0 is None and contacts.n_contacts \
                 and not np.any(contacts.strand[:, 1] >= 0):
@@ -748,11 +750,11 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
             raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
                            f"residual {result.residual:.3g} N")
         carrying = result.r[:, 0] > settings.tolerance * force_scale if len(result.r) else np.zeros(0, bool)
-        return result, carrying, r0
+        return result, carrying, r0, gammas
 
     stiff = stiffness(helices, material, factor)
     newton_start = r0 is None
-    result, carrying, r0 = solve(stiff, r0, True)
+    result, carrying, r0, gammas = solve(stiff, r0, True)
     afresh = warm and result.method == "interior-point"  # auto took the interior point: the start went unused
     warm = warm and not afresh
     first_residual = result.history[0][1] if result.history else np.nan
@@ -811,7 +813,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                     changed = np.flatnonzero(factor != before)
                     margin, _, always, groups, group_lam, too_large = margins(stiff, carrying, result.r, changed)
                     continue
-                result, carrying, _ = solve(stiff, result.r, False)
+                result, carrying, _, gammas = solve(stiff, result.r, False)
                 sweeps += result.sweeps
                 stiffened_rounds += 1
                 margin, _, always, groups, group_lam, too_large = margins(stiff, carrying, result.r)
@@ -842,7 +844,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                   stability_margin=margin if check_stability else None, stable_under=settings.stable_under,
                   carrying_threshold=settings.tolerance * force_scale)
     if declared == contacts.n_contacts and settings.gamma_relative > 0.0:
-        model.gamma_relative, model.contact_gamma = float(settings.gamma_relative), solved_with["gamma"]
+        model.gamma_relative, model.contact_gamma = float(settings.gamma_relative), gammas
     report = InvertReport(
         settings.target, contacts.n_contacts, contacts.n_body, int(carrying.sum()), result, force_scale,
         float(np.sqrt(np.mean(np.sum(drift ** 2, axis=1)))) if len(drift) else 0.0,
