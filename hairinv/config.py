@@ -166,8 +166,9 @@ class SolverSettings:
     force on that contact alone moves the rest shape by): it bounds the loops of opposed forces that the
     paper's ``gamma`` leaves free (docs/inverse.md, "Bounded forces"). 0: the paper's problem."""
     tolerance: float = 1e-4
-    """Stop when the natural-map residual is below this fraction of the heaviest strand's weight
-    (docs/inverse.md; the equilibrium itself is exact whatever the residual, it measures optimality)."""
+    """The sweeps stop when the natural-map residual is below this fraction of the heaviest strand's weight,
+    or when ``rest_tolerance`` is met, whichever comes first (docs/inverse.md; the equilibrium itself is exact
+    whatever the residual, it measures optimality)."""
     max_sweeps: int = 2000
     """Largest number of Gauss-Seidel sweeps over all contacts."""
     method: str = "auto"
@@ -175,10 +176,11 @@ class SolverSettings:
     ``hairinv.invert.AUTO_GFLOP`` a step, the sweeps otherwise), interior-point (a primal-dual interior-point
     method, one sparse Cholesky factorisation a step, stopped by ``rest_tolerance``: it reaches the optimum
     where the sweeps stall, at the cost of factoring a system as large as the groom's coordinates) or sweeps
-    (block Gauss-Seidel over the contacts, stopped by ``tolerance``). docs/inverse.md, "The solver"."""
+    (block Gauss-Seidel over the contacts, stopped by ``rest_tolerance`` or ``tolerance``). docs/inverse.md,
+    "The solver"."""
     rest_tolerance: float = 0.05
-    """1/m. interior-point stops once its duality gap bounds the distance of the rest shape from the
-    optimum (rms over elements) below this. The sweeps have no such bound and ignore it."""
+    """1/m. Both methods stop once a duality gap bounds the distance of the rest shape from the optimum
+    (rms over elements) below this; the sweeps stop too at ``tolerance``."""
     max_iterations: int = 100
     """Largest number of interior-point steps."""
     check_every: int = 5

@@ -499,7 +499,8 @@ class InvertReport:
             ]
             if np.isfinite(r.rest_bound):
                 lines.append(f"the rest shape is within {r.rest_bound:.2g} 1/m (rms over elements) of the optimum, "
-                             "by the interior-point method's duality gap")
+                             f"by the {'interior-point method' if r.method == 'interior-point' else 'forces'}' "
+                             "duality gap")
         lines += [
             f"rest shape: rms drift from the target {self.drift_rms:.4g} 1/m, "
             f"largest rest curvature {self.max_rest_curvature:.4g} 1/m",
@@ -738,7 +739,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                                progress=progress if interior is None else None, s=contacts.s,
                                accelerate=settings.accelerate,
                                part_of=split_strands(helices.root, contacts.strand),
-                               max_seconds=settings.max_seconds)
+                               max_seconds=settings.max_seconds, rest_tolerance=settings.rest_tolerance)
         if interior is not None:
             result.method = "interior-point"
             result.interior_steps = interior.iterations
@@ -874,12 +875,19 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     elif newton_start:
         report.notes.append("no contact couples two strands: each strand's contacts were first solved together "
                             "(Newton on their block), and the sweeps started from those forces")
-    if result.status != CONVERGED and np.isfinite(result.rest_bound):
+    if result.status != CONVERGED and result.method == "interior-point" and np.isfinite(result.rest_bound):
         report.notes.append(
             f"warning: the interior-point method stopped at {result.status} with the rest shape within "
             f"{result.rest_bound:.2g} 1/m of the optimum (solver.rest_tolerance {settings.rest_tolerance:g}); the "
             "model is an exact equilibrium, but its forces are not yet the best ones: raise solver.max_iterations "
             "(or solver.max_seconds) or solver.rest_tolerance")
+    elif result.status != CONVERGED and np.isfinite(result.rest_bound):
+        report.notes.append(
+            f"warning: the sweeps stopped at {result.status} with the rest shape within {result.rest_bound:.2g} "
+            f"1/m of the optimum (solver.rest_tolerance {settings.rest_tolerance:g}; relative residual "
+            f"{result.relative_residual:.2g}, solver.tolerance {settings.tolerance:g}); the model is an exact "
+            "equilibrium, but its forces may not yet be the best ones: invert this model again to continue from "
+            "its forces, or raise solver.max_sweeps (or solver.max_seconds) or solver.rest_tolerance (docs/inverse.md)")
     elif result.status != CONVERGED:
         report.notes.append(
             f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "

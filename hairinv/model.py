@@ -284,8 +284,8 @@ class Model:
                      prior_sweeps=int(self.prior_sweeps), method=self.result.method)
         if self.result.method == "interior-point":
             attrs["interior_steps"] = int(self.result.interior_steps)
-            if np.isfinite(self.result.rest_bound):
-                attrs["rest_bound"] = float(self.result.rest_bound)
+        if np.isfinite(self.result.rest_bound):
+            attrs["rest_bound"] = float(self.result.rest_bound)
         data = {"omega_rest": self.omega_rest, "omega_target": self.omega_target,
                 "target_weight": self.target_weight, "force": self.force,
                 "residual_history": np.array(self.result.history, dtype=np.float64).reshape(-1, 2)}

@@ -126,9 +126,10 @@ def two_strand_scene(mu=0.3):
 def solve(helices, contacts, mat=None, **solver):
     """Invert by the sweeps to ``TIGHT`` (the interior-point method's own tests: tests/test_interior.py), with
     the friction as declared (no reserve: ``test_friction_reserve`` tests the reserve) and the paper's single
-    ``gamma`` (``test_gamma_relative`` tests the per-contact one)."""
+    ``gamma`` (``test_gamma_relative`` tests the per-contact one); the residual alone stops the sweeps
+    (``rest_tolerance`` far below what they reach: ``test_rest_gap`` tests that stop)."""
     settings = SolverSettings(**{"tolerance": TIGHT, "max_sweeps": 20000, "method": "sweeps", "friction_reserve": 0.0,
-                                 "gamma_relative": 0.0, **solver})
+                                 "gamma_relative": 0.0, "rest_tolerance": 1e-300, **solver})
     model, report = invert(helices, contacts, mat or material(), settings)
     return model, report
 
@@ -175,6 +176,28 @@ def dense_problem(helices, contacts, mat, model):
     gamma = model.gamma if model.contact_gamma is None else np.repeat(model.contact_gamma, 3)
     W = H @ (d[:, None] * H.T) + np.diag(np.broadcast_to(gamma, len(H)))
     return W, b, H, d
+
+
+def primal_dual(helices, contacts, mat, model, r, y=None):
+    """The inverse problem's objective ``P(r) = 1/2 |q0(r) - t|^2 + 1/2 sum_c gamma_c |r_c|^2`` (the rest shape
+    from the equilibrium, ``q0 = q - (F_g + H^T r) / K``) and its Lagrange dual
+    ``G(y) = -1/2 |y|^2 + y . (t - q + F_g / K) - sum_c |P_K(-(H y / K)_c)|^2 / (2 gamma_c)``, derived here
+    from ``P`` with a multiplier ``y`` of the equilibrium (scaled by ``K``): ``G(y) <= P(r)`` for every ``y`` and
+    forces ``r`` in the cones. ``y`` defaults to ``t - q0(r)``, the rest shape's own deviation. Targets weighted
+    1 (the default). Returns ``(P(r), G(y))``."""
+    rows = contact_rows(helices, contacts)
+    H = rows.to_sparse().toarray()
+    K = stiffness(helices, mat)
+    F_g = generalized_gravity(helices, mat).ravel()
+    q, t = helices.omega.ravel(), model.omega_target.ravel()
+    gamma = np.broadcast_to(model.gamma if model.contact_gamma is None else model.contact_gamma, len(r))
+    q0 = q - (F_g + H.T @ r.ravel()) / K
+    P = 0.5 * np.sum((q0 - t) ** 2) + 0.5 * np.sum(gamma * np.sum(r ** 2, axis=1))
+    y = t - q0 if y is None else y
+    v = (H @ (y / K)).reshape(-1, 3)
+    G = -0.5 * y @ y + y @ (t - q + F_g / K) \
+        - np.sum(np.sum(_cone_projection(-v, contacts.mu) ** 2, axis=1) / (2.0 * gamma))
+    return P, G
 
 
 def check_optimality(W, b, r, mu, rtol):
@@ -555,11 +578,14 @@ def test_natural_residual_of_a_contact_with_zero_delassus_block_is_nan_not_an_ex
 
 
 def _cone_projection(x, mu):
-    """Euclidean projection of each row (normal, t1, t2) onto ``{|t| <= mu n}``, written out here."""
+    """Euclidean projection of each row (normal, t1, t2) onto ``{|t| <= mu n}``, written out here
+    (mu = inf: the half-space ``n >= 0``)."""
     out = np.zeros_like(x)
     for i, (v, m) in enumerate(zip(x, mu)):
         n, t = v[0], np.hypot(v[1], v[2])
-        if t <= m * n:
+        if np.isinf(m):
+            out[i] = [max(n, 0.0), v[1], v[2]]
+        elif n >= 0.0 and t <= m * n:
             out[i] = v
         elif m * t > -n:  # neither inside the cone nor inside its polar: onto the boundary
             a = (n + m * t) / (1.0 + m * m)
@@ -572,7 +598,8 @@ def test_a_start_far_from_the_optimum_reaches_the_same_optimum():
     the cones and converges to the optimum a cold start finds; the optimum, given as the start, takes no sweep."""
     helices, contacts = two_strand_scene(mu=0.3)
     mat = material()
-    settings = SolverSettings(tolerance=TIGHT, max_sweeps=20000, method="sweeps", friction_reserve=0.0)
+    settings = SolverSettings(tolerance=TIGHT, max_sweeps=20000, method="sweeps", friction_reserve=0.0,
+                              rest_tolerance=1e-300)
     cold, _ = invert(helices, contacts, mat, settings)
     wild = np.random.default_rng(0).normal(size=(contacts.n_contacts, 3)) * 10 * np.abs(cold.force).max()
     warm, report = invert(helices, contacts, mat, settings, start=wild, prior_sweeps=7)
@@ -618,3 +645,61 @@ def test_a_model_of_another_gamma_relative_is_not_a_start():
     assert group.attrs["gamma_relative"] == now.gamma_relative and len(group.datasets["contact_gamma"]) == 3
     forces, _, line, _ = warm_start(group, mat, dataclasses.replace(now, tolerance=TIGHT), "same.h5", helices.n_strands)
     assert forces is not None and "starting afresh" not in line
+
+
+@pytest.mark.parametrize("scene", [resting_scene, two_strand_scene])
+@pytest.mark.parametrize("mu", [0.0, 0.3, np.inf])
+def test_rest_gap(scene, mu):
+    """The sweeps' bound on the rest shape's distance from the optimum (``rest_gap``): for forces in the cones
+    it is ``sqrt(2 (P(r) - G(y)) / elements)`` with the dual derived here (:func:`primal_dual`); the dual is a
+    lower bound of the optimum at any multiplier; the distance of any forces' rest shape from the optimum is
+    within the bound; the bound vanishes at the optimum; and with a loose ``rest_tolerance`` the sweeps stop
+    on it (CONVERGED while the residual is far above its tolerance), report it and write it to the model."""
+    from hairinv.solver.gauss_seidel import solve_cone_qp
+
+    helices, contacts = scene(mu=mu)
+    mat = material()
+    best, report = solve(helices, contacts, mat, gamma_relative=1e-2)
+    assert report.result.status == "CONVERGED"
+    E = helices.n_elements
+    W, b, H, d = dense_problem(helices, contacts, mat, best)
+    gammas = best.contact_gamma
+    rows = contact_rows(helices, contacts)
+    scale_q = np.abs(generalized_gravity(helices, mat).ravel() / stiffness(helices, mat)).max()
+    P_best, G_best = primal_dual(helices, contacts, mat, best, best.force)
+    assert P_best - G_best <= 1e-10 * P_best  # no gap at the optimum: the dual is the right one
+    rng = np.random.default_rng(1)
+
+    def kernel_bound(r):
+        return solve_cone_qp(rows, d, gammas, b.reshape(-1, 3), contacts.mu, contacts.strand, helices.n_strands,
+                             1.0, TIGHT, max_sweeps=0, r0=r).rest_bound
+
+    big = np.abs(best.force).max()
+    for k in range(5):
+        r = _cone_projection(best.force + rng.normal(size=best.force.shape) * big * 10.0 ** -k, contacts.mu)
+        P, G = primal_dual(helices, contacts, mat, best, r)
+        bound = kernel_bound(r)
+        assert bound == pytest.approx(np.sqrt(2.0 * (P - G) / E), rel=1e-7)
+        distance = np.sqrt(np.mean(np.sum((rest_of(helices, mat, H, r) - best.omega_rest) ** 2, axis=1)))
+        assert distance <= bound * (1 + 1e-9) + 1e-9 * scale_q
+        # weak duality at multipliers that are not the rest shape's
+        y = rng.normal(size=3 * E) * scale_q
+        assert primal_dual(helices, contacts, mat, best, r, y)[1] <= P_best + 1e-12 * abs(P_best)
+    assert kernel_bound(best.force) <= 1e-6 * scale_q
+    # a loose rest_tolerance stops the sweeps on the bound
+    loose = 0.3 * kernel_bound(np.zeros_like(best.force))
+    model, report = solve(helices, contacts, mat, gamma_relative=1e-2, rest_tolerance=loose, check_every=1)
+    result = report.result
+    assert result.status == "CONVERGED" and result.rest_bound <= loose
+    if scene is two_strand_scene:  # (body contacts alone are solved at once by Newton before any sweep)
+        assert result.relative_residual > 1e3 * TIGHT
+    distance = np.sqrt(np.mean(np.sum((model.omega_rest - best.omega_rest) ** 2, axis=1)))
+    assert distance <= result.rest_bound
+    assert any("by the forces' duality gap" in line for line in report.lines())
+    assert model.group({}, []).attrs["rest_bound"] == result.rest_bound
+
+
+def rest_of(helices, mat, H, r):
+    """``q0 = q - (F_g + H^T r) / K``, (E, 3)."""
+    K = stiffness(helices, mat)
+    return (helices.omega.ravel() - (generalized_gravity(helices, mat).ravel() + H.T @ r.ravel()) / K).reshape(-1, 3)

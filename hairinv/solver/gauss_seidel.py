@@ -19,7 +19,10 @@ halves.
 The stop test is the natural map ``|r_i - P_K(r_i - (W r + b)_i / rho_i)|``
 with ``rho_i = trace(W_ii) / 3``: a force, in newtons, zero exactly at the
 solution. Its largest value over the contacts is compared with
-``tolerance * force_scale``.
+``tolerance * force_scale``. The inverse problem's sweeps stop too once
+the rest shape is provably within ``rest_tolerance`` (1/m, rms over
+elements) of the optimum, by a duality gap measured at each check
+(:func:`rest_gap`).
 """
 
 from __future__ import annotations
@@ -69,8 +72,9 @@ class SolverResult:
     local_failures : int, local solves that returned their best iterate unconverged in the last sweep
     method : "sweeps", or "interior-point" when the forces come from :mod:`hairinv.solver.interior`
     interior_steps : int, interior-point steps taken (0 for the sweeps)
-    rest_bound : float, 1/m, the interior-point method's bound on the rest shape's distance from the
-        optimum (rms over elements; NaN when there is none)
+    rest_bound : float, 1/m, a bound on the rest shape's distance from the optimum, rms over elements, from
+        a duality gap (:func:`rest_gap` for the sweeps, the interior-point method's own for its forces; NaN
+        when there is none: the De Saxce problem of the dynamics)
     """
 
     r: np.ndarray
@@ -218,6 +222,45 @@ def project_forces(r: np.ndarray, mu: np.ndarray) -> np.ndarray:
 
 
 @jit(error_model="numpy")
+def rest_gap(ptr, cols, vals, f, gamma, b, mu, r):
+    """A duality gap of forces ``r`` in the cones: ``f(r) - f* <= gap`` for ``f(r) = 1/2 r^T W r + b^T r``,
+    ``W = H D H^T + diag(gamma)``, with ``f = D H^T r``.
+
+    With ``b = H D a`` the problem is ``min 1/2 |D^1/2 (H^T r + a)|^2 + 1/2 sum gamma_i |r_i|^2`` over the
+    cones, whose Lagrange dual is ``max_y -1/2 |y|^2 + y^T D^1/2 a - sum_i |P_K(-v_i)|^2 / (2 gamma_i)``,
+    ``v = H D^1/2 y``. At ``y = D^1/2 (H^T r + a)`` (the rest shape's own deviation), ``v = H f + b`` and the
+    gap is ``sum_i |gamma_i r_i - P_K(-v_i)|^2 / (2 gamma_i) + r_i . (P_K(-v_i) + v_i)``: each term is
+    non-negative (``r_i`` in the cone, ``-v_i - P_K(-v_i)`` in its polar), and all vanish at the optimum.
+    So no constant of the objective and no solve is needed: one pass over the rows. Since the objective is
+    ``1/2 |q0 - t|^2`` plus the ``gamma`` term, ``|q0 - q0*|^2 <= 2 gap`` (docs/inverse.md).
+    Returns inf where a contact of ``gamma_i = 0`` has ``P_K(-v_i) != 0``, NaN for a non-finite term.
+    """
+    u = np.empty(3)
+    w = np.empty(3)
+    p = np.empty(3)
+    gap = 0.0
+    for i in range(ptr.shape[0] - 1):
+        _contact_u(i, ptr, cols, vals, f, gamma, b, r, u)
+        g = gamma[i]
+        for a in range(3):
+            w[a] = -(u[a] - g * r[i, a])  # -v_i: u includes gamma_i r_i
+        project_cone(w, mu[i], p)
+        slack = 0.0
+        for a in range(3):
+            slack += r[i, a] * (p[a] - w[a])
+        if slack < 0.0:  # round-off only: r_i in the cone, w - P_K(w) in its polar
+            slack = 0.0
+        apart = (g * r[i, 0] - p[0]) ** 2 + (g * r[i, 1] - p[1]) ** 2 + (g * r[i, 2] - p[2]) ** 2
+        if g > 0.0:
+            gap += apart / (2.0 * g) + slack
+        elif apart > 0.0:
+            gap += np.inf
+        else:
+            gap += slack
+    return gap
+
+
+@jit(error_model="numpy")
 def natural_residuals(ptr, cols, vals, f, gamma, Wd, b, mu, r, desaxce, velocity, out):
     """Per-contact natural-map residual ``|r_i - P_K(r_i - u_i / rho_i)|`` in force units.
 
@@ -361,7 +404,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
                   max_sweeps: int = 2000, check_every: int = 5, r0: np.ndarray | None = None,
                   desaxce: bool = False, progress=None, s: np.ndarray | None = None,
                   accelerate: bool = True, part_of: np.ndarray | None = None,
-                  max_seconds: float = 0.0, velocity: bool = False) -> SolverResult:
+                  max_seconds: float = 0.0, velocity: bool = False, rest_tolerance: float = 0.0) -> SolverResult:
     """Solve the cone complementarity problem of ``W = H D H^T + gamma I`` and ``b``.
 
     Parameters
@@ -378,6 +421,9 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     force_scale : float, N, the force the tolerance is relative to (with ``velocity``: a velocity, m/s)
     velocity : bool, measure the residual in velocity units (see :func:`natural_residuals`)
     tolerance : float, stop when the largest natural-map residual is below ``tolerance * force_scale``
+    rest_tolerance : float, 1/m, stop too when the rest-shape bound ``sqrt(2 gap / elements)`` (:func:`rest_gap`,
+        elements = a third of ``H``'s columns) is below it; 0: the residual alone (the bound is measured at
+        every check all the same, except for the De Saxce problem, which has no objective)
     r0 : (C, 3) float64, optional warm start
     desaxce : bool, solve the De Saxce-modified (dynamic) problem instead of the convex one
     progress : callable(sweeps, relative residual), optional, called at every residual check
@@ -396,7 +442,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     b = np.ascontiguousarray(b, dtype=np.float64)
     mu = np.ascontiguousarray(mu, dtype=np.float64)
     if n_contacts == 0:
-        return SolverResult(r, CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started)
+        return SolverResult(r, CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started, rest_bound=0.0)
     gamma = np.ascontiguousarray(np.broadcast_to(np.asarray(gamma, dtype=np.float64), (n_contacts,)))
     Wd = np.empty((n_contacts, 3, 3))
     diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, gamma, Wd)
@@ -421,19 +467,28 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     # status and the residual it reports are those of the forces it returns
     checked = np.empty((n_contacts, 3))
 
+    elements = rows.n_dofs // 3
+    bound = [np.nan]  # the rest-shape bound at the last check (1/m)
+
     def _check(point: np.ndarray) -> float:
         _extrapolate(point, point, 0.0, mu, checked)
         # f rebuilt from the point itself, so round-off of the incremental updates cannot accumulate
         _accumulate_f(rows.ptr, rows.cols, rows.vals, d, checked, f_check)
+        if not desaxce and elements:
+            gap = rest_gap(rows.ptr, rows.cols, rows.vals, f_check, gamma, b, mu, checked)
+            bound[0] = float(np.sqrt(2.0 * max(gap, 0.0) / elements))
         return natural_residuals(rows.ptr, rows.cols, rows.vals, f_check, gamma, Wd, b, mu, checked, desaxce,
                                  velocity, per_contact)
+
+    def _met(residual: float) -> bool:
+        return residual <= target or (rest_tolerance > 0.0 and bound[0] <= rest_tolerance)
 
     def sweep_colour(lo: int, hi: int) -> tuple[int, int]:
         return _sweep(order, lo, hi, rows.ptr, rows.cols, rows.vals, d, gamma, Wd, b, mu, r, f, local_tol, desaxce)
 
     residual = _check(r)
     history.append((0, float(residual)))
-    if residual <= target:
+    if _met(residual):
         status = CONVERGED
     # momentum state: x the last accepted iterate, r the point the next sweep starts from
     accelerate = accelerate and not desaxce  # the De Saxce problem has no objective to guard the momentum
@@ -501,7 +556,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
                     progress(sweeps, residual / force_scale)
                 if not np.isfinite(residual) or not np.all(np.isfinite(r)):
                     status = NUMERICAL
-                elif residual <= target:
+                elif _met(residual):
                     status = CONVERGED
                 elif max_seconds > 0 and time.perf_counter() - started > max_seconds:
                     break
@@ -513,4 +568,4 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     # the forces the last check measured: the last iterate, projected onto the cones
     r = checked.copy()
     return SolverResult(r, status, sweeps, float(residual), float(residual / force_scale), history,
-                        time.perf_counter() - started, len(bounds) - 1, failures, restarts)
+                        time.perf_counter() - started, len(bounds) - 1, failures, restarts, rest_bound=bound[0])
