@@ -64,6 +64,8 @@ INV_TOLERANCES = smoke((1e-2, 1e-3, 1e-4, 1e-5), (1e-2, 1e-4))  # 1e-6: the fina
 INV_SWEEPS = smoke((20, 50, 100, 200, 500, 1000, 2000, 5000), (10, 50))
 INV_BUDGETS = smoke((0.01, 0.03, 0.1, 0.3), (0.01,))
 INV_REST = smoke((1.0, 0.5, 0.2, 0.05, 0.02, 0.005, 0.001), (0.5, 0.05))  # 1/m, the interior-point method
+INV_SWEEPS_REST = smoke((1.0, 0.5, 0.2, 0.05, 0.02, 0.005), (0.5,))  # 1/m, the sweeps stopped by their own bound
+RESIDUAL_ONLY = 1e-300  # solver.rest_tolerance below any bound: the residual, the cap or the budget stops the sweeps
 UNCAPPED = 100_000  # sweeps: a tolerance run stops on its tolerance
 TINY = 1e-12  # a run to a sweep count or a time budget: no tolerance stops it first
 REFERENCE_CLARABEL = 1e-10
@@ -299,7 +301,7 @@ def invert_stage() -> dict:
                                            tol=REFERENCE_CLARABEL)
         clarabel_seconds = time.perf_counter() - started
         polish = dataclasses.replace(solver, method="sweeps", tolerance=REFERENCE_POLISH,
-                                     max_sweeps=REFERENCE_POLISH_SWEEPS)
+                                     max_sweeps=REFERENCE_POLISH_SWEEPS, rest_tolerance=RESIDUAL_ONLY)
         polished, report = invert(helices, contacts, material, polish, check_stability=False, start=r_ref)
         candidates = [(prob.objective(r_ref), "Clarabel", r_ref), (prob.objective(polished.force), "polished",
                                                                    polished.force)]
@@ -323,9 +325,11 @@ def invert_stage() -> dict:
             reference_relres=prob.natural_residual(r_star) / scale, clarabel_gap=(prob.objective(r_ref) - f_star),
             f_star=f_star, drift=prob.drift(r_star), gravity_only=gravity_only))
         invert(helices, contacts, material, solver, check_stability=False)  # warm
-        sweeps = dict(method="sweeps", rest_tolerance=solver.rest_tolerance)
+        sweeps = dict(method="sweeps", rest_tolerance=RESIDUAL_ONLY)
         runs = ([dict(kind="rest", method="interior-point", rest_tolerance=t, tolerance=solver.tolerance,
                       max_sweeps=solver.max_sweeps, max_seconds=0.0) for t in INV_REST]
+                + [dict(kind="sweeps rest", method="sweeps", rest_tolerance=t, tolerance=TINY, max_sweeps=UNCAPPED,
+                        max_seconds=0.0) for t in INV_SWEEPS_REST]
                 + [dict(kind="tolerance", tolerance=t, max_sweeps=UNCAPPED, max_seconds=0.0, **sweeps)
                    for t in INV_TOLERANCES]
                 + [dict(kind="sweeps", tolerance=TINY, max_sweeps=s, max_seconds=0.0, **sweeps) for s in INV_SWEEPS]
@@ -361,6 +365,8 @@ def invert_plot(result: dict, path: Path) -> None:
         rows = [r for r in result["rows"] if r["groom"] == problem["groom"]]
         for kind, colour, label, tag in (
                 ("rest", "tab:green", "solver.rest_tolerance (interior point)", lambda r: f"{r['rest_tolerance']:g}"),
+                ("sweeps rest", "tab:purple", "solver.rest_tolerance (sweeps, max_sweeps unlimited)",
+                 lambda r: f"{r['rest_tolerance']:g}"),
                 ("tolerance", "tab:blue", "solver.tolerance (max_sweeps unlimited)", lambda r: f"{r['tolerance']:g}"),
                 ("sweeps", "tab:red", "solver.max_sweeps (no tolerance)", lambda r: f"{r['max_sweeps']}"),
                 ("budget", "tab:gray", "solver.max_seconds (no tolerance)", lambda r: f"{r['max_seconds']:g} s")):
@@ -389,13 +395,14 @@ def invert_section(result: dict) -> list[str]:
     rows = []
     for r in result["rows"]:
         what = {"rest": f"interior point, rest_tolerance {r['rest_tolerance']:g}",
+                "sweeps rest": f"sweeps, rest_tolerance {r['rest_tolerance']:g}",
                 "tolerance": f"sweeps, tolerance {r['tolerance']:g}",
                 "sweeps": f"sweeps, max_sweeps {r['max_sweeps']}",
                 "budget": f"sweeps, max_seconds {r['max_seconds']:g}",
                 "preset": f"**{r['preset']}** (method {r['method']}, rest_tolerance {r['rest_tolerance']:g}; sweeps: "
                           f"tolerance {r['tolerance']:g}, max_sweeps {r['max_sweeps']})"}[r["kind"]]
         work = (f"{r['steps']} steps, bound {_g(r['bound'], 2)}" if r["used"] == "interior-point"
-                else f"{r['sweeps']} sweeps")
+                else f"{r['sweeps']} sweeps, bound {_g(r['bound'], 2)}")
         rows.append([r["groom"], what, f"{1e3 * r['seconds']:.0f}", f"{work} ({r['status']})",
                      f"{r['relres']:.1e}", f"{r['gap']:.1e}", _g(r["rms"], 3), _g(r["max"], 3)])
     probs = []

@@ -498,9 +498,9 @@ class InvertReport:
                 f"({self.force_scale:.3g} N)",
             ]
             if np.isfinite(r.rest_bound):
+                whose = "interior-point method's" if r.method == "interior-point" else "forces'"
                 lines.append(f"the rest shape is within {r.rest_bound:.2g} 1/m (rms over elements) of the optimum, "
-                             f"by the {'interior-point method' if r.method == 'interior-point' else 'forces'}' "
-                             "duality gap")
+                             f"by the {whose} duality gap")
         lines += [
             f"rest shape: rms drift from the target {self.drift_rms:.4g} 1/m, "
             f"largest rest curvature {self.max_rest_curvature:.4g} 1/m",
