@@ -377,18 +377,21 @@ def _stage_progress(enabled: bool):
 
 
 class SolverProgress(Progress):
-    """A bar of Gauss-Seidel sweeps showing the relative residual (or of interior-point steps showing the
-    rest-shape bound, 1/m), on a terminal only."""
+    """A bar of Gauss-Seidel sweeps showing the relative residual and the rest-shape bound (1/m), or of
+    interior-point steps showing the bound."""
 
     def __init__(self, total: int, enabled: bool, unit: str = "sweep", measure: str = "residual"):
         super().__init__(total, "invert", enabled, unit=unit)
         self.measure = measure
 
-    def __call__(self, sweeps: int, relative: float) -> None:
+    def __call__(self, sweeps: int, relative: float, bound: float = float("nan")) -> None:
+        shown = f"{self.measure} {relative:.1e}"
+        if bound == bound:  # not NaN: the sweeps' own bound
+            shown += f", rest shape within {bound:.2g} 1/m"
         if self.bar is not None:
             self.bar.update(sweeps - self.bar.n)
-            self.bar.set_postfix_str(f"{self.measure} {relative:.1e}")
-        self.extra = f", {self.measure} {relative:.1e}"
+            self.bar.set_postfix_str(shown)
+        self.extra = f", {shown}"
         self._advance(sweeps)
 
     def interior(self, steps: int) -> "SolverProgress":

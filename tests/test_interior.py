@@ -236,7 +236,7 @@ def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_els
         def __init__(self):
             self.unit, self.seen = "sweep", []
 
-        def __call__(self, n, value):
+        def __call__(self, n, value, *bound):
             self.seen.append(self.unit)
 
         def interior(self, steps):

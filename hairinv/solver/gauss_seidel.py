@@ -426,7 +426,8 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
         every check all the same, except for the De Saxce problem, which has no objective)
     r0 : (C, 3) float64, optional warm start
     desaxce : bool, solve the De Saxce-modified (dynamic) problem instead of the convex one
-    progress : callable(sweeps, relative residual), optional, called at every residual check
+    progress : callable(sweeps, relative residual, rest-shape bound in 1/m), optional, called at every residual
+        check (the bound NaN for the De Saxce problem)
     accelerate : bool
         Nesterov momentum over sweeps with an adaptive restart (O'Donoghue and
         Candes 2015): each sweep starts from ``P_K(x_k + beta_k (x_k - x_{k-1}))``
@@ -553,7 +554,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
                 residual = _check(x if accelerate else r)
                 history.append((sweeps, float(residual)))
                 if progress is not None:
-                    progress(sweeps, residual / force_scale)
+                    progress(sweeps, residual / force_scale, bound[0])
                 if not np.isfinite(residual) or not np.all(np.isfinite(r)):
                     status = NUMERICAL
                 elif _met(residual):
