@@ -387,7 +387,7 @@ def pipeline_point(spec: dict) -> dict:
     material = Material.from_settings(settings.material, groom.up)
     checks = []
 
-    def progress(sweeps, relres):
+    def progress(sweeps, relres, *_bound):
         checks.append((int(sweeps), time.perf_counter() - box["t0"], float(relres)))
 
     def run_invert():

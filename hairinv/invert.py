@@ -498,7 +498,7 @@ class InvertReport:
                 f"({self.force_scale:.3g} N)",
             ]
             if np.isfinite(r.rest_bound):
-                whose = "interior-point method's" if r.method == "interior-point" else "forces'"
+                whose = "interior-point method's" if r.bound_from == "interior-point" else "forces'"
                 lines.append(f"the rest shape is within {r.rest_bound:.2g} 1/m (rms over elements) of the optimum, "
                              f"by the {whose} duality gap")
         lines += [
@@ -643,8 +643,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     contacts : Contacts or None; ignored for the gravity-only target
     material : Material
     settings : SolverSettings
-    progress : callable(sweeps, relative residual), optional; with ``settings.method = "interior-point"``
-        called as (step, rest-shape bound in 1/m)
+    progress : callable(sweeps, relative residual, rest-shape bound in 1/m), optional; with
+        ``settings.method = "interior-point"`` called as (step, rest-shape bound in 1/m)
     start : (C, 3) float64, optional, forces to start the solver from (an earlier model's, one per
         contact), projected onto the cones first; the problem is convex, so the answer is the same
         optimum to the tolerance, reached sooner from a good start
@@ -746,6 +746,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
             result.seconds += interior.seconds
             if sweeps_cap == 0:
                 result.rest_bound = interior.rest_bound
+                result.bound_from = "interior-point"
                 result.status = CONVERGED if interior.status == CONVERGED else MAX_ITERS
         if result.status not in (CONVERGED,) and not np.all(np.isfinite(result.r)):
             raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
@@ -875,7 +876,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     elif newton_start:
         report.notes.append("no contact couples two strands: each strand's contacts were first solved together "
                             "(Newton on their block), and the sweeps started from those forces")
-    if result.status != CONVERGED and result.method == "interior-point" and np.isfinite(result.rest_bound):
+    if result.status != CONVERGED and result.bound_from == "interior-point" and np.isfinite(result.rest_bound):
         report.notes.append(
             f"warning: the interior-point method stopped at {result.status} with the rest shape within "
             f"{result.rest_bound:.2g} 1/m of the optimum (solver.rest_tolerance {settings.rest_tolerance:g}); the "
@@ -887,7 +888,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
             f"1/m of the optimum (solver.rest_tolerance {settings.rest_tolerance:g}; relative residual "
             f"{result.relative_residual:.2g}, solver.tolerance {settings.tolerance:g}); the model is an exact "
             "equilibrium, but its forces may not yet be the best ones: invert this model again to continue from "
-            "its forces, or raise solver.max_sweeps (or solver.max_seconds) or solver.rest_tolerance (docs/inverse.md)")
+            "its forces, or raise solver.max_sweeps (or solver.max_seconds) or solver.rest_tolerance, or solve to "
+            "the optimum with --set solver.method=interior-point (docs/inverse.md)")
     elif result.status != CONVERGED:
         report.notes.append(
             f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "

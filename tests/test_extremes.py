@@ -262,7 +262,10 @@ def weight_of(helices, mat):
 def checked_inversion(helices, contacts, mat, tolerance=1e-8, max_sweeps=20000, method="sweeps", **solver):
     """Invert, then check everything the module docstring promises, independently; returns (model, report).
     With the interior-point method (``method`` interior-point or auto), its status is checked against the
-    rest shape of the sweeps at ``tolerance`` (:func:`interior_status_is_honest`)."""
+    rest shape of the sweeps at ``tolerance`` (:func:`interior_status_is_honest`). The sweeps stop at
+    ``tolerance`` alone unless ``rest_tolerance`` is given (tests/test_invert.py tests their bound's stop)."""
+    if method == "sweeps":
+        solver.setdefault("rest_tolerance", 1e-300)
     settings = SolverSettings(**{"tolerance": tolerance, "max_sweeps": max_sweeps, "method": method, **solver})
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)  # no inf * 0 or 0 / 0 on the way
@@ -300,7 +303,9 @@ def checked_inversion(helices, contacts, mat, tolerance=1e-8, max_sweeps=20000, 
         # few ulps of the largest force: levers near a root of metre-long elements carry thousands of weights)
         assert abs(result.residual - residual) <= 1e-3 * target + 1e-6 * residual \
             + 64 * np.finfo(float).eps * np.abs(r).max(initial=0.0)
-        if result.method == "interior-point" and np.all(mu_in_range(mu)):  # the steps decided the status
+        # the steps decided the status (friction within their range: the sweeps had nothing to finish)
+        if result.method == "interior-point" and np.all(mu_in_range(mu)):
+            assert result.bound_from == "interior-point"
             interior_status_is_honest(helices, contacts, mat, settings, model, result)
         else:  # the sweeps: the residual or their rest-shape bound
             met = result.rest_bound <= settings.rest_tolerance

@@ -119,8 +119,9 @@ def test_friction_outside_the_steps_range_is_finished_by_the_sweeps(mu):
     model, report = solve(helices, contacts, mat, **ip(helices, mat))
     r = report.result
     assert r.status == "CONVERGED" and r.interior_steps > 0
-    # the steps solved another cone: the bound reported is the sweeps', on the problem as declared
-    assert r.method == "interior-point" and np.isfinite(r.rest_bound) and r.rest_bound >= 0.0
+    # the steps solved another cone: the bound reported is the sweeps', on the problem as declared, and says so
+    assert r.method == "interior-point" and r.bound_from == "sweeps" and 0.0 <= r.rest_bound < np.inf
+    assert any("by the forces' duality gap" in line for line in report.lines())
     W, b, _, _ = dense_problem(helices, contacts, mat, model)
     check_optimality(W, b, model.force, contacts.mu, rtol=1e-7)
     if mu == 0.0:

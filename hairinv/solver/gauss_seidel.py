@@ -90,6 +90,8 @@ class SolverResult:
     method: str = "sweeps"
     interior_steps: int = 0
     rest_bound: float = float("nan")
+    bound_from: str = "sweeps"
+    """whose duality gap ``rest_bound`` is: "sweeps", or "interior-point" when the steps' forces were final"""
 
 
 @jit
@@ -443,7 +445,8 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     b = np.ascontiguousarray(b, dtype=np.float64)
     mu = np.ascontiguousarray(mu, dtype=np.float64)
     if n_contacts == 0:
-        return SolverResult(r, CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started, rest_bound=0.0)
+        return SolverResult(r, CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started,
+                            rest_bound=float("nan") if desaxce else 0.0)
     gamma = np.ascontiguousarray(np.broadcast_to(np.asarray(gamma, dtype=np.float64), (n_contacts,)))
     Wd = np.empty((n_contacts, 3, 3))
     diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, gamma, Wd)
@@ -470,14 +473,21 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
 
     elements = rows.n_dofs // 3
     bound = [np.nan]  # the rest-shape bound at the last check (1/m)
+    # measured at every check where it can stop the sweeps or is shown, else once at the end (the dynamics'
+    # inner solves have no use for it)
+    every_check = rest_tolerance > 0.0 or progress is not None
+
+    def _measure_bound() -> None:
+        if not desaxce and elements:
+            gap = rest_gap(rows.ptr, rows.cols, rows.vals, f_check, gamma, b, mu, checked)
+            bound[0] = float(np.sqrt(2.0 * max(gap, 0.0) / elements))
 
     def _check(point: np.ndarray) -> float:
         _extrapolate(point, point, 0.0, mu, checked)
         # f rebuilt from the point itself, so round-off of the incremental updates cannot accumulate
         _accumulate_f(rows.ptr, rows.cols, rows.vals, d, checked, f_check)
-        if not desaxce and elements:
-            gap = rest_gap(rows.ptr, rows.cols, rows.vals, f_check, gamma, b, mu, checked)
-            bound[0] = float(np.sqrt(2.0 * max(gap, 0.0) / elements))
+        if every_check:
+            _measure_bound()
         return natural_residuals(rows.ptr, rows.cols, rows.vals, f_check, gamma, Wd, b, mu, checked, desaxce,
                                  velocity, per_contact)
 
@@ -489,7 +499,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
 
     residual = _check(r)
     history.append((0, float(residual)))
-    if _met(residual):
+    if np.isfinite(residual) and _met(residual):  # (a NaN residual is found NUMERICAL at the next check)
         status = CONVERGED
     # momentum state: x the last accepted iterate, r the point the next sweep starts from
     accelerate = accelerate and not desaxce  # the De Saxce problem has no objective to guard the momentum
@@ -566,6 +576,8 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     if history[-1][0] != sweeps:  # (stopped by a numerical error before its check)
         residual = _check(r)
         history.append((sweeps, float(residual)))
+    if not every_check:
+        _measure_bound()  # at the last check's point: the forces returned
     # the forces the last check measured: the last iterate, projected onto the cones
     r = checked.copy()
     return SolverResult(r, status, sweeps, float(residual), float(residual / force_scale), history,
