@@ -134,6 +134,10 @@ def _model(g: stages.Group) -> dict:
         "relative_residual": float(g.attrs.get("relative_residual", 0.0)),
         "residual_history": None if history is None else [[int(s), float(r)] for s, r in history],
         "solve_seconds": float(g.attrs.get("seconds", 0.0)),
+        # sweeps for files written before solver.method existed
+        "method": str(g.attrs.get("method", "sweeps")),
+        # the duality-gap bound on the rest shape's rms distance from the optimum; None where the file has none
+        "rest_bound_1_per_m": float(g.attrs["rest_bound"]) if "rest_bound" in g.attrs else None,
         "rest_curvature_1_per_m": _stats(np.hypot(rest[:, 0], rest[:, 1])),
         "drift_from_target_1_per_m": _stats(np.linalg.norm(rest - target, axis=1)),
         "contacts_carrying_force": _count(normal > _carrying_threshold(g)),

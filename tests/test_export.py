@@ -744,6 +744,8 @@ def _assert_summary(summary, path):
         assert m["residual_N"] == g["attrs"]["residual"] and m["solve_seconds"] == g["attrs"]["seconds"]
         assert summary["timings_s"]["invert"] == g["attrs"]["seconds"]
         assert m["gamma"] == g["attrs"]["gamma"] and m["gamma_relative"] == g["attrs"].get("gamma_relative", 0.0)
+        assert m["method"] == g["attrs"].get("method", "sweeps")
+        assert m["rest_bound_1_per_m"] == g["attrs"].get("rest_bound")
         rest = g.get("omega_rest_stiffened", g["omega_rest"])
         _assert_stats(m["drift_from_target_1_per_m"], np.linalg.norm(rest - g["omega_target"], axis=1))
         _assert_stats(m["rest_curvature_1_per_m"], np.sqrt(rest[:, 0] ** 2 + rest[:, 1] ** 2))
