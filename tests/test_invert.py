@@ -185,13 +185,12 @@ def primal_dual(helices, contacts, mat, model, r, y=None):
     from ``P`` with a multiplier ``y`` of the equilibrium (scaled by ``K``): ``G(y) <= P(r)`` for every ``y`` and
     forces ``r`` in the cones. ``y`` defaults to ``t - q0(r)``, the rest shape's own deviation. Targets weighted
     1 (the default). Returns ``(P(r), G(y))``."""
-    rows = contact_rows(helices, contacts)
-    H = rows.to_sparse().toarray()
+    _, _, H, _ = dense_problem(helices, contacts, mat, model)
     K = stiffness(helices, mat)
     F_g = generalized_gravity(helices, mat).ravel()
     q, t = helices.omega.ravel(), model.omega_target.ravel()
     gamma = np.broadcast_to(model.gamma if model.contact_gamma is None else model.contact_gamma, len(r))
-    q0 = q - (F_g + H.T @ r.ravel()) / K
+    q0 = rest_of(helices, mat, H, r).ravel()
     P = 0.5 * np.sum((q0 - t) ** 2) + 0.5 * np.sum(gamma * np.sum(r ** 2, axis=1))
     y = t - q0 if y is None else y
     v = (H @ (y / K)).reshape(-1, 3)

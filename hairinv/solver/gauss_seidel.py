@@ -424,8 +424,9 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     velocity : bool, measure the residual in velocity units (see :func:`natural_residuals`)
     tolerance : float, stop when the largest natural-map residual is below ``tolerance * force_scale``
     rest_tolerance : float, 1/m, stop too when the rest-shape bound ``sqrt(2 gap / elements)`` (:func:`rest_gap`,
-        elements = a third of ``H``'s columns) is below it; 0: the residual alone (the bound is measured at
-        every check all the same, except for the De Saxce problem, which has no objective)
+        elements = a third of ``H``'s columns) is below it; 0: the residual alone (the bound is then measured
+        once, at the forces returned, or at every check with ``progress``; never for the De Saxce problem,
+        which has no objective)
     r0 : (C, 3) float64, optional warm start
     desaxce : bool, solve the De Saxce-modified (dynamic) problem instead of the convex one
     progress : callable(sweeps, relative residual, rest-shape bound in 1/m), optional, called at every residual
