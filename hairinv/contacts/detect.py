@@ -28,7 +28,7 @@ from ..errors import InputError
 from ..model import BODY, Contacts, Helices
 from ._curve import element_starts, sample_elements
 from .body import REFINE_ITERATIONS, BodyMesh, element_body_contacts
-from .hair import hair_pairs, refine_pairs
+from .hair import hair_pairs, pair_points, refine_pairs
 
 __all__ = ["Contacts", "DetectReport", "detect_contacts", "validate_settings", "contact_frames"]
 
@@ -293,7 +293,7 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
     wisp_radius = np.zeros(0)
     if settings.hair_hair and elements:
         wisp = settings.wisp and up is not None and settings.hair_max_distance > settings.hair_distance
-        ea, eb, sa, sb, pa, pb, ta, tb, dist, keep = _hair_candidates(
+        ea, eb, sa, sb, dist, keep = _hair_candidates(
             samples, xs, Fs, omega, length, strand_of, is_last, count, settings, wisp)
         wisp_radius = np.full(count, float(settings.hair_distance))
         by_wisp = np.zeros(len(ea), dtype=bool)
@@ -301,12 +301,13 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
             wisp_radius = _wisp_radius(ea[keep], eb[keep], dist[keep], strand_of, count, settings)
             beyond = keep & (dist >= settings.hair_distance)
             reach = np.minimum(wisp_radius[strand_of[ea]], wisp_radius[strand_of[eb]])
-            apart = pa - pb
-            vertical = np.abs(apart @ np.asarray(up, dtype=np.float64)) / np.maximum(dist, 1e-300)
+            within = np.flatnonzero(beyond & (dist < reach))
+            pa, pb, _, _ = _pair_points(ea[within], eb[within], sa[within], sb[within], xs, Fs, omega)
+            vertical = np.abs((pa - pb) @ np.asarray(up, dtype=np.float64)) / np.maximum(dist[within], 1e-300)
             vertical /= np.linalg.norm(up)
             # resting on the strand below: the two centre lines stacked against gravity (within 60 degrees
             # of the vertical), and within the narrower wisp's width
-            by_wisp = beyond & (dist < reach) & (vertical >= WISP_VERTICAL)
+            by_wisp[within[vertical >= WISP_VERTICAL]] = True
             keep &= (dist < settings.hair_distance) | by_wisp
         # both points within root_clearance of their clamped roots: no coordinate moves either
         # point, the contact only makes W singular there (its forces would be fixed by gamma alone)
@@ -325,12 +326,12 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
             keep = capped
         hair_wisp = int(np.count_nonzero(by_wisp & keep))
         ea, eb, sa, sb = ea[keep], eb[keep], sa[keep], sb[keep]
-        normal = _hair_normals(pa[keep], pb[keep], ta[keep], tb[keep], dist[keep],
-                               COINCIDENT * float(settings.hair_distance))
+        pa, pb, ta, tb = _pair_points(ea, eb, sa, sb, xs, Fs, omega)
+        normal = _hair_normals(pa, pb, ta, tb, dist[keep], COINCIDENT * float(settings.hair_distance))
         hair_part = Contacts(
             np.stack([strand_of[ea], strand_of[eb]], axis=1),
             np.stack([s0[ea] + sa, s0[eb] + sb], axis=1),
-            np.ascontiguousarray(pa[keep]),
+            pa,
             contact_frames(normal),
             np.full(len(ea), float(settings.mu_hair)),
             dist[keep],
@@ -484,21 +485,22 @@ def _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, wi
     """Element pairs of different strands whose centre lines come within ``reach`` (float, or per element:
     a pair is searched to the mean of its two elements' values), refined on the exact centre lines.
 
-    Returns ``(ea, eb, sa, sb, pa, pb, ta, tb, dist, keep)``: ``keep`` marks the pairs closer than
+    Returns ``(ea, eb, sa, sb, dist, keep)``: ``keep`` marks the pairs closer than
     ``within`` whose closest points are not an element's end that starts the next element (whose pair
     with the same other element is at least as close and declares its own). ``wide`` (per element):
     only the pairs with at least one of these elements. Pairs are sorted by (element A, element B).
     """
     ea, eb, sa, sb, _close = hair_pairs(samples, omega, length, strand_of, reach, wide)
-    pairs = len(ea)
-    pa = np.empty((pairs, 3))
-    pb = np.empty((pairs, 3))
-    ta = np.empty((pairs, 3))
-    tb = np.empty((pairs, 3))
-    dist = np.empty(pairs)
-    run_chunks(lambda lo, hi: refine_pairs(lo, hi, ea, eb, sa, sb, xs, Fs, omega, length, pa, pb, ta, tb, dist),
-               pairs, 4096)
-    return ea, eb, sa, sb, pa, pb, ta, tb, dist, _kept(ea, eb, sa, sb, dist, within, length, is_last)
+    dist = np.empty(len(ea))
+    run_chunks(lambda lo, hi: refine_pairs(lo, hi, ea, eb, sa, sb, xs, Fs, omega, length, dist), len(ea), 4096)
+    return ea, eb, sa, sb, dist, _kept(ea, eb, sa, sb, dist, within, length, is_last)
+
+
+def _pair_points(ea, eb, sa, sb, xs, Fs, omega) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Centre-line points and tangents ``(pa, pb, ta, tb)``, (P, 3) each, of element pairs at their arc lengths."""
+    out = tuple(np.empty((len(ea), 3)) for _ in range(4))
+    run_chunks(lambda lo, hi: pair_points(lo, hi, ea, eb, sa, sb, xs, Fs, omega, *out), len(ea), 4096)
+    return out
 
 
 def _kept(ea, eb, sa, sb, dist, within: float, length, is_last) -> np.ndarray:
@@ -531,7 +533,7 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, count: 
     if not two_pass:
         return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, far, far)
     first = _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, near, near)
-    ea, eb, dist, keep = first[0], first[1], first[8], first[9]
+    ea, eb, dist, keep = first[0], first[1], first[4], first[5]
     close = np.zeros(len(strand_of), dtype=bool)
     tight = keep & (dist <= near / WISP_WIDTH)
     close[ea[tight]] = True
@@ -551,7 +553,7 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, count: 
     key = np.concatenate([ea[both_dense], second[0]]) * len(strand_of) + np.concatenate([eb[both_dense], second[1]])
     order = np.argsort(key, kind="stable")
     merged = [np.concatenate([a[both_dense], b])[order] for a, b in zip(first, second)]
-    merged[9] = _kept(*merged[:4], merged[8], far, length, is_last)
+    merged[5] = _kept(*merged[:4], merged[4], far, length, is_last)
     return tuple(merged)
 
 

@@ -8,8 +8,10 @@ element's centerline curvature ``kappa = |(kappa1, kappa2)|`` and sample spacing
 closer than ``hair_distance``. Boxes are hashed into a uniform grid (Teschner
 et al. 2003) whose cell is about the size of a typical box; the grid keys are
 exact cell coordinates (no hash collisions), sorted, and each pair of boxes is
-tested once, in the cell holding the low corner of their overlap. Pairs on the
-same strand are never tested. The closest segment pair of each pair of
+tested once, in the cell holding the low corner of their overlap; within a cell
+the boxes are swept along their narrowest axis (sort and sweep), so a box meets
+only those that overlap it on that axis. Pairs on the same strand are never
+tested. The closest segment pair of each pair of
 elements is then refined on the exact centerlines (Gauss-Newton on the
 squared distance, the step solved as a segment-segment problem on the
 tangents so it stays inside the elements).
@@ -23,7 +25,7 @@ from .._jit import jit
 from .._parallel import run_chunks, worker_count
 from ._curve import point_tangent
 
-__all__ = ["segment_closest", "hair_pairs"]
+__all__ = ["segment_closest", "hair_pairs", "refine_pairs", "pair_points"]
 
 # Grid cell over the median inflated segment box (Teschner et al. suggest about one box). CPU s of the pair
 # search on 20,000 synthetic strands x 10 elements for 0.5/0.75/1/1.5/2/3: 3.2/2.1/1.9/2.0/2.3/3.0.
@@ -160,6 +162,12 @@ def _pairs_in_cells(run_start, r0, r1, keys, segs, lo, hi, radius, strand_of, wi
     """Close segment pairs of the cells ``r0:r1``, each pair tested once (in the cell of its overlap's low corner),
     of elements on different strands at least one of which is ``wide``.
 
+    Each cell's boxes are copied out in the order of their low sides along the
+    axis where they are narrowest, and swept: a box meets only the boxes after
+    it whose low side is below its high side (sweep and prune, within the cell).
+    A pair is the cell's when, on each axis, one of the two low sides lies in
+    it. Cells without a ``wide`` element are skipped.
+
     Returns ``(count, first, second, d2, u, v)``: segment indices with the
     lower strand first, squared polyline distance and segment parameters.
     """
@@ -173,32 +181,77 @@ def _pairs_in_cells(run_start, r0, r1, keys, segs, lo, hi, radius, strand_of, wi
     count = 0
     mask_j = (np.int64(1) << (shift_i - shift_j)) - 1
     mask_k = (np.int64(1) << shift_j) - 1
+    longest = 0
+    for r in range(r0, r1):
+        longest = max(longest, run_start[r + 1] - run_start[r])
+    # the cell's boxes, sorted along the sweep axis: contiguous, so the inner loop reads memory in order
+    blo = np.empty((longest, 3))
+    bhi = np.empty((longest, 3))
+    bseg = np.empty(longest, np.int64)
+    bstrand = np.empty(longest, np.int64)
+    bwide = np.empty(longest, np.bool_)
+    bown = np.empty(longest, np.int64)  # bit d: the box's low side on axis d lies in this cell
+    sweep = np.empty(longest)
+    cell = np.empty(3, np.int64)
+    width = np.empty(3)
     for r in range(r0, r1):
         a = run_start[r]
         b = run_start[r + 1]
-        if b - a < 2:
+        m = b - a
+        if m < 2:
+            continue
+        any_wide = False
+        for x in range(a, b):
+            if wide[segs[x] // n1]:
+                any_wide = True
+                break
+        if not any_wide:
             continue
         key = keys[a]
-        ci = key >> shift_i
-        cj = (key >> shift_j) & mask_j
-        ck = key & mask_k
+        cell[0] = key >> shift_i
+        cell[1] = (key >> shift_j) & mask_j
+        cell[2] = key & mask_k
+        width[:] = 0.0
         for x in range(a, b):
             i = segs[x]
-            ei = i // n1
-            si = strand_of[ei]
-            for y in range(x + 1, b):
-                j = segs[y]
+            for d in range(3):
+                width[d] += hi[i, d] - lo[i, d]
+        ax = 0
+        for d in range(1, 3):
+            if width[d] < width[ax]:
+                ax = d
+        for x in range(m):
+            sweep[x] = lo[segs[a + x], ax]
+        order = np.argsort(sweep[:m])
+        for t in range(m):
+            i = segs[a + order[t]]
+            own = 0
+            for d in range(3):
+                blo[t, d] = lo[i, d]
+                bhi[t, d] = hi[i, d]
+                if _cell(lo[i, d], origin[d], inv_cell) == cell[d]:
+                    own |= 1 << d
+            bseg[t] = i
+            bstrand[t] = strand_of[i // n1]
+            bwide[t] = wide[i // n1]
+            bown[t] = own
+        for x in range(m):
+            i = bseg[x]
+            si = bstrand[x]
+            top = bhi[x, ax]
+            for y in range(x + 1, m):
+                if blo[y, ax] > top:
+                    break
+                sj = bstrand[y]
+                # the overlap's low corner is max(lo) per axis: in this cell where either low side is
+                if si == sj or not (bwide[x] or bwide[y]) or (bown[x] | bown[y]) != 7:
+                    continue
+                if (blo[x, 0] > bhi[y, 0] or blo[y, 0] > bhi[x, 0] or blo[x, 1] > bhi[y, 1] or blo[y, 1] > bhi[x, 1]
+                        or blo[x, 2] > bhi[y, 2] or blo[y, 2] > bhi[x, 2]):
+                    continue
+                j = bseg[y]
+                ei = i // n1
                 ej = j // n1
-                sj = strand_of[ej]
-                if si == sj or not (wide[ei] or wide[ej]):
-                    continue
-                if (lo[i, 0] > hi[j, 0] or lo[j, 0] > hi[i, 0] or lo[i, 1] > hi[j, 1] or lo[j, 1] > hi[i, 1]
-                        or lo[i, 2] > hi[j, 2] or lo[j, 2] > hi[i, 2]):
-                    continue
-                if (_cell(max(lo[i, 0], lo[j, 0]), origin[0], inv_cell) != ci
-                        or _cell(max(lo[i, 1], lo[j, 1]), origin[1], inv_cell) != cj
-                        or _cell(max(lo[i, 2], lo[j, 2]), origin[2], inv_cell) != ck):
-                    continue
                 if si < sj:
                     sa, sb = i, j
                     ea, eb = ei, ej
@@ -235,8 +288,7 @@ def _distance_at(ea, a, eb, b, xs, Fs, omega, xa, ta, xb, tb, R, P, Q):
 
 
 @jit
-def refine_pairs(lo, hi, elem_a, elem_b, sigma_a, sigma_b, xs, Fs, omega, length, point_a, point_b, tangent_a,
-                 tangent_b, dist):
+def refine_pairs(lo, hi, elem_a, elem_b, sigma_a, sigma_b, xs, Fs, omega, length, dist):
     """Closest points of the centerlines of element pairs ``lo:hi``, from the polyline solution.
 
     Each step solves the segment-segment problem between the tangent lines
@@ -244,8 +296,10 @@ def refine_pairs(lo, hi, elem_a, elem_b, sigma_a, sigma_b, xs, Fs, omega, length
     new arc lengths stay in ``[0, length]`` (exactly the bound when clamped);
     a step that does not reduce the distance is halved, at most HALVINGS times.
 
-    ``sigma_a``, ``sigma_b`` (P,) are updated in place; ``point_*``,
-    ``tangent_*`` (P, 3) and ``dist`` (P,) are written.
+    ``sigma_a``, ``sigma_b`` (P,) are updated in place and ``dist`` (P,) is
+    written; the closest points and tangents are :func:`pair_points` at the
+    new arc lengths (the same evaluation, so the same values), computed
+    only for the pairs kept: a dense head has many times more candidates.
     """
     R = np.empty((3, 3))
     P = np.empty(3)
@@ -305,11 +359,17 @@ def refine_pairs(lo, hi, elem_a, elem_b, sigma_a, sigma_b, xs, Fs, omega, length
         sigma_a[p] = a
         sigma_b[p] = b
         dist[p] = d
-        for i in range(3):
-            point_a[p, i] = xa[i]
-            point_b[p, i] = xb[i]
-            tangent_a[p, i] = ta[i]
-            tangent_b[p, i] = tb[i]
+
+
+@jit
+def pair_points(lo, hi, elem_a, elem_b, sigma_a, sigma_b, xs, Fs, omega, point_a, point_b, tangent_a, tangent_b):
+    """Centerline points and unit tangents (P, 3) of element pairs ``lo:hi`` at arc lengths ``sigma_*``."""
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
+    for p in range(lo, hi):
+        point_tangent(xs[elem_a[p]], Fs[elem_a[p]], omega[elem_a[p]], sigma_a[p], R, P, Q, point_a[p], tangent_a[p])
+        point_tangent(xs[elem_b[p]], Fs[elem_b[p]], omega[elem_b[p]], sigma_b[p], R, P, Q, point_b[p], tangent_b[p])
 
 
 def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, strand_of: np.ndarray,
