@@ -18,6 +18,7 @@ from conftest import SAMPLES, real_path
 from hairinv import stages
 from hairinv.config import ContactSettings, FitSettings, ImportSettings
 from hairinv.contacts import BODY, BodyMesh, Contacts, DetectReport, detect_contacts
+from hairinv.contacts.hair import hair_pairs
 from hairinv.errors import InputError
 from hairinv.fit import Helices, fit_groom
 from hairinv.groom import hair_unit_transform, load_body, load_groom
@@ -405,6 +406,58 @@ def test_hashed_hair_pairs_agree_with_brute_force(rng):
     assert len(close) > 30
     assert found - ambiguous == close
 
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_hair_pairs_find_every_close_polyline_pair(seed):
+    """The hashed, swept search against every pair of segments: dense strands packed in a few millimetres (cells
+    crowded, boxes spanning several cells), a per-element reach and a searched subset."""
+    rng = np.random.default_rng(seed)
+    strands, elements, n = 40, 3, 6
+    E = strands * elements
+    steps = rng.normal(scale=4e-4, size=(strands, elements * (n - 1), 3)) + np.array([0.0, -6e-4, 0.0])
+    roots = rng.uniform(0.0, 3e-3, size=(strands, 1, 3))
+    line = np.concatenate([roots, roots + np.cumsum(steps, axis=1)], axis=1)
+    samples = np.stack([line[s, e * (n - 1):(e + 1) * (n - 1) + 1] for s in range(strands) for e in range(elements)])
+    omega = np.zeros((E, 3))  # straight elements: the polyline is the centre line, no sag
+    length = np.full(E, 1e-3)  # arc lengths are reported as (segment + parameter) * length / (n - 1)
+    strand_of = np.repeat(np.arange(strands), elements)
+    reach = rng.uniform(0.5e-3, 1.5e-3, E)
+    wide = rng.random(E) < 0.4
+    ea, eb, sa, sb, close = hair_pairs(samples, omega, length, strand_of, reach, wide)
+    found = {(a, b): (x, y) for a, b, x, y in zip(ea, eb, sa, sb)}
+    assert len(found) == len(ea)
+    expected, ambiguous, segment_pairs = {}, set(), 0
+    h = 1e-3 / (n - 1)
+    for a in range(E):
+        for b in range(E):
+            if strand_of[a] >= strand_of[b] or not (wide[a] or wide[b]):
+                continue
+            d, u, v = segment_distances(samples[a, :-1, None], samples[a, 1:, None], samples[b, None, :-1],
+                                        samples[b, None, 1:])
+            limit = 0.5 * (reach[a] + reach[b])
+            segment_pairs += int(np.count_nonzero(d < limit))
+            if d.min() >= limit:
+                continue
+            if abs(d.min() - limit) < 1e-12:
+                ambiguous.add((a, b))
+            ka, kb = np.unravel_index(np.argmin(d), d.shape)
+            expected[(a, b)] = ((ka + u[ka, kb]) * h, (kb + v[ka, kb]) * h, d.min())
+    assert len(expected) > 200
+    assert set(found) - ambiguous == set(expected) - ambiguous
+    assert close == segment_pairs
+    for key, (x, y, dmin) in expected.items():
+        if key in found:
+            # the closest points may differ only where two segment pairs are equally close
+            fx, fy = found[key]
+            got = np.linalg.norm(_polyline_point(samples[key[0]], fx / h) - _polyline_point(samples[key[1]], fy / h))
+            assert got == pytest.approx(dmin, abs=1e-12)
+    assert np.all(np.diff(ea * E + eb) > 0)
+
+
+def _polyline_point(points, t):
+    k = min(int(t), len(points) - 2)
+    return points[k] + (t - k) * (points[k + 1] - points[k])
 
 # --- the whole pipeline on samples and real data ------------------------------------------------------------------
 

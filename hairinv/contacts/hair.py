@@ -235,15 +235,19 @@ def _pairs_in_cells(run_start, r0, r1, keys, segs, lo, hi, radius, strand_of, wi
             bstrand[t] = strand_of[i // n1]
             bwide[t] = wide[i // n1]
             bown[t] = own
+        # the overlap's low corner is max(lo) per axis; along the sweep axis that is the later box's low side,
+        # so the later box of a pair of this cell is one whose low side is in it: the sorted suffix from `inside`
+        inside = 0
+        while inside < m and not (bown[inside] & (1 << ax)):
+            inside += 1
         for x in range(m):
             i = bseg[x]
             si = bstrand[x]
             top = bhi[x, ax]
-            for y in range(x + 1, m):
+            for y in range(max(x + 1, inside), m):
                 if blo[y, ax] > top:
                     break
                 sj = bstrand[y]
-                # the overlap's low corner is max(lo) per axis: in this cell where either low side is
                 if si == sj or not (bwide[x] or bwide[y]) or (bown[x] | bown[y]) != 7:
                     continue
                 if (blo[x, 0] > bhi[y, 0] or blo[y, 0] > bhi[x, 0] or blo[x, 1] > bhi[y, 1] or blo[y, 1] > bhi[x, 1]
