@@ -424,7 +424,7 @@ def test_hair_pairs_find_every_close_polyline_pair(seed):
     strand_of = np.repeat(np.arange(strands), elements)
     reach = rng.uniform(0.5e-3, 1.5e-3, E)
     wide = rng.random(E) < 0.4
-    ea, eb, sa, sb, close = hair_pairs(samples, omega, length, strand_of, reach, wide)
+    ea, eb, sa, sb, gap, close = hair_pairs(samples, omega, length, strand_of, reach, wide)
     found = {(a, b): (x, y) for a, b, x, y in zip(ea, eb, sa, sb)}
     assert len(found) == len(ea)
     expected, ambiguous, segment_pairs = {}, set(), 0
@@ -450,6 +450,7 @@ def test_hair_pairs_find_every_close_polyline_pair(seed):
         if key in found:
             # the closest points may differ only where two segment pairs are equally close
             fx, fy = found[key]
+            assert gap[np.flatnonzero((ea == key[0]) & (eb == key[1]))[0]] == pytest.approx(dmin, abs=1e-12)
             got = np.linalg.norm(_polyline_point(samples[key[0]], fx / h) - _polyline_point(samples[key[1]], fy / h))
             assert got == pytest.approx(dmin, abs=1e-12)
     assert np.all(np.diff(ea * E + eb) > 0)
@@ -745,6 +746,119 @@ def test_the_two_pass_hair_search_declares_what_one_wide_search_does(monkeypatch
     assert np.all(report.wisp_radius[:20] == settings.hair_distance)
     assert np.all(report.wisp_radius[20:25] > settings.hair_distance)
     assert report.hair_wisp > 0 and two.n_hair > report.hair_wisp
+
+
+def dense_head(seed, guides=12, follow=10, spread=0.001):
+    """Guides hanging from a row of roots over the floor, each with follow hairs within ``spread`` of it (the
+    same curvatures, roots moved across the guide): elements with tens of neighbours within hair_distance."""
+    rng = np.random.default_rng(seed)
+    strands = []
+    for g in range(guides):
+        omega = np.column_stack([rng.normal(0.0, 20.0, 5), rng.normal(0.0, 20.0, 5), rng.normal(0.0, 5.0, 5)])
+        base = np.array([0.004 * g, 0.05, 0.0])
+        for f in range(follow + 1):
+            offset = np.zeros(3) if f == 0 else np.array([rng.uniform(-spread, spread), 0.0,
+                                                          rng.uniform(-spread, spread)])
+            strands.append((base + offset, frame_with_tangent([0.0, -1.0, 0.05], n2=[1.0, 0.0, 0.0]),
+                            omega + rng.normal(0.0, 0.3, omega.shape), np.full(5, 0.012)))
+    return helices(strands)
+
+
+@pytest.mark.parametrize("seed, cap, groom", [(0, 8, "dense"), (1, 2, "dense"), (2, 1, "dense"), (3, 8, "mixed"),
+                                              (4, 2, "mixed")])
+def test_pairs_refined_only_where_needed_give_the_same_contacts(monkeypatch, seed, cap, groom):
+    """With the per-element cap, pairs of two dense strands are refined only when their distance matters (to
+    find the dense strands, near the roots, and in the greedy cap while both elements still hold fewer than
+    the cap). Contacts, wisp radii and the root note are those of refining every pair, bit for bit, and on a
+    dense head most pairs are never refined."""
+    import functools
+
+    from hairinv.contacts import detect as detect_module
+
+    up = np.array([0.0, 1.0, 0.0])
+    settings = dataclasses.replace(SETTINGS, layer=False, max_hair_per_element=cap, root_clearance=0.004)
+    h = dense_head(seed) if groom == "dense" else bundle_and_guides(seed)
+    refined = []
+    real_cap = detect_module._cap_pairs
+
+    def spy(*args):
+        out = real_cap(*args)
+        refined.append((int(args[6].sum()), len(args[6])))  # pairs.refined after the greedy
+        return out
+
+    monkeypatch.setattr(detect_module, "_cap_pairs", spy)
+    lazy, report = detect_contacts(h, plane(), settings, up=up)
+    monkeypatch.setattr(detect_module, "_hair_candidates",
+                        functools.partial(detect_module._hair_candidates, lazy=False))
+    eager, report_eager = detect_contacts(h, plane(), settings, up=up)
+    for key in ("strand", "s", "point", "frame", "mu", "gap", "element"):
+        np.testing.assert_array_equal(getattr(lazy, key), getattr(eager, key))
+    np.testing.assert_array_equal(report.wisp_radius, report_eager.wisp_radius)
+    roots = [n for n in report.notes if "root_clearance" in n]
+    assert roots == [n for n in report_eager.notes if "root_clearance" in n]
+    assert lazy.n_hair > 0
+    (some, total), (every, total_eager) = refined
+    assert every == total_eager == total
+    if groom == "dense":
+        counts = np.bincount(lazy.element[lazy.strand[:, 1] >= 0].ravel(), minlength=h.n_elements)
+        assert counts.max() == cap  # the cap binds on a dense head, and most pairs are never measured
+        assert any("not measured" in n for n in report.notes)
+        if cap <= 2:
+            assert some < 0.6 * total, (some, total)
+
+
+@pytest.mark.parametrize("seed, cap", [(0, 1), (1, 2), (2, 4)])
+def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed, cap):
+    """The greedy of the cap against its definition (pairs by distance, ties to the lower index, kept while both
+    elements hold fewer than the cap), with a random part of the pairs refined beforehand and random lower bounds
+    (anything at most the distance) for the others: the order of refinement must not matter."""
+    from hairinv.contacts import detect as detect_module
+    from hairinv.contacts._curve import element_starts, sample_elements
+
+    h = dense_head(seed)
+    rng = np.random.default_rng(seed)
+    offsets = np.asarray(h.offsets)
+    E, n = h.n_elements, 8
+    xs, Fs, s0 = np.empty((E, 3)), np.empty((E, 3, 3)), np.empty(E)
+    samples = np.empty((E, n, 3))
+    omega, length = np.ascontiguousarray(h.omega), np.ascontiguousarray(h.length)
+    element_starts(np.ascontiguousarray(h.root), np.ascontiguousarray(h.frame0), offsets, omega, length, 0,
+                   h.n_strands, xs, Fs, s0)
+    sample_elements(xs, Fs, omega, length, 0, E, samples)
+    strand_of = np.repeat(np.arange(h.n_strands), np.diff(offsets))
+    is_last = np.zeros(E, np.int8)
+    is_last[offsets[1:] - 1] = 1
+    hd = 1e-3
+    fresh = detect_module._found_pairs(samples, omega, length, strand_of, hd)
+    full = fresh.subset(slice(None))
+    full.sa, full.sb, full.dist, full.refined = fresh.sa.copy(), fresh.sb.copy(), fresh.dist.copy(), fresh.refined.copy()
+    detect_module._refine(full, np.ones(len(full.ea), bool), xs, Fs, omega, length)
+    candidate = detect_module._kept(full.ea, full.eb, full.sa, full.sb, full.dist, hd, length, is_last)
+    # the definition
+    expected = np.zeros(len(full.ea), bool)
+    held = np.zeros(E, int)
+    for k in sorted(np.flatnonzero(candidate), key=lambda k: (full.dist[k], k)):
+        if held[full.ea[k]] < cap and held[full.eb[k]] < cap:
+            held[full.ea[k]] += 1
+            held[full.eb[k]] += 1
+            expected[k] = True
+    assert 0 < expected.sum() < candidate.sum()
+    for trial in range(3):
+        pairs = fresh.subset(slice(None))
+        pairs.sa, pairs.sb, pairs.dist, pairs.refined = (fresh.sa.copy(), fresh.sb.copy(), fresh.dist.copy(),
+                                                         fresh.refined.copy())
+        detect_module._refine(pairs, rng.random(len(pairs.ea)) < 0.3 * trial, xs, Fs, omega, length)
+        pairs.low = full.dist * rng.uniform(0.0, 1.0, len(full.ea)) ** (trial + 1)
+        keep = pairs.refined & candidate
+        out = np.zeros(len(pairs.ea), bool)
+        dropped, unmeasured = detect_module._cap_pairs(
+            pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist, pairs.low, pairs.refined, keep, cap, E, hd, s0,
+            length, is_last, 0.0, xs, Fs, omega, out)
+        np.testing.assert_array_equal(out, expected)
+        done = pairs.refined
+        assert unmeasured == np.count_nonzero(~done) > 0
+        assert dropped == np.count_nonzero(candidate & done & ~expected)
+        np.testing.assert_array_equal(pairs.dist[done], full.dist[done])
 
 
 def test_a_groom_of_dense_strands_is_searched_once_and_only_to_hair_distance(monkeypatch):

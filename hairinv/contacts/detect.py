@@ -15,6 +15,7 @@ close. See docs/contacts.md for the rules and the reasons for the defaults.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -28,7 +29,7 @@ from ..errors import InputError
 from ..model import BODY, Contacts, Helices
 from ._curve import element_starts, sample_elements
 from .body import REFINE_ITERATIONS, BodyMesh, element_body_contacts
-from .hair import hair_pairs, pair_points, refine_pairs
+from .hair import element_sag, hair_pairs, pair_points, refine_pairs
 
 __all__ = ["Contacts", "DetectReport", "detect_contacts", "validate_settings", "contact_frames"]
 
@@ -174,20 +175,108 @@ def _hair_normals(point_a, point_b, tangent_a, tangent_b, dist, flat) -> np.ndar
 
 
 @jit
-def _closest_per_element(ea, eb, dist, keep, cap, elements, out):
-    """Greedy, closest first: keep a pair while both of its elements have fewer than ``cap`` contacts."""
+def _heap_push(key, item, n, d, k):
+    """Push ``(d, k)`` on the binary min-heap ``key[:n], item[:n]`` ordered by (key, item); returns n + 1."""
+    t = n
+    while t > 0:
+        parent = (t - 1) // 2
+        if key[parent] < d or (key[parent] == d and item[parent] < k):
+            break
+        key[t] = key[parent]
+        item[t] = item[parent]
+        t = parent
+    key[t] = d
+    item[t] = k
+    return n + 1
+
+
+@jit
+def _heap_pop(key, item, n):
+    """Remove the top of the heap ``key[:n], item[:n]``; returns n - 1."""
+    n -= 1
+    d = key[n]
+    k = item[n]
+    t = 0
+    while True:
+        c = 2 * t + 1
+        if c >= n:
+            break
+        if c + 1 < n and (key[c + 1] < key[c] or (key[c + 1] == key[c] and item[c + 1] < item[c])):
+            c += 1
+        if d < key[c] or (d == key[c] and k < item[c]):
+            break
+        key[t] = key[c]
+        item[t] = item[c]
+        t = c
+    key[t] = d
+    item[t] = k
+    return n
+
+
+@jit
+def _cap_pairs(ea, eb, sa, sb, dist, low, refined, keep, cap, elements, within, s0, length, is_last, root_clearance,
+               xs, Fs, omega, out):
+    """Greedy, closest first (ties to the lower index): keep a pair while both of its elements hold fewer
+    than ``cap`` contacts; marks ``out``.
+
+    The candidates are the refined pairs ``keep`` and the pairs not refined yet. These are taken in the
+    order of their lower bounds ``low``, always before any refined candidate farther than the bound, so
+    the order is that of the distances. When its turn comes, a pair one of whose elements already holds
+    ``cap`` contacts cannot be kept whatever its distance (counts only grow) and is left unmeasured; the
+    others are refined (``sa``, ``sb``, ``dist``, ``refined`` updated in place) and are candidates as
+    ``keep`` would have marked them: closer than ``within``, neither point an element's end that starts
+    the next, not both within ``root_clearance`` of the roots.
+
+    Returns ``(dropped, unmeasured)``: candidates not kept, and pairs left unmeasured.
+    """
     count = np.zeros(elements, dtype=np.int64)
-    order = np.argsort(dist, kind="mergesort")
-    for t in range(order.shape[0]):
-        k = order[t]
-        if not keep[k]:
+    known = np.flatnonzero(keep)
+    known = known[np.argsort(dist[known], kind="mergesort")]
+    pending = np.flatnonzero(~refined)
+    pending = pending[np.argsort(low[pending], kind="mergesort")]
+    key = np.empty(pending.shape[0])
+    item = np.empty(pending.shape[0], dtype=np.int64)
+    n = 0
+    i = 0
+    j = 0
+    dropped = 0
+    unmeasured = 0
+    while True:
+        k = -1
+        from_heap = False
+        if j < known.shape[0]:
+            k = known[j]
+        if n > 0 and (k < 0 or key[0] < dist[k] or (key[0] == dist[k] and item[0] < k)):
+            k = item[0]
+            from_heap = True
+        if i < pending.shape[0] and (k < 0 or not dist[k] < low[pending[i]]):
+            p = pending[i]
+            i += 1
+            if count[ea[p]] >= cap or count[eb[p]] >= cap:
+                unmeasured += 1
+                continue
+            refine_pairs(p, p + 1, ea, eb, sa, sb, xs, Fs, omega, length, dist)
+            refined[p] = True
+            a = ea[p]
+            b = eb[p]
+            if (dist[p] < within and not (sa[p] == length[a] and is_last[a] == 0)
+                    and not (sb[p] == length[b] and is_last[b] == 0)
+                    and not (s0[a] + sa[p] < root_clearance and s0[b] + sb[p] < root_clearance)):
+                n = _heap_push(key, item, n, dist[p], p)
             continue
+        if k < 0:
+            break
+        if from_heap:
+            n = _heap_pop(key, item, n)
+        else:
+            j += 1
         if count[ea[k]] < cap and count[eb[k]] < cap:
             count[ea[k]] += 1
             count[eb[k]] += 1
             out[k] = True
         else:
-            out[k] = False
+            dropped += 1
+    return dropped, unmeasured
 
 
 def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=None,
@@ -293,12 +382,13 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
     wisp_radius = np.zeros(0)
     if settings.hair_hair and elements:
         wisp = settings.wisp and up is not None and settings.hair_max_distance > settings.hair_distance
-        ea, eb, sa, sb, dist, keep = _hair_candidates(
-            samples, xs, Fs, omega, length, strand_of, is_last, count, settings, wisp)
+        pairs, keep, dense = _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, count,
+                                              settings, wisp)
+        ea, eb, sa, sb, dist = pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist
         wisp_radius = np.full(count, float(settings.hair_distance))
         by_wisp = np.zeros(len(ea), dtype=bool)
         if wisp:
-            wisp_radius = _wisp_radius(ea[keep], eb[keep], dist[keep], strand_of, count, settings)
+            wisp_radius = _wisp_radius(ea[keep], eb[keep], dist[keep], strand_of, count, settings, dense)
             beyond = keep & (dist >= settings.hair_distance)
             reach = np.minimum(wisp_radius[strand_of[ea]], wisp_radius[strand_of[eb]])
             within = np.flatnonzero(beyond & (dist < reach))
@@ -316,13 +406,17 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
             notes.append(f"hair-hair: {int(near_roots.sum())} contacts between two strands within "
                          f"root_clearance ({1e3 * settings.root_clearance:g} mm) of both roots were not declared")
         keep &= ~near_roots
-        if settings.max_hair_per_element > 0:
-            capped = keep.copy()
-            _closest_per_element(ea, eb, dist, keep, int(settings.max_hair_per_element), elements, capped)
-            if (keep & ~capped).any():
-                notes.append(f"hair-hair: kept the {settings.max_hair_per_element} closest contacts per element "
-                             f"(contacts.max_hair_per_element); {int((keep & ~capped).sum())} farther ones "
-                             "were not declared")
+        cap = int(settings.max_hair_per_element)
+        if cap > 0:
+            capped = np.zeros(len(ea), dtype=bool)
+            dropped, unmeasured = _cap_pairs(ea, eb, sa, sb, dist, pairs.low, pairs.refined, keep, cap, elements,
+                                             float(settings.hair_distance), s0, length, is_last,
+                                             float(settings.root_clearance), xs, Fs, omega, capped)
+            if dropped or unmeasured:
+                notes.append(f"hair-hair: kept the {cap} closest contacts per element (contacts.max_hair_per_element); "
+                             f"{dropped} farther ones were not declared" + (
+                                 f", and {unmeasured} candidate pairs not measured (an element of each already held "
+                                 f"{cap} closer ones)" if unmeasured else ""))
             keep = capped
         hair_wisp = int(np.count_nonzero(by_wisp & keep))
         ea, eb, sa, sb = ea[keep], eb[keep], sa[keep], sb[keep]
@@ -481,19 +575,56 @@ def _layer_runs(near, n, dist, arc, strand_of, has, sd, sigma, s0, length, root_
     return found
 
 
-def _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, within: float, wide=None) -> tuple:
-    """Element pairs of different strands whose centre lines come within ``reach`` (float, or per element:
-    a pair is searched to the mean of its two elements' values), refined on the exact centre lines.
+@dataclass
+class _Pairs:
+    """Candidate element pairs of the hair-hair search, sorted by (element A, element B).
 
-    Returns ``(ea, eb, sa, sb, dist, keep)``: ``keep`` marks the pairs closer than
-    ``within`` whose closest points are not an element's end that starts the next element (whose pair
-    with the same other element is at least as close and declares its own). ``wide`` (per element):
-    only the pairs with at least one of these elements. Pairs are sorted by (element A, element B).
+    ``sa``, ``sb`` (m) start as the closest polyline points and ``dist`` (m) is NaN until a pair is
+    refined on the exact centre lines (``refined``); ``low`` (m) bounds the refined distance from below
+    before (the polylines' distance less both elements' sag). A pair is refined where something depends on
+    its distance: with the per-element cap, the pairs whose two elements both hold fewer than the cap
+    when their turn comes may be declared, the others cannot, whatever their distance.
     """
-    ea, eb, sa, sb, _close = hair_pairs(samples, omega, length, strand_of, reach, wide)
-    dist = np.empty(len(ea))
-    run_chunks(lambda lo, hi: refine_pairs(lo, hi, ea, eb, sa, sb, xs, Fs, omega, length, dist), len(ea), 4096)
-    return ea, eb, sa, sb, dist, _kept(ea, eb, sa, sb, dist, within, length, is_last)
+
+    ea: np.ndarray
+    eb: np.ndarray
+    sa: np.ndarray
+    sb: np.ndarray
+    dist: np.ndarray
+    low: np.ndarray
+    refined: np.ndarray
+
+    def subset(self, index) -> "_Pairs":
+        return _Pairs(*(getattr(self, f.name)[index] for f in dataclasses.fields(self)))
+
+    @staticmethod
+    def concatenate(parts, order) -> "_Pairs":
+        return _Pairs(*(np.concatenate([getattr(p, f.name) for p in parts])[order] for f in dataclasses.fields(_Pairs)))
+
+
+def _found_pairs(samples, omega, length, strand_of, reach, wide=None) -> _Pairs:
+    """Element pairs of different strands whose centre lines may come within ``reach`` (float, or per element:
+    a pair is searched to the mean of its two elements' values), not yet refined."""
+    ea, eb, sa, sb, gap, _close = hair_pairs(samples, omega, length, strand_of, reach, wide)
+    sag = element_sag(omega, length, samples.shape[1])
+    low = np.maximum(gap - sag[ea] - sag[eb], 0.0)
+    return _Pairs(ea, eb, sa, sb, np.full(len(ea), np.nan), low, np.zeros(len(ea), dtype=bool))
+
+
+def _refine(pairs: _Pairs, index, xs, Fs, omega, length) -> None:
+    """Refine the pairs ``index`` (those not refined yet) on the exact centre lines, in place."""
+    index = np.asarray(index)
+    if index.dtype == bool:
+        index = np.flatnonzero(index)
+    index = index[~pairs.refined[index]]
+    if not len(index):
+        return
+    ea, eb = pairs.ea[index], pairs.eb[index]
+    sa, sb = pairs.sa[index], pairs.sb[index]
+    dist = np.empty(len(index))
+    run_chunks(lambda lo, hi: refine_pairs(lo, hi, ea, eb, sa, sb, xs, Fs, omega, length, dist), len(index), 4096)
+    pairs.sa[index], pairs.sb[index], pairs.dist[index] = sa, sb, dist
+    pairs.refined[index] = True
 
 
 def _pair_points(ea, eb, sa, sb, xs, Fs, omega) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -511,10 +642,15 @@ def _kept(ea, eb, sa, sb, dist, within: float, length, is_last) -> np.ndarray:
     return keep
 
 
-def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, count: int, settings: ContactSettings,
-                     wisp: bool, two_pass: bool = True) -> tuple:
-    """The element pairs the hair-hair rules choose from (:func:`_refined_pairs`), within ``hair_distance``,
-    and with the wisp rule within ``hair_max_distance`` wherever a wisp may be that wide.
+def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, count: int, settings: ContactSettings,
+                     wisp: bool, two_pass: bool = True, lazy: bool = True) -> tuple[_Pairs, np.ndarray, np.ndarray | None]:
+    """The element pairs the hair-hair rules choose from, within ``hair_distance``, and with the wisp rule
+    within ``hair_max_distance`` wherever a wisp may be that wide.
+
+    Returns ``(pairs, keep, dense)``: ``keep`` marks the refined pairs closer than their search's distance
+    whose closest points are not an element's end that starts the next element (whose pair with the same
+    other element is at least as close and declares its own); ``dense`` (per strand, or None after one
+    search) the strands whose wisp radius is ``hair_distance``.
 
     A wisp contact joins two strands only within the narrower of their wisp radii, and a strand whose
     elements mostly have a neighbour within ``hair_distance / WISP_WIDTH`` has the radius ``hair_distance``
@@ -524,48 +660,103 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, count: 
     between two of them, ``hair_distance`` between two dense ones). The pairs it keeps, the radii and so
     the contacts are those of one search to ``hair_max_distance`` for all (``two_pass=False``); a full head
     of follow hairs, where nearly every strand is dense, is searched to 1 mm instead of 3. The second search
-    skips the pairs of two dense strands: the first has found and refined them at the same reach.
+    skips the pairs of two dense strands: the first has found them at the same reach.
+
+    ``lazy`` (with the per-element cap): the pairs of two dense strands are refined only where their
+    distance is needed: to find the dense strands (each element's pair of least lower bound first, then
+    the pairs that may still bring an element within ``hair_distance / WISP_WIDTH``), where both points may
+    lie within ``root_clearance`` of the roots, and in :func:`_cap_pairs` where both elements still hold
+    fewer contacts than the cap. Every other pair is refined at once; the contacts are the same.
     """
     near = float(settings.hair_distance)
+    lazy = lazy and settings.max_hair_per_element > 0 and (two_pass or not wisp)
+
+    def kept(pairs: _Pairs, within: float) -> np.ndarray:
+        return pairs.refined & _kept(pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist, within, length, is_last)
+
+    def search(reach, within, wide=None, later=False) -> _Pairs:
+        pairs = _found_pairs(samples, omega, length, strand_of, reach, wide)
+        if not later:
+            _refine(pairs, np.ones(len(pairs.ea), dtype=bool), xs, Fs, omega, length)
+        else:
+            # both points may lie within root_clearance of their roots only where both elements start there
+            rc = float(settings.root_clearance)
+            _refine(pairs, (s0[pairs.ea] < rc) & (s0[pairs.eb] < rc), xs, Fs, omega, length)
+        return pairs
+
     if not wisp:
-        return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, near, near)
+        first = search(near, near, later=lazy)
+        return first, kept(first, near), None
     far = float(settings.hair_max_distance)
     if not two_pass:
-        return _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, far, far)
-    first = _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, near, near)
-    ea, eb, dist, keep = first[0], first[1], first[4], first[5]
+        first = search(far, far)
+        return first, kept(first, far), None
+    first = search(near, near, later=lazy)
+    tight = near / WISP_WIDTH
+    if lazy:
+        _refine_for_tight(first, tight, near, kept, xs, Fs, omega, length)
+    keep = kept(first, near)
     close = np.zeros(len(strand_of), dtype=bool)
-    tight = keep & (dist <= near / WISP_WIDTH)
-    close[ea[tight]] = True
-    close[eb[tight]] = True
+    within = keep & (first.dist <= tight)
+    close[first.ea[within]] = True
+    close[first.eb[within]] = True
     per_strand = np.bincount(strand_of, minlength=count)
     # more than half of a strand's elements (so of those with any neighbour within hair_max_distance) have one
     # within hair_distance / WISP_WIDTH: the median, times WISP_WIDTH, is at most hair_distance
     dense = np.bincount(strand_of, weights=close, minlength=count) >= per_strand // 2 + 1
     if dense.all():
-        return first
+        return first, keep, dense
     sparse = ~dense[strand_of]
-    reach = np.where(sparse, 2.0 * far - near, near)
-    second = _refined_pairs(samples, xs, Fs, omega, length, strand_of, is_last, reach, far, sparse)
+    second = search(np.where(sparse, 2.0 * far - near, near), far, sparse)
     # the pairs of two dense strands are the first search's (the same reach), the others the second's,
     # merged in the order of one search
-    both_dense = ~sparse[ea] & ~sparse[eb]
-    key = np.concatenate([ea[both_dense], second[0]]) * len(strand_of) + np.concatenate([eb[both_dense], second[1]])
-    order = np.argsort(key, kind="stable")
-    merged = [np.concatenate([a[both_dense], b])[order] for a, b in zip(first, second)]
-    merged[5] = _kept(*merged[:4], merged[4], far, length, is_last)
-    return tuple(merged)
+    both_dense = ~sparse[first.ea] & ~sparse[first.eb]
+    key = np.concatenate([first.ea[both_dense], second.ea]) * len(strand_of) + np.concatenate(
+        [first.eb[both_dense], second.eb])
+    merged = _Pairs.concatenate([first.subset(both_dense), second], np.argsort(key, kind="stable"))
+    return merged, kept(merged, far), dense
+
+
+@jit
+def _least_bound_pair(ea, eb, low, least):
+    """``least[e]``: the pair of element ``e`` with the least lower bound (the first of equals), -1 if none."""
+    for p in range(ea.shape[0]):
+        for e in (ea[p], eb[p]):
+            if least[e] < 0 or low[p] < low[least[e]]:
+                least[e] = p
+
+
+def _refine_for_tight(pairs: _Pairs, tight: float, near: float, kept, xs, Fs, omega, length) -> None:
+    """Refine enough pairs to know, of every element, whether a kept pair brings it within ``tight``.
+
+    First each element's pair of least lower bound (on a dense head nearly always close enough); then,
+    for the elements still without one, every pair whose lower bound is within ``tight``: a pair whose
+    lower bound is beyond it cannot bring either element that close.
+    """
+    if not len(pairs.ea):
+        return
+    elements = len(length)
+    least = np.full(elements, -1, dtype=np.int64)
+    _least_bound_pair(pairs.ea, pairs.eb, pairs.low, least)
+    _refine(pairs, np.unique(least[least >= 0]), xs, Fs, omega, length)
+    within = kept(pairs, near) & (pairs.dist <= tight)
+    found = np.zeros(elements, dtype=bool)
+    found[pairs.ea[within]] = True
+    found[pairs.eb[within]] = True
+    _refine(pairs, (pairs.low <= tight) & ~(found[pairs.ea] & found[pairs.eb]), xs, Fs, omega, length)
 
 
 def _wisp_radius(ea: np.ndarray, eb: np.ndarray, dist: np.ndarray, strand_of: np.ndarray, count: int,
-                 settings: ContactSettings) -> np.ndarray:
+                 settings: ContactSettings, dense: np.ndarray | None = None) -> np.ndarray:
     """Per strand, the distance within which its centre line rests on another strand's, (S,), m.
 
     A guide strand's centre line stands for a wisp as wide as the spacing of the strands around it:
     the median, over its elements, of the distance to the nearest element of another strand (within
     ``hair_max_distance``). The contact distance is ``WISP_WIDTH`` times that spacing (so that neighbours
     that far apart touch), clamped to ``[hair_distance, hair_max_distance]``; a strand with no neighbour
-    in reach keeps ``hair_distance``.
+    in reach keeps ``hair_distance``. ``dense`` (per strand): strands more than half of whose elements have a
+    neighbour within ``hair_distance / WISP_WIDTH``, so whose radius is ``hair_distance`` by the rule above;
+    given, it is set without their pairs (which :func:`_hair_candidates` may not all have measured).
     """
     n_elements = len(strand_of)
     nearest = np.full(n_elements, np.inf)
@@ -584,4 +775,7 @@ def _wisp_radius(ea: np.ndarray, eb: np.ndarray, dist: np.ndarray, strand_of: np
         low = values[bounds[some] + (sizes[some] - 1) // 2]
         high = values[bounds[some] + sizes[some] // 2]
         radius[some] = (low + high) / 2.0
-    return np.clip(WISP_WIDTH * radius, settings.hair_distance, settings.hair_max_distance)
+    radius = np.clip(WISP_WIDTH * radius, settings.hair_distance, settings.hair_max_distance)
+    if dense is not None:
+        radius[dense] = settings.hair_distance
+    return radius

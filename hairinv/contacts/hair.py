@@ -25,7 +25,7 @@ from .._jit import jit
 from .._parallel import run_chunks, worker_count
 from ._curve import point_tangent
 
-__all__ = ["segment_closest", "hair_pairs", "refine_pairs", "pair_points"]
+__all__ = ["segment_closest", "hair_pairs", "refine_pairs", "pair_points", "element_sag"]
 
 # Grid cell over the median inflated segment box (Teschner et al. suggest about one box). CPU s of the pair
 # search on 20,000 synthetic strands x 10 elements for 0.5/0.75/1/1.5/2/3: 3.2/2.1/1.9/2.0/2.3/3.0.
@@ -376,6 +376,16 @@ def pair_points(lo, hi, elem_a, elem_b, sigma_a, sigma_b, xs, Fs, omega, point_a
         point_tangent(xs[elem_b[p]], Fs[elem_b[p]], omega[elem_b[p]], sigma_b[p], R, P, Q, point_b[p], tangent_b[p])
 
 
+def element_sag(omega: np.ndarray, length: np.ndarray, n: int) -> np.ndarray:
+    """(E,) m: how far an element's centre line strays from the chords between its ``n`` samples.
+
+    An arc of curvature ``kappa`` and length ``h`` lies within ``kappa h^2 / 8`` of its chord (the
+    circle's sagitta bounds it), and never farther than ``h / 2``.
+    """
+    spacing = length / (n - 1)
+    return np.minimum(np.hypot(omega[:, 0], omega[:, 1]) * spacing**2 / 8.0, 0.5 * spacing)
+
+
 def key_order(keys: np.ndarray) -> np.ndarray:
     """Indices that sort int64 keys >= 0 (equal keys in any order).
 
@@ -392,7 +402,7 @@ def key_order(keys: np.ndarray) -> np.ndarray:
 
 def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, strand_of: np.ndarray,
                hair_distance, wide: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                                       np.ndarray, int]:
+                                                                       np.ndarray, np.ndarray, int]:
     """Closest segment pair of every pair of elements (on different strands) whose polylines may be close.
 
     Parameters
@@ -409,16 +419,17 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     -------
     elem_a, elem_b : (P,) int64, element pairs, ``strand_of[elem_a] < strand_of[elem_b]``, sorted
     sigma_a, sigma_b : (P,) float64, m, arc lengths along the elements of the closest polyline points
+    gap : (P,) float64, m, the polylines' distance there; the centre lines' own closest points are at least
+        ``gap - sag[elem_a] - sag[elem_b]`` apart (:func:`element_sag`)
     close : int, segment pairs found within reach (before keeping one per element pair)
     """
     count, n = samples.shape[0], samples.shape[1]
     n1 = n - 1
     spacing = length / n1
-    kappa = np.hypot(omega[:, 0], omega[:, 1])
-    sag = np.minimum(kappa * spacing**2 / 8.0, 0.5 * spacing)
+    sag = element_sag(omega, length, n)
     radius = np.ascontiguousarray(0.5 * np.asarray(hair_distance, dtype=np.float64) + sag)
     segments = count * n1
-    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0), 0)
+    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0), np.zeros(0), 0)
     if segments == 0 or len(np.unique(strand_of)) < 2:
         return empty
     wide = np.ones(count, dtype=np.bool_) if wide is None else np.ascontiguousarray(wide, dtype=np.bool_)
@@ -490,4 +501,4 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     # a clamped end of the last segment is exactly the element's end
     sigma_a = np.where((ka == n1 - 1) & (pu >= 1.0), length[ea], sigma_a)
     sigma_b = np.where((kb == n1 - 1) & (pv >= 1.0), length[eb], sigma_b)
-    return ea, eb, sigma_a, sigma_b, close
+    return ea, eb, sigma_a, sigma_b, np.sqrt(dist2), close
