@@ -783,7 +783,7 @@ def test_pairs_refined_only_where_needed_give_the_same_contacts(monkeypatch, see
 
     def spy(*args):
         out = real_cap(*args)
-        refined.append((int(args[6].sum()), len(args[6])))  # pairs.refined after the greedy
+        refined.append((int(args[5].sum()), len(args[5])))  # pairs.refined after the greedy
         return out
 
     monkeypatch.setattr(detect_module, "_cap_pairs", spy)
@@ -849,11 +849,14 @@ def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed,
                                                          fresh.refined.copy())
         detect_module._refine(pairs, rng.random(len(pairs.ea)) < 0.3 * trial, xs, Fs, omega, length)
         pairs.low = full.dist * rng.uniform(0.0, 1.0, len(full.ea)) ** (trial + 1)
-        keep = pairs.refined & candidate
+        known = np.flatnonzero(pairs.refined & candidate)
+        known = known[np.argsort(pairs.dist[known], kind="stable")]
+        pending = np.flatnonzero(~pairs.refined)
+        pending = pending[np.argsort(pairs.low[pending])]
         out = np.zeros(len(pairs.ea), bool)
         dropped, unmeasured = detect_module._cap_pairs(
-            pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist, pairs.low, pairs.refined, keep, cap, E, hd, s0,
-            length, is_last, 0.0, xs, Fs, omega, out)
+            pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist, pairs.refined, known, pending, pairs.low, cap, E, hd,
+            s0, length, is_last, 0.0, xs, Fs, omega, out)
         np.testing.assert_array_equal(out, expected)
         done = pairs.refined
         assert unmeasured == np.count_nonzero(~done) > 0

@@ -29,7 +29,7 @@ from ..errors import InputError
 from ..model import BODY, Contacts, Helices
 from ._curve import element_starts, sample_elements
 from .body import REFINE_ITERATIONS, BodyMesh, element_body_contacts
-from .hair import element_sag, hair_pairs, pair_points, refine_pairs
+from .hair import _grow, element_sag, hair_pairs, pair_points, refine_pairs
 
 __all__ = ["Contacts", "DetectReport", "detect_contacts", "validate_settings", "contact_frames"]
 
@@ -214,13 +214,14 @@ def _heap_pop(key, item, n):
 
 
 @jit
-def _cap_pairs(ea, eb, sa, sb, dist, low, refined, keep, cap, elements, within, s0, length, is_last, root_clearance,
-               xs, Fs, omega, out):
+def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements, within, s0, length, is_last,
+               root_clearance, xs, Fs, omega, out):
     """Greedy, closest first (ties to the lower index): keep a pair while both of its elements hold fewer
     than ``cap`` contacts; marks ``out``.
 
-    The candidates are the refined pairs ``keep`` and the pairs not refined yet. These are taken in the
-    order of their lower bounds ``low``, always before any refined candidate farther than the bound, so
+    The candidates are the refined pairs ``known``, in the order of their distances (ties to the lower
+    index), and the pairs not refined yet, ``pending``, in the order of their lower bounds ``low`` (ties in
+    any order). These are taken always before any refined candidate farther than their bound, so
     the order is that of the distances. When its turn comes, a pair one of whose elements already holds
     ``cap`` contacts cannot be kept whatever its distance (counts only grow) and is left unmeasured; the
     others are refined (``sa``, ``sb``, ``dist``, ``refined`` updated in place) and are candidates as
@@ -230,12 +231,8 @@ def _cap_pairs(ea, eb, sa, sb, dist, low, refined, keep, cap, elements, within, 
     Returns ``(dropped, unmeasured)``: candidates not kept, and pairs left unmeasured.
     """
     count = np.zeros(elements, dtype=np.int64)
-    known = np.flatnonzero(keep)
-    known = known[np.argsort(dist[known], kind="mergesort")]
-    pending = np.flatnonzero(~refined)
-    pending = pending[np.argsort(low[pending], kind="mergesort")]
-    key = np.empty(pending.shape[0])
-    item = np.empty(pending.shape[0], dtype=np.int64)
+    key = np.empty(1024)
+    item = np.empty(1024, dtype=np.int64)
     n = 0
     i = 0
     j = 0
@@ -262,6 +259,9 @@ def _cap_pairs(ea, eb, sa, sb, dist, low, refined, keep, cap, elements, within, 
             if (dist[p] < within and not (sa[p] == length[a] and is_last[a] == 0)
                     and not (sb[p] == length[b] and is_last[b] == 0)
                     and not (s0[a] + sa[p] < root_clearance and s0[b] + sb[p] < root_clearance)):
+                if n == key.shape[0]:
+                    key = _grow(key, 2 * n)
+                    item = _grow(item, 2 * n)
                 n = _heap_push(key, item, n, dist[p], p)
             continue
         if k < 0:
@@ -409,9 +409,14 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         cap = int(settings.max_hair_per_element)
         if cap > 0:
             capped = np.zeros(len(ea), dtype=bool)
-            dropped, unmeasured = _cap_pairs(ea, eb, sa, sb, dist, pairs.low, pairs.refined, keep, cap, elements,
-                                             float(settings.hair_distance), s0, length, is_last,
+            known = np.flatnonzero(keep)
+            known = known[np.argsort(dist[known], kind="stable")]
+            pending = np.flatnonzero(~pairs.refined)
+            pending = pending[np.argsort(pairs.low[pending])]
+            dropped, unmeasured = _cap_pairs(ea, eb, sa, sb, dist, pairs.refined, known, pending, pairs.low, cap,
+                                             elements, float(settings.hair_distance), s0, length, is_last,
                                              float(settings.root_clearance), xs, Fs, omega, capped)
+            del known, pending
             if dropped or unmeasured:
                 notes.append(f"hair-hair: kept the {cap} closest contacts per element (contacts.max_hair_per_element); "
                              f"{dropped} farther ones were not declared" + (
@@ -597,10 +602,6 @@ class _Pairs:
     def subset(self, index) -> "_Pairs":
         return _Pairs(*(getattr(self, f.name)[index] for f in dataclasses.fields(self)))
 
-    @staticmethod
-    def concatenate(parts, order) -> "_Pairs":
-        return _Pairs(*(np.concatenate([getattr(p, f.name) for p in parts])[order] for f in dataclasses.fields(_Pairs)))
-
 
 def _found_pairs(samples, omega, length, strand_of, reach, wide=None) -> _Pairs:
     """Element pairs of different strands whose centre lines may come within ``reach`` (float, or per element:
@@ -710,10 +711,21 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     second = search(np.where(sparse, 2.0 * far - near, near), far, sparse)
     # the pairs of two dense strands are the first search's (the same reach), the others the second's,
     # merged in the order of one search
-    both_dense = ~sparse[first.ea] & ~sparse[first.eb]
+    both_dense = np.flatnonzero(~sparse[first.ea] & ~sparse[first.eb])
     key = np.concatenate([first.ea[both_dense], second.ea]) * len(strand_of) + np.concatenate(
         [first.eb[both_dense], second.eb])
-    merged = _Pairs.concatenate([first.subset(both_dense), second], np.argsort(key, kind="stable"))
+    where = np.empty(len(key), dtype=np.int64)  # the merged position of each row, first's rows then second's
+    where[np.argsort(key, kind="stable")] = np.arange(len(key))
+    del key
+    fields = {}
+    for f in dataclasses.fields(_Pairs):
+        a, b = getattr(first, f.name), getattr(second, f.name)
+        out = np.empty(len(where), dtype=a.dtype)
+        out[where[:len(both_dense)]] = a[both_dense]
+        out[where[len(both_dense):]] = b
+        fields[f.name] = out
+        setattr(first, f.name, None)  # one field at a time: the search's own arrays go as the merged ones come
+    merged = _Pairs(**fields)
     return merged, kept(merged, far), dense
 
 
