@@ -764,8 +764,15 @@ def dense_head(seed, guides=12, follow=10, spread=0.001):
     return helices(strands)
 
 
+def straight_grid(side=6, spacing=0.0005):
+    """Straight strands along +x over the floor on a square lattice ``spacing`` apart: every distance ties
+    with several others (4 neighbours at the spacing, 4 on the diagonals), so the greedy's ties decide."""
+    return helices([((0.0, 0.004 + spacing * j, spacing * i), frame_with_tangent([1.0, 0.0, 0.0], n2=[0.0, 1.0, 0.0]),
+                     np.zeros((5, 3)), np.full(5, 0.012)) for i in range(side) for j in range(side)])
+
+
 @pytest.mark.parametrize("seed, cap, groom", [(0, 8, "dense"), (1, 2, "dense"), (2, 1, "dense"), (3, 8, "mixed"),
-                                              (4, 2, "mixed")])
+                                              (4, 2, "mixed"), (0, 1, "grid"), (0, 3, "grid")])
 def test_pairs_refined_only_where_needed_give_the_same_contacts(monkeypatch, seed, cap, groom):
     """With the per-element cap, pairs of two dense strands are refined only when their distance matters (to
     find the dense strands, near the roots, and in the greedy cap while both elements still hold fewer than
@@ -777,7 +784,7 @@ def test_pairs_refined_only_where_needed_give_the_same_contacts(monkeypatch, see
 
     up = np.array([0.0, 1.0, 0.0])
     settings = dataclasses.replace(SETTINGS, layer=False, max_hair_per_element=cap, root_clearance=0.004)
-    h = dense_head(seed) if groom == "dense" else bundle_and_guides(seed)
+    h = {"dense": dense_head, "mixed": bundle_and_guides, "grid": lambda seed: straight_grid()}[groom](seed)
     refined = []
     real_cap = detect_module._cap_pairs
 
@@ -843,12 +850,14 @@ def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed,
             held[full.eb[k]] += 1
             expected[k] = True
     assert 0 < expected.sum() < candidate.sum()
-    for trial in range(3):
+    for trial in range(4):
         pairs = fresh.subset(slice(None))
         pairs.sa, pairs.sb, pairs.dist, pairs.refined = (fresh.sa.copy(), fresh.sb.copy(), fresh.dist.copy(),
                                                          fresh.refined.copy())
         detect_module._refine(pairs, rng.random(len(pairs.ea)) < 0.3 * trial, xs, Fs, omega, length)
         pairs.low = full.dist * rng.uniform(0.0, 1.0, len(full.ea)) ** (trial + 1)
+        if trial == 3:  # bounds equal to the distances: a refined pair and a pending one at the same distance
+            pairs.low = np.where(rng.random(len(full.ea)) < 0.5, full.dist, pairs.low)
         known = np.flatnonzero(pairs.refined & candidate)
         known = known[np.argsort(pairs.dist[known], kind="stable")]
         pending = np.flatnonzero(~pairs.refined)

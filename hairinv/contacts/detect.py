@@ -417,11 +417,12 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
                                              elements, float(settings.hair_distance), s0, length, is_last,
                                              float(settings.root_clearance), xs, Fs, omega, capped)
             del known, pending
-            if dropped or unmeasured:
+            left = ([f"{dropped} farther ones were not declared"] if dropped else []) + (
+                [f"{unmeasured} candidate pairs within reach were not measured (an element of each already held "
+                 f"{cap} closer contacts)"] if unmeasured else [])
+            if left:
                 notes.append(f"hair-hair: kept the {cap} closest contacts per element (contacts.max_hair_per_element); "
-                             f"{dropped} farther ones were not declared" + (
-                                 f", and {unmeasured} candidate pairs not measured (an element of each already held "
-                                 f"{cap} closer ones)" if unmeasured else ""))
+                             + ", and ".join(left))
             keep = capped
         hair_wisp = int(np.count_nonzero(by_wisp & keep))
         ea, eb, sa, sb = ea[keep], eb[keep], sa[keep], sb[keep]
@@ -608,7 +609,10 @@ def _found_pairs(samples, omega, length, strand_of, reach, wide=None) -> _Pairs:
     a pair is searched to the mean of its two elements' values), not yet refined."""
     ea, eb, sa, sb, gap, _close = hair_pairs(samples, omega, length, strand_of, reach, wide)
     sag = element_sag(omega, length, samples.shape[1])
-    low = np.maximum(gap - sag[ea] - sag[eb], 0.0)
+    # the samples and the centre line's points are rounded apart by some ulps of the coordinates: a margin of
+    # many times that keeps the bound a bound where the arcs are straight (no sag) and distances tie
+    rounding = 64.0 * np.finfo(np.float64).eps * float(np.abs(samples).max(initial=0.0)) + 1e-12 * float(np.max(reach))
+    low = np.maximum(gap - sag[ea] - sag[eb] - rounding, 0.0)
     return _Pairs(ea, eb, sa, sb, np.full(len(ea), np.nan), low, np.zeros(len(ea), dtype=bool))
 
 
@@ -675,9 +679,9 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     def kept(pairs: _Pairs, within: float) -> np.ndarray:
         return pairs.refined & _kept(pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist, within, length, is_last)
 
-    def search(reach, within, wide=None, later=False) -> _Pairs:
+    def search(reach, within, wide=None, on_demand=False) -> _Pairs:
         pairs = _found_pairs(samples, omega, length, strand_of, reach, wide)
-        if not later:
+        if not on_demand:
             _refine(pairs, np.ones(len(pairs.ea), dtype=bool), xs, Fs, omega, length)
         else:
             # both points may lie within root_clearance of their roots only where both elements start there
@@ -686,13 +690,13 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
         return pairs
 
     if not wisp:
-        first = search(near, near, later=lazy)
+        first = search(near, near, on_demand=lazy)
         return first, kept(first, near), None
     far = float(settings.hair_max_distance)
     if not two_pass:
         first = search(far, far)
         return first, kept(first, far), None
-    first = search(near, near, later=lazy)
+    first = search(near, near, on_demand=lazy)
     tight = near / WISP_WIDTH
     if lazy:
         _refine_for_tight(first, tight, near, kept, xs, Fs, omega, length)

@@ -11,10 +11,11 @@ exact cell coordinates (no hash collisions), sorted, and each pair of boxes is
 tested once, in the cell holding the low corner of their overlap; within a cell
 the boxes are swept along their narrowest axis (sort and sweep), so a box meets
 only those that overlap it on that axis. Pairs on the same strand are never
-tested. The closest segment pair of each pair of
-elements is then refined on the exact centerlines (Gauss-Newton on the
+tested. The search gives the closest segment pair of each pair of elements;
+:func:`refine_pairs` refines it on the exact centerlines (Gauss-Newton on the
 squared distance, the step solved as a segment-segment problem on the
-tangents so it stays inside the elements).
+tangents so it stays inside the elements), for the pairs whose distance the
+caller needs (hairinv.contacts.detect).
 """
 
 from __future__ import annotations
