@@ -723,6 +723,13 @@ def bundle_and_guides(seed=0):
     return helices(strands)
 
 
+def assert_same_detection(a: Contacts, report_a: DetectReport, b: Contacts, report_b: DetectReport):
+    """Every field of the contacts and the wisp radii, bit for bit."""
+    for key in ("strand", "s", "point", "frame", "mu", "gap", "element"):
+        np.testing.assert_array_equal(getattr(a, key), getattr(b, key))
+    np.testing.assert_array_equal(report_a.wisp_radius, report_b.wisp_radius)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_the_two_pass_hair_search_declares_what_one_wide_search_does(monkeypatch, seed):
     """The first search (within hair_distance) finds the strands whose wisp radius is hair_distance; the
@@ -739,9 +746,7 @@ def test_the_two_pass_hair_search_declares_what_one_wide_search_does(monkeypatch
     monkeypatch.setattr(detect_module, "_hair_candidates",
                         functools.partial(detect_module._hair_candidates, two_pass=False))
     one, report_one = detect_contacts(h, plane(), settings, up=up)
-    for key in ("strand", "s", "point", "frame", "mu", "gap", "element"):
-        np.testing.assert_array_equal(getattr(two, key), getattr(one, key))
-    np.testing.assert_array_equal(report.wisp_radius, report_one.wisp_radius)
+    assert_same_detection(two, report, one, report_one)
     # both kinds are there: the bundle at hair_distance, the guides wider, and wisp contacts between guides
     assert np.all(report.wisp_radius[:20] == settings.hair_distance)
     assert np.all(report.wisp_radius[20:25] > settings.hair_distance)
@@ -798,9 +803,7 @@ def test_pairs_refined_only_where_needed_give_the_same_contacts(monkeypatch, see
     monkeypatch.setattr(detect_module, "_hair_candidates",
                         functools.partial(detect_module._hair_candidates, lazy=False))
     eager, report_eager = detect_contacts(h, plane(), settings, up=up)
-    for key in ("strand", "s", "point", "frame", "mu", "gap", "element"):
-        np.testing.assert_array_equal(getattr(lazy, key), getattr(eager, key))
-    np.testing.assert_array_equal(report.wisp_radius, report_eager.wisp_radius)
+    assert_same_detection(lazy, report, eager, report_eager)
     roots = [n for n in report.notes if "root_clearance" in n]
     assert roots == [n for n in report_eager.notes if "root_clearance" in n]
     assert lazy.n_hair > 0
@@ -837,8 +840,7 @@ def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed,
     is_last[offsets[1:] - 1] = 1
     hd = 1e-3
     fresh = detect_module._found_pairs(samples, omega, length, strand_of, hd)
-    full = fresh.subset(slice(None))
-    full.sa, full.sb, full.dist, full.refined = fresh.sa.copy(), fresh.sb.copy(), fresh.dist.copy(), fresh.refined.copy()
+    full = fresh.copy()
     detect_module._refine(full, np.ones(len(full.ea), bool), xs, Fs, omega, length)
     candidate = detect_module._kept(full.ea, full.eb, full.sa, full.sb, full.dist, hd, length, is_last)
     # the definition
@@ -851,9 +853,7 @@ def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed,
             expected[k] = True
     assert 0 < expected.sum() < candidate.sum()
     for trial in range(4):
-        pairs = fresh.subset(slice(None))
-        pairs.sa, pairs.sb, pairs.dist, pairs.refined = (fresh.sa.copy(), fresh.sb.copy(), fresh.dist.copy(),
-                                                         fresh.refined.copy())
+        pairs = fresh.copy()
         detect_module._refine(pairs, rng.random(len(pairs.ea)) < 0.3 * trial, xs, Fs, omega, length)
         pairs.low = full.dist * rng.uniform(0.0, 1.0, len(full.ea)) ** (trial + 1)
         if trial == 3:  # bounds equal to the distances: a refined pair and a pending one at the same distance

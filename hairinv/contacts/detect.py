@@ -175,12 +175,18 @@ def _hair_normals(point_a, point_b, tangent_a, tangent_b, dist, flat) -> np.ndar
 
 
 @jit
+def _before(d1, k1, d2, k2):
+    """The greedy's order: by distance, ties to the lower index."""
+    return d1 < d2 or (d1 == d2 and k1 < k2)
+
+
+@jit
 def _heap_push(key, item, n, d, k):
     """Push ``(d, k)`` on the binary min-heap ``key[:n], item[:n]`` ordered by (key, item); returns n + 1."""
     t = n
     while t > 0:
         parent = (t - 1) // 2
-        if key[parent] < d or (key[parent] == d and item[parent] < k):
+        if _before(key[parent], item[parent], d, k):
             break
         key[t] = key[parent]
         item[t] = item[parent]
@@ -201,9 +207,9 @@ def _heap_pop(key, item, n):
         c = 2 * t + 1
         if c >= n:
             break
-        if c + 1 < n and (key[c + 1] < key[c] or (key[c + 1] == key[c] and item[c + 1] < item[c])):
+        if c + 1 < n and _before(key[c + 1], item[c + 1], key[c], item[c]):
             c += 1
-        if d < key[c] or (d == key[c] and k < item[c]):
+        if _before(d, k, key[c], item[c]):
             break
         key[t] = key[c]
         item[t] = item[c]
@@ -243,7 +249,7 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
         from_heap = False
         if j < known.shape[0]:
             k = known[j]
-        if n > 0 and (k < 0 or key[0] < dist[k] or (key[0] == dist[k] and item[0] < k)):
+        if n > 0 and (k < 0 or _before(key[0], item[0], dist[k], k)):
             k = item[0]
             from_heap = True
         if i < pending.shape[0] and (k < 0 or not dist[k] < low[pending[i]]):
@@ -600,8 +606,8 @@ class _Pairs:
     low: np.ndarray
     refined: np.ndarray
 
-    def subset(self, index) -> "_Pairs":
-        return _Pairs(*(getattr(self, f.name)[index] for f in dataclasses.fields(self)))
+    def copy(self) -> "_Pairs":
+        return _Pairs(*(getattr(self, f.name).copy() for f in dataclasses.fields(self)))
 
 
 def _found_pairs(samples, omega, length, strand_of, reach, wide=None) -> _Pairs:
