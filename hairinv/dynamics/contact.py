@@ -21,7 +21,7 @@ from .._jit import jit
 from .._parallel import run_chunks
 from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult, _accumulate_f, diagonal_blocks,
                                    natural_residuals, solve_cone_qp)
-from ..solver.blocks import _block_sweep, _group_newton, strand_blocks
+from ..solver.blocks import _block_sweep, _group_fixed_point, _group_newton, strand_blocks
 from ..solver.rows import ContactRows
 
 __all__ = ["REACH", "back_substitute", "contact_keys", "contact_velocities", "delassus_blocks", "desaxce_residual",
@@ -33,6 +33,12 @@ REACH = 1e-2
 
 #: Newton iterations of a strand's body contacts solved together (:func:`solve_coulomb`)
 GROUP_NEWTON_ITERS = 30
+#: Newton iterations of each round's convex problem in the strands' fixed point (:func:`solve_coulomb`);
+#: where they leave it unsolved, Gauss-Seidel on the strand's block takes over
+FIXED_POINT_NEWTON_ITERS = 10
+#: a strand's fixed point stops after this many rounds without a new best (its residual is not monotone:
+#: it may rise for several rounds before it falls below its best)
+FIXED_POINT_PATIENCE = 20
 
 
 @jit
@@ -358,22 +364,34 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
 
     if blocks and status == MAX_ITERS and max_sweeps > 0:
         # first each strand's contacts at once by Newton on the De Saxce problem itself (the strands do
-        # not interact): it nearly always meets the tolerance, and the rounds below start from it
+        # not interact): it nearly always meets the tolerance; the few strands it leaves (a contact near
+        # the root, whose W_ii is 1e-4 of the others', beside contacts along the strand) are solved as a
+        # fixed point of convex problems, strand by strand
         groups = strand_groups(rows, gamma, strand, Wd)
         members, group_ptr, block_ptr, blocks_g, _ = groups
         f = np.empty(rows.n_dofs)
         _accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, f)
         n_groups = len(group_ptr) - 1
         done = np.zeros(n_groups, dtype=np.bool_)
+        chunk = max(16, -(-n_groups // 8))
         run_chunks(lambda lo, hi: _group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members, group_ptr,
                                                 block_ptr, blocks_g, Wd, r, f, target, GROUP_NEWTON_ITERS, True, True,
-                                                lo, hi, done), n_groups, max(16, -(-n_groups // 8)))
+                                                lo, hi, done), n_groups, chunk)
         sweeps += 1
-        if record(r) > target:
-            if (~done).any():
-                groups = _subset_groups(groups, ~done)  # the rounds need not touch the strands Newton solved
-            else:
-                rounds = max_rounds  # each strand met the tolerance by its own count: the fail-safe polishes
+        if not done.all() and max_sweeps > 1:
+            taken = np.zeros(n_groups, dtype=np.int64)
+            run_chunks(lambda lo, hi: _group_fixed_point(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members,
+                                                         group_ptr, block_ptr, blocks_g, Wd, r, f, target,
+                                                         FIXED_POINT_NEWTON_ITERS, max_sweeps - 1, FIXED_POINT_PATIENCE,
+                                                         lo, hi, done, taken), n_groups, chunk)
+            rounds = int(taken.max())
+            sweeps += rounds
+        record(r)
+        # the strands that did not meet the tolerance stopped at their best (stalled or out of rounds):
+        # sweeps over all contacts would not do better; where each did by its own count and the whole
+        # does not (round-off), the fail-safe polishes
+        stalled = not done.all()
+        rounds = max_rounds
     while status == MAX_ITERS and sweeps < max_sweeps and rounds < max_rounds:
         u = contact_velocities(rows, gamma, b, r)
         shifted = b.copy()

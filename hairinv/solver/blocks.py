@@ -20,6 +20,9 @@ from .rows import ContactRows
 
 __all__ = ["strand_blocks"]
 
+#: Gauss-Seidel sweeps on a group's block where Newton leaves a round's convex problem unsolved
+GS_SWEEPS = 200
+
 
 @jit
 def _group_blocks(ptr, cols, vals, gamma, members, group_ptr, block_ptr, blocks, n_dofs):
@@ -247,6 +250,159 @@ def _projected_worst(W, n, q, rho, mu, x, xp, u, phi, G, Jr, Ju, desaxce, veloci
 
 
 @jit(error_model="numpy")
+def _newton_scratch(big):
+    """Work arrays of :func:`_block_newton` for groups of up to ``big`` contacts."""
+    nb = 3 * big
+    return (np.empty((nb, nb)), np.empty((nb, nb)), np.empty((nb, nb)), np.empty((3, 3)), np.empty((3, 3)),
+            np.empty(nb), np.empty(nb), np.empty(nb), np.empty(nb), np.empty(nb), np.empty(nb), np.empty(nb),
+            np.empty(nb), np.empty(nb), np.empty(nb), np.empty((3, 3)), np.empty(3), np.empty(3))
+
+
+@jit(error_model="numpy")
+def _block_newton(W, n, q, rho, mug, x, xbest, target, max_iter, desaxce, velocity, scratch):
+    """Nonsmooth Newton on one group's dense block (see :func:`_group_newton`) from the scaled forces
+    ``x`` (overwritten). ``xbest`` receives the projection onto the cones of the iterate with the
+    smallest largest natural-map residual, the start included. Returns that residual and whether
+    ``xbest`` differs from the start."""
+    G, Gt, A, Jr, Ju, xt, xp, up, phip, u, phi, phit, rhs, d, grad, Wk, bl, rk = scratch
+    m = n // 3
+    merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True, desaxce, velocity)
+    best = _projected_worst(W, n, q, rho, mug, x, xbest, up, phip, Gt, Jr, Ju, desaxce, velocity)
+    improved = False
+    for a in range(n):
+        improved = improved or xbest[a] != x[a]  # the start was off the cones: store its projection
+    for _ in range(max_iter):
+        if best <= target or not np.isfinite(merit):
+            break
+        for a in range(n):
+            acc = 0.0
+            for c in range(n):
+                acc += G[c, a] * phi[c]
+            grad[a] = acc
+            rhs[a] = -phi[a]
+            for c in range(n):
+                A[a, c] = G[a, c]
+        ok = _solve_dense(A, rhs, d, n)
+        slope = 0.0
+        if ok:
+            for a in range(n):
+                slope += grad[a] * d[a]
+        if not ok or not (slope < 0.0):
+            slope = 0.0
+            for a in range(n):
+                d[a] = -grad[a]
+                slope -= grad[a] * grad[a]
+        t = 1.0
+        accepted = False
+        mt = merit
+        wt = worst
+        if slope < 0.0:
+            for _h in range(30):
+                for a in range(n):
+                    xt[a] = x[a] + t * d[a]
+                mt, wt = _group_merit(W, n, q, rho, mug, xt, u, phit, Gt, Jr, Ju, True, desaxce, velocity)
+                if mt <= merit + 1e-4 * t * slope:
+                    accepted = True
+                    break
+                t *= 0.5
+        if accepted:
+            merit = mt
+            worst = wt
+            for a in range(n):
+                x[a] = xt[a]
+                phi[a] = phit[a]
+                for c in range(n):
+                    G[a, c] = Gt[a, c]
+        else:
+            # a kink of the FB function or of |u_T| stops the descent: one Gauss-Seidel pass of exact
+            # local solves moves off it
+            for a in range(m):
+                k = 3 * a
+                for ra in range(3):
+                    acc = q[k + ra]
+                    for c in range(n):
+                        if c // 3 != a:
+                            acc += W[k + ra, c] * x[c] / rho[c // 3]
+                    bl[ra] = acc
+                    rk[ra] = x[k + ra] / rho[a]
+                    for rc in range(3):
+                        Wk[ra, rc] = W[k + ra, k + rc]
+                status, _ = solve_contact(Wk, bl, mug[a], rk, LOCAL_TOL, 50, desaxce)
+                if status != NUMERICAL_ERROR:
+                    for ra in range(3):
+                        x[k + ra] = rho[a] * rk[ra]
+            merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True, desaxce, velocity)
+        projected = _projected_worst(W, n, q, rho, mug, x, xp, up, phip, Gt, Jr, Ju, desaxce, velocity)
+        if projected < best:
+            best = projected
+            improved = True
+            for a in range(n):
+                xbest[a] = xp[a]
+    return best, improved
+
+
+@jit(error_model="numpy")
+def _block_gauss_seidel(W, n, q, rho, mug, x, max_sweeps, desaxce, scratch):
+    """Gauss-Seidel on one group's dense block (exact local solves, contact after contact) from the scaled
+    forces ``x`` (updated in place), until they stop changing (1e-12 relative) or ``max_sweeps``. On a
+    convex problem each local solve lowers the objective: slow where the block is ill-conditioned, but
+    it never goes astray where the Newton steps of :func:`_block_newton` stall."""
+    Wk, bl, rk = scratch[15], scratch[16], scratch[17]
+    m = n // 3
+    for _ in range(max_sweeps):
+        change = 0.0
+        size = 0.0
+        for a in range(m):
+            k = 3 * a
+            for ra in range(3):
+                acc = q[k + ra]
+                for c in range(n):
+                    if c // 3 != a:
+                        acc += W[k + ra, c] * x[c] / rho[c // 3]
+                bl[ra] = acc
+                rk[ra] = x[k + ra] / rho[a]
+                for rc in range(3):
+                    Wk[ra, rc] = W[k + ra, k + rc]
+            status, _ = solve_contact(Wk, bl, mug[a], rk, LOCAL_TOL, 50, desaxce)
+            if status == NUMERICAL_ERROR:
+                continue
+            for ra in range(3):
+                value = rho[a] * rk[ra]
+                change = max(change, abs(value - x[k + ra]))
+                size = max(size, abs(value))
+                x[k + ra] = value
+        if change <= 1e-12 * size:
+            break
+
+
+@jit(error_model="numpy")
+def _group_setup(ptr, cols, vals, gamma, b, mu, members, lo, m, blocks, base, Wd, r, f, W, rho, mug, q, x):
+    """One group's dense block ``W``, scales ``rho``, friction ``mug``, what it sees of the rest ``q`` and
+    its scaled forces ``x`` (see :func:`_group_newton`); False if a contact has no finite positive scale."""
+    n = 3 * m
+    for a in range(n):
+        for c in range(n):
+            W[a, c] = blocks[base + a * n + c]
+    for a in range(m):
+        i = members[lo + a]
+        rho[a] = (Wd[i, 0, 0] + Wd[i, 1, 1] + Wd[i, 2, 2]) / 3.0
+        if not (rho[a] > 0.0 and rho[a] < np.inf):
+            return False
+    _group_load(ptr, cols, vals, gamma, b, r, f, members, lo, m, q, x)
+    for a in range(m):
+        mug[a] = mu[members[lo + a]]
+        for row in range(3):
+            x[3 * a + row] *= rho[a]
+    # q = u - W_g r_g: what the group sees of b and of the other groups
+    for a in range(n):
+        acc = 0.0
+        for c in range(n):
+            acc += W[a, c] * x[c] / rho[c // 3]
+        q[a] -= acc
+    return True
+
+
+@jit(error_model="numpy")
 def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, Wd, r, f, target,
                   max_iter, desaxce, velocity, g_lo, g_hi, done):
     """Each group's cone problem ``K ∋ r_g ⟂ u_g`` (with ``desaxce`` the De Saxce one, ``u~_g``) solved
@@ -262,130 +418,103 @@ def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, 
         big = max(big, group_ptr[g + 1] - group_ptr[g])
     nb = 3 * big
     W = np.empty((nb, nb))
-    G = np.empty((nb, nb))
-    Gt = np.empty((nb, nb))
-    A = np.empty((nb, nb))
-    Jr = np.empty((3, 3))
-    Ju = np.empty((3, 3))
     q = np.empty(nb)
     x = np.empty(nb)
-    xt = np.empty(nb)
     xbest = np.empty(nb)
-    xp = np.empty(nb)
-    up = np.empty(nb)
-    phip = np.empty(nb)
-    u = np.empty(nb)
-    phi = np.empty(nb)
-    phit = np.empty(nb)
-    rhs = np.empty(nb)
-    d = np.empty(nb)
-    grad = np.empty(nb)
     rho = np.empty(big)
     mug = np.empty(big)
-    Wk = np.empty((3, 3))
-    bl = np.empty(3)
-    rk = np.empty(3)
+    scratch = _newton_scratch(big)
     for g in range(g_lo, g_hi):
         lo = group_ptr[g]
         m = group_ptr[g + 1] - lo
-        n = 3 * m
-        base = block_ptr[g]
-        for a in range(n):
-            for c in range(n):
-                W[a, c] = blocks[base + a * n + c]
-        degenerate = False
-        for a in range(m):
-            i = members[lo + a]
-            rho[a] = (Wd[i, 0, 0] + Wd[i, 1, 1] + Wd[i, 2, 2]) / 3.0
-            if not (rho[a] > 0.0 and rho[a] < np.inf):
-                degenerate = True
-        if degenerate:
+        if not _group_setup(ptr, cols, vals, gamma, b, mu, members, lo, m, blocks, block_ptr[g], Wd, r, f, W, rho,
+                            mug, q, x):
             done[g] = False
             continue  # a contact no coordinate moves (or a non-finite W): left to the local solves' checks
-        _group_load(ptr, cols, vals, gamma, b, r, f, members, lo, m, q, x)
-        for a in range(m):
-            mug[a] = mu[members[lo + a]]
-            for row in range(3):
-                x[3 * a + row] *= rho[a]
-        # q = u - W_g r_g: what the group sees of b and of the other groups
-        for a in range(n):
-            acc = 0.0
-            for c in range(n):
-                acc += W[a, c] * x[c] / rho[c // 3]
-            q[a] -= acc
-        merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True, desaxce, velocity)
-        best = _projected_worst(W, n, q, rho, mug, x, xbest, up, phip, Gt, Jr, Ju, desaxce, velocity)
-        improved = False
-        for a in range(n):
-            improved = improved or xbest[a] != x[a]  # the start was off the cones: store its projection
-        for _ in range(max_iter):
-            if best <= target or not np.isfinite(merit):
-                break
-            for a in range(n):
-                acc = 0.0
-                for c in range(n):
-                    acc += G[c, a] * phi[c]
-                grad[a] = acc
-                rhs[a] = -phi[a]
-                for c in range(n):
-                    A[a, c] = G[a, c]
-            ok = _solve_dense(A, rhs, d, n)
-            slope = 0.0
-            if ok:
-                for a in range(n):
-                    slope += grad[a] * d[a]
-            if not ok or not (slope < 0.0):
-                slope = 0.0
-                for a in range(n):
-                    d[a] = -grad[a]
-                    slope -= grad[a] * grad[a]
-            t = 1.0
-            accepted = False
-            mt = merit
-            wt = worst
-            if slope < 0.0:
-                for _h in range(30):
-                    for a in range(n):
-                        xt[a] = x[a] + t * d[a]
-                    mt, wt = _group_merit(W, n, q, rho, mug, xt, u, phit, Gt, Jr, Ju, True, desaxce, velocity)
-                    if mt <= merit + 1e-4 * t * slope:
-                        accepted = True
-                        break
-                    t *= 0.5
-            if accepted:
-                merit = mt
-                worst = wt
-                for a in range(n):
-                    x[a] = xt[a]
-                    phi[a] = phit[a]
-                    for c in range(n):
-                        G[a, c] = Gt[a, c]
-            else:
-                # a kink of the FB function or of |u_T| stops the descent: one Gauss-Seidel pass of exact
-                # local solves moves off it
-                for a in range(m):
-                    k = 3 * a
-                    for ra in range(3):
-                        acc = q[k + ra]
-                        for c in range(n):
-                            if c // 3 != a:
-                                acc += W[k + ra, c] * x[c] / rho[c // 3]
-                        bl[ra] = acc
-                        rk[ra] = x[k + ra] / rho[a]
-                        for rc in range(3):
-                            Wk[ra, rc] = W[k + ra, k + rc]
-                    status, _ = solve_contact(Wk, bl, mug[a], rk, LOCAL_TOL, 50, desaxce)
-                    if status != NUMERICAL_ERROR:
-                        for ra in range(3):
-                            x[k + ra] = rho[a] * rk[ra]
-                merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True, desaxce, velocity)
-            projected = _projected_worst(W, n, q, rho, mug, x, xp, up, phip, Gt, Jr, Ju, desaxce, velocity)
-            if projected < best:
-                best = projected
-                improved = True
-                for a in range(n):
-                    xbest[a] = xp[a]
+        best, improved = _block_newton(W, 3 * m, q, rho, mug, x, xbest, target, max_iter, desaxce, velocity, scratch)
         done[g] = best <= target
         if not improved:
             continue  # r untouched, bit for bit
         _group_store(ptr, cols, vals, members, lo, m, xbest, rho, r, f)
+
+
+@jit(error_model="numpy")
+def _group_fixed_point(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, Wd, r, f, target,
+                       max_iter, max_rounds, patience, g_lo, g_hi, done, rounds):
+    """The De Saxce problem of each group not yet ``done`` as a fixed point of convex ones, group by
+    group (the other groups frozen): with the shift ``s_i = mu_i |u_T,i|`` of the current forces held,
+    the convex cone problem of ``u + s e_N`` is solved by :func:`_block_newton`; its answer gives the
+    next shift (Acary, Cadoux et al.; at a fixed point the De Saxce conditions hold exactly). Each
+    group keeps its iterate of smallest De Saxce residual (velocity units; a round's convex solve is
+    asked for a tenth of it) and stops once it meets ``target``, after ``max_rounds``, or once
+    ``stall_rounds`` rounds in a row have not halved it. ``rounds[g]``: the rounds it took;
+    ``done[g]``: whether it meets ``target``."""
+    big = 0
+    for g in range(g_lo, g_hi):
+        if not done[g]:
+            big = max(big, group_ptr[g + 1] - group_ptr[g])
+    if big == 0:
+        return
+    nb = 3 * big
+    W = np.empty((nb, nb))
+    q = np.empty(nb)
+    qs = np.empty(nb)
+    x = np.empty(nb)
+    xs = np.empty(nb)
+    xbest = np.empty(nb)
+    xp = np.empty(nb)
+    u = np.empty(nb)
+    phi = np.empty(nb)
+    rho = np.empty(big)
+    mug = np.empty(big)
+    scratch = _newton_scratch(big)
+    G, Gt, A, Jr, Ju = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
+    for g in range(g_lo, g_hi):
+        if done[g]:
+            continue
+        lo = group_ptr[g]
+        m = group_ptr[g + 1] - lo
+        n = 3 * m
+        if not _group_setup(ptr, cols, vals, gamma, b, mu, members, lo, m, blocks, block_ptr[g], Wd, r, f, W, rho,
+                            mug, q, x):
+            continue
+        best = _projected_worst(W, n, q, rho, mug, x, xbest, u, phi, Gt, Jr, Ju, True, True)
+        improved = False
+        last_halving = 0
+        reference = best
+        k = 0
+        for k in range(1, max_rounds + 1):
+            # the shift of the current forces' velocities
+            for a in range(n):
+                acc = q[a]
+                for c in range(n):
+                    acc += W[a, c] * x[c] / rho[c // 3]
+                u[a] = acc
+            for a in range(m):
+                qs[3 * a] = q[3 * a]
+                qs[3 * a + 1] = q[3 * a + 1]
+                qs[3 * a + 2] = q[3 * a + 2]
+                if mug[a] > 0.0 and mug[a] < np.inf:
+                    qs[3 * a] += mug[a] * np.sqrt(u[3 * a + 1] ** 2 + u[3 * a + 2] ** 2)
+            inner, _ = _block_newton(W, n, qs, rho, mug, x, xs, 0.1 * best, max_iter, False, True, scratch)
+            for a in range(n):
+                x[a] = xs[a]
+            if inner > 0.1 * best:
+                _block_gauss_seidel(W, n, qs, rho, mug, x, GS_SWEEPS, False, scratch)
+            residual = _projected_worst(W, n, q, rho, mug, x, xp, u, phi, Gt, Jr, Ju, True, True)
+            if residual < best:
+                best = residual
+                improved = True
+                for a in range(n):
+                    xbest[a] = xp[a]
+            if best <= target:
+                break
+            if best < reference:
+                reference = best
+                last_halving = k
+            elif patience > 0 and k - last_halving >= patience:
+                break
+        rounds[g] = k
+        done[g] = best <= target
+        if improved:
+            _group_store(ptr, cols, vals, members, lo, m, xbest, rho, r, f)
