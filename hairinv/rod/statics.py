@@ -306,22 +306,6 @@ def chained_point_jacobian(xs, Fs, omega, length, dX, dTh, done, s, out):
 
 
 @jit
-def _point_load_forces(root, frame0, omega, length, s, force, xs, Fs, dX, dTh, J, out):
-    """The generalized force of dead point loads, ``sum_k J_k^T f_k``, (3N,), into ``out``;
-    ``s`` sorted ascending (the loads share the element derivatives upstream of them)."""
-    n = omega.shape[0]
-    chain(root, frame0, omega, length, xs, Fs)
-    out[:] = 0.0
-    done = 0
-    for k in range(s.shape[0]):
-        e_s = chained_point_jacobian(xs, Fs, omega, length, dX, dTh, done, s[k], J)
-        done = max(done, e_s)
-        for e in range(min(e_s + 1, n)):
-            for c in range(3):
-                out[3 * e + c] += J[e, c, 0] * force[k, 0] + J[e, c, 1] * force[k, 1] + J[e, c, 2] * force[k, 2]
-
-
-@jit
 def point_load_hessian(root, frame0, omega, length, s, force, out):
     """Hessian of the potential of dead point loads, ``-sum_k f_k . x(s_k)``, w.r.t. omega, (3N, 3N).
 
@@ -329,10 +313,20 @@ def point_load_hessian(root, frame0, omega, length, s, force, out):
     work at second order, ``-f . d^2 x``: this is the contact forces' share of the
     Hessian of the Lagrangian whose restriction to the motions that keep the
     contact points in place decides the stability of a supported equilibrium
-    (the gravity share is :func:`gravity_hessian`). Central differences of the
-    generalized force ``sum_k J_k^T f_k`` (:func:`point_jacobian`), step
-    ``1e-5 (1 / L + |omega[e, k]|)`` as in :func:`gravity_hessian`, then
-    symmetrised; a coordinate moves only the loads at or after its element.
+    (the gravity share is :func:`gravity_hessian`, built the same way).
+
+    An element ``a`` moves the points after it rigidly about its end, by
+    ``dx = Dx_ak + Dth_ak x (x - x_{a+1})``, and ``Dx_a``, ``Dth_a``, ``x_{a+1}``
+    do not depend on the elements after ``a``; so for ``b > a``
+    ``d^2 x / d omega_ak d omega_bk' = Dth_ak x J_bk'`` (``J_bk'`` the point's
+    Jacobian column) and the off-diagonal blocks are closed-form,
+    ``H[ak, bk'] = -Dth_ak . M_bk'`` with ``M_bk' = sum_k J_k,bk' x f_k`` over
+    the loads at or after element ``b``'s start. The diagonal blocks (an
+    element against itself) are central differences of the element's own
+    generalized force with the strand after it carried rigidly, step
+    ``1e-5 (1 / L + |omega[a, k]|)``, then symmetrised. O(N K) products and
+    O(N (1 + K)) element evaluations for K loads, where differencing the whole
+    generalized force costs O(N^2 K).
 
     Parameters
     ----------
@@ -342,46 +336,121 @@ def point_load_hessian(root, frame0, omega, length, s, force, out):
     out : (3N, 3N) float64, out, J
     """
     n = omega.shape[0]
-    m = 3 * n
+    K = s.shape[0]
     out[:, :] = 0.0
-    if s.shape[0] == 0 or n == 0:
+    if K == 0 or n == 0:
         return
     total = 0.0
     for e in range(n):
         total += length[e]
     xs = np.empty((n + 1, 3))
     Fs = np.empty((n + 1, 3, 3))
-    dX = np.empty((n, 3, 3))
-    dTh = np.empty((n, 3, 3))
-    J = np.empty((n, 3, 3))
-    Gp = np.empty(m)
-    Gm = np.empty(m)
-    w = omega.copy()
-    # the loads each element's coordinates move: those at or after the element's start
+    chain(root, frame0, omega, length, xs, Fs)
+    # each load's element (the one holding s, as chained_point_jacobian finds it) and its place on it
+    elem = np.empty(K, np.int64)
+    sigma = np.empty(K)
+    xl = np.empty((K, 3))
+    Fl = np.empty((3, 3))
+    R = np.empty((3, 3))
+    P = np.empty(3)
+    Q = np.empty(3)
     start = 0.0
-    first = np.empty(n, np.int64)
-    k = 0
-    for e in range(n):
-        while k < s.shape[0] and s[k] < start:
-            k += 1
-        first[e] = k
-        start += length[e]
-    for j in range(m):
-        e = j // 3
-        c = j % 3
-        lo = first[e]
-        if lo >= s.shape[0]:
-            continue
-        h = 1e-5 * (1.0 / total + abs(omega[e, c]))
-        w[e, c] = omega[e, c] + h
-        _point_load_forces(root, frame0, w, length, s[lo:], force[lo:], xs, Fs, dX, dTh, J, Gp)
-        w[e, c] = omega[e, c] - h
-        _point_load_forces(root, frame0, w, length, s[lo:], force[lo:], xs, Fs, dX, dTh, J, Gm)
-        w[e, c] = omega[e, c]
-        for i in range(m):
-            out[i, j] = -(Gp[i] - Gm[i]) / (2.0 * h)
-    for i in range(m):
-        for j in range(i + 1, m):
-            v = 0.5 * (out[i, j] + out[j, i])
-            out[i, j] = v
-            out[j, i] = v
+    e = 0
+    for k in range(K):
+        while e < n - 1 and not s[k] < start + length[e]:
+            start += length[e]
+            e += 1
+        elem[k] = e
+        sigma[k] = min(max(s[k] - start, 0.0), length[e])
+        _advance(xs[e], Fs[e], omega[e], sigma[k], xl[k], Fl, R, P, Q)
+    Dx = np.empty((n, 3, 3))
+    Dth = np.empty((n, 3, 3))
+    for a in range(n):
+        element_derivatives(omega[a], length[a], Fs[a], Dx[a], Dth[a])
+    # M[b, k'] = sum over the loads on or after b of J_{l, bk'} x f_l
+    M = np.zeros((n, 3, 3))
+    dx = np.empty((3, 3))
+    dth = np.empty((3, 3))
+    J = np.empty(3)
+    for l in range(K):
+        f = force[l]
+        for b in range(elem[l] + 1):
+            if b < elem[l]:
+                r0 = xl[l, 0] - xs[b + 1, 0]
+                r1 = xl[l, 1] - xs[b + 1, 1]
+                r2 = xl[l, 2] - xs[b + 1, 2]
+            else:
+                element_derivatives(omega[b], sigma[l], Fs[b], dx, dth)
+            for k in range(3):
+                if b < elem[l]:
+                    J[0] = Dx[b, k, 0] + Dth[b, k, 1] * r2 - Dth[b, k, 2] * r1
+                    J[1] = Dx[b, k, 1] + Dth[b, k, 2] * r0 - Dth[b, k, 0] * r2
+                    J[2] = Dx[b, k, 2] + Dth[b, k, 0] * r1 - Dth[b, k, 1] * r0
+                else:
+                    J[0] = dx[k, 0]
+                    J[1] = dx[k, 1]
+                    J[2] = dx[k, 2]
+                M[b, k, 0] += J[1] * f[2] - J[2] * f[1]
+                M[b, k, 1] += J[2] * f[0] - J[0] * f[2]
+                M[b, k, 2] += J[0] * f[1] - J[1] * f[0]
+    for a in range(n):
+        for k in range(3):
+            for b in range(a + 1, n):
+                for k2 in range(3):
+                    v = -(Dth[a, k, 0] * M[b, k2, 0] + Dth[a, k, 1] * M[b, k2, 1] + Dth[a, k, 2] * M[b, k2, 2])
+                    out[3 * a + k, 3 * b + k2] = v
+                    out[3 * b + k2, 3 * a + k] = v
+    # diagonal blocks: the element's own generalized force, the loads after it carried with its end frame
+    local = np.empty((K, 3))
+    x_end = np.empty(3)
+    F_end = np.empty((3, 3))
+    arm = np.empty(3)
+    w = np.empty(3)
+    Gp = np.empty(3)
+    Gm = np.empty(3)
+    first = 0  # the first load on or after element a
+    for a in range(n):
+        while first < K and elem[first] < a:
+            first += 1
+        if first == K:
+            break
+        for l in range(first, K):
+            if elem[l] > a:
+                for j in range(3):
+                    local[l, j] = Fs[a + 1, j, 0] * (xl[l, 0] - xs[a + 1, 0]) \
+                        + Fs[a + 1, j, 1] * (xl[l, 1] - xs[a + 1, 1]) + Fs[a + 1, j, 2] * (xl[l, 2] - xs[a + 1, 2])
+        for k2 in range(3):
+            h = 1e-5 * (1.0 / total + abs(omega[a, k2]))
+            for side in range(2):
+                for i in range(3):
+                    w[i] = omega[a, i]
+                w[k2] += h if side == 0 else -h
+                G = Gp if side == 0 else Gm
+                G[:] = 0.0
+                _advance(xs[a], Fs[a], w, length[a], x_end, F_end, R, P, Q)
+                element_derivatives(w, length[a], Fs[a], dx, dth)
+                for l in range(first, K):
+                    f = force[l]
+                    if elem[l] > a:
+                        for i in range(3):
+                            arm[i] = local[l, 0] * F_end[0, i] + local[l, 1] * F_end[1, i] + local[l, 2] * F_end[2, i]
+                        for k in range(3):
+                            # f . (dx_k + dth_k x arm)
+                            G[k] += f[0] * (dx[k, 0] + dth[k, 1] * arm[2] - dth[k, 2] * arm[1]) \
+                                + f[1] * (dx[k, 1] + dth[k, 2] * arm[0] - dth[k, 0] * arm[2]) \
+                                + f[2] * (dx[k, 2] + dth[k, 0] * arm[1] - dth[k, 1] * arm[0])
+                if elem[first] == a:
+                    for l in range(first, K):
+                        if elem[l] != a:
+                            break
+                        f = force[l]
+                        element_derivatives(w, sigma[l], Fs[a], Dx[a], Dth[a])  # (Dx[a], Dth[a] no longer needed)
+                        for k in range(3):
+                            G[k] += f[0] * Dx[a, k, 0] + f[1] * Dx[a, k, 1] + f[2] * Dx[a, k, 2]
+            for k in range(3):
+                out[3 * a + k, 3 * a + k2] = -(Gp[k] - Gm[k]) / (2.0 * h)
+        for k in range(3):
+            for k2 in range(k + 1, 3):
+                v = 0.5 * (out[3 * a + k, 3 * a + k2] + out[3 * a + k2, 3 * a + k])
+                out[3 * a + k, 3 * a + k2] = v
+                out[3 * a + k2, 3 * a + k] = v
