@@ -371,20 +371,17 @@ def reference_accelerations(root, frame0, omega, length, v, s, angle=1e-3):
     return (4 * a2 - a1) / 3, (4 * al2 - al1) / 3
 
 
-@pytest.mark.parametrize("n", [1, 3, 6])
-def test_bias_accelerations_match_extrapolated_second_differences(rng, n):
+@pytest.mark.parametrize("n", [1, 3, 6, 10])
+def test_bias_accelerations_are_the_time_derivative_of_exact_velocities(rng, n):
     root, frame0, omega, length = random_strand(rng, n)
     for _ in range(2):
         v = rng.normal(size=(n, 3)) * 20.0
         a, alpha = bias_accelerations(frame0, omega, length, v)
         a_ref, alpha_ref = reference_accelerations(root, frame0, omega, length, v, node_arclengths(length))
-        # kernel: truncation ~1e-9 (a) and a few 1e-9 (alpha) of the largest value, plus a
-        # round-off floor eps / (1e-2 rad)^2 * (v l)^2 (times the strand length for a) that
-        # shows when alpha nearly cancels (bending a near-straight element about a fixed axis);
-        # the reference is good to ~1e-12 / 1e-10
-        floor = 1e-10 * (np.linalg.norm(v, axis=1) * length).max() ** 2
-        np.testing.assert_allclose(a, a_ref, rtol=0, atol=1e-8 * np.abs(a_ref).max() + floor * length.sum())
-        np.testing.assert_allclose(alpha, alpha_ref, rtol=0, atol=2e-8 * np.abs(alpha_ref).max() + floor)
+        # the kernel is closed form (complex steps for each element's own second derivative): exact to
+        # round-off; the reference is good to ~1e-12 (a) and ~1e-10 (alpha) of the largest value
+        np.testing.assert_allclose(a, a_ref, rtol=0, atol=1e-10 * np.abs(a_ref).max())
+        np.testing.assert_allclose(alpha, alpha_ref, rtol=0, atol=1e-9 * np.abs(alpha_ref).max())
 
 
 def test_bias_accelerations_vanish_exactly_at_rest(rng):

@@ -31,10 +31,10 @@ velocity-product (Coriolis, centripetal, gyroscopic) force
     b = -sum_nodes w (lam J^T a0 + T^T (I_w al0 + W x I_w W)),   I_w = rot (1 + t t^T),
 
 where ``a0`` and ``al0`` are the node's linear and angular accelerations at
-``q_ddot = 0`` (the "J-dot q_dot" terms). They come from central second
-differences of the chain along ``q_dot``, Richardson-extrapolated
-(:func:`node_bias_accelerations`), accurate to a few 1e-9 of the largest
-node acceleration; everything else is closed form, exact to round-off.
+``q_ddot = 0`` (the "J-dot q_dot" terms), closed form too
+(:func:`node_bias_accelerations`: the upstream elements' twists turning with
+their frames, and each element's own second derivative along ``q_dot`` by a
+complex step of its closed-form rates); everything is exact to round-off.
 Generalized forces are in J m (work per unit curvature), like
 :func:`hairinv.rod.statics.gravity_forces`, whose ``(N, 3)`` layout is the
 ``(3N,)`` vectors here reshaped.
@@ -75,7 +75,7 @@ import functools
 import numpy as np
 
 from .._jit import jit
-from ..rod.helix import _advance, chain, element_derivatives
+from ..rod.helix import _advance, chain, element_derivatives, helix_coefficients_and_derivatives
 
 __all__ = [
     "gauss_nodes",
@@ -90,11 +90,6 @@ __all__ = [
     "inertia_terms",
 ]
 
-# Largest rotation angle |h q_dot_e| length_e of any element in the second
-# differences of node_bias_accelerations. After Richardson extrapolation the
-# truncation is ~angle^4 and the round-off ~eps / angle^2: they balance near
-# eps^(1/6) ~ 1e-2 (measured: ~1e-9 of the largest acceleration).
-_BIAS_ANGLE = 1e-2
 
 
 def gauss_nodes(order: int = 4) -> tuple[np.ndarray, np.ndarray]:
@@ -490,79 +485,95 @@ def strand_node_loads(root, frame0, omega, length, gx, f, torque, out):
 
 
 @jit
-def _node_poses(frame0, omega, length, gx, xs, Fs, x_out, F_out):
-    """Node positions relative to the root and node frames (root at the origin)."""
-    n = omega.shape[0]
-    m = gx.shape[0]
-    R = np.empty((3, 3))
-    P = np.empty(3)
-    Q = np.empty(3)
-    chain(np.zeros(3), frame0, omega, length, xs, Fs)
-    for e in range(n):
-        for j in range(m):
-            _advance(xs[e], Fs[e], omega[e], gx[j] * length[e], x_out[e * m + j], F_out[e * m + j], R, P, Q)
-
-
-@jit
-def _rotation_log(A, B):
-    """World rotation vector of ``A^T B`` (takes frame ``B`` to frame ``A``; rows are axes)."""
-    # entry (i, j) of A^T B is sum_k A[k, i] B[k, j]
-    r01 = A[0, 0] * B[0, 1] + A[1, 0] * B[1, 1] + A[2, 0] * B[2, 1]
-    r10 = A[0, 1] * B[0, 0] + A[1, 1] * B[1, 0] + A[2, 1] * B[2, 0]
-    r02 = A[0, 0] * B[0, 2] + A[1, 0] * B[1, 2] + A[2, 0] * B[2, 2]
-    r20 = A[0, 2] * B[0, 0] + A[1, 2] * B[1, 0] + A[2, 2] * B[2, 0]
-    r12 = A[0, 1] * B[0, 2] + A[1, 1] * B[1, 2] + A[2, 1] * B[2, 2]
-    r21 = A[0, 2] * B[0, 1] + A[1, 2] * B[1, 1] + A[2, 2] * B[2, 1]
-    trace = 0.0
+def _own_rates(omega_e, velocity_e, sigma, dp, dphi):
+    """``dp = sum_k v_k dP/dw_k`` and ``dphi = sum_k v_k dphi/dw_k`` after ``sigma`` of one element, in its
+    start frame: the velocity of its point and the angular velocity of its frame at the rates
+    ``velocity_e`` (the formulas of :func:`hairinv.rod.helix.element_derivatives`, summed over k).
+    Real or complex ``omega_e`` (the complex step of :func:`_own_accelerations`)."""
+    w0 = omega_e[2]
+    w1 = omega_e[0]
+    w2 = omega_e[1]
+    ww = w0 * w0 + w1 * w1 + w2 * w2
+    s2 = sigma * sigma
+    A, B, C, D, Bp, Cp = helix_coefficients_and_derivatives(ww * s2)
+    a1, a2 = w2, -w1  # w x e1 = (0, w2, -w1)
+    c0, c1, c2 = w0 * w0 - ww, w0 * w1, w0 * w2  # w0 w - ww e1
     for i in range(3):
-        trace += A[0, i] * B[0, i] + A[1, i] * B[1, i] + A[2, i] * B[2, i]
-    s0 = 0.5 * (r21 - r12)
-    s1 = 0.5 * (r02 - r20)
-    s2 = 0.5 * (r10 - r01)
-    sn = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
-    if sn == 0.0:
-        return 0.0, 0.0, 0.0
-    f = np.arctan2(sn, 0.5 * (trace - 1.0)) / sn
-    return f * s0, f * s1, f * s2
+        dp[i] = 0.0 * w0
+        dphi[i] = 0.0 * w0
+    for k in range(3):
+        vk = velocity_e[k]
+        if vk == 0.0:
+            continue
+        l = (k + 1) % 3  # local index of stored component k: (kappa1, kappa2, tau) -> (1, 2, 0)
+        wl = w0 if l == 0 else (w1 if l == 1 else w2)
+        e1 = 1.0 if l == 2 else 0.0  # e_l x e1 = (0, e1, e2)
+        e2 = -1.0 if l == 1 else 0.0
+        if l == 0:
+            g0, g1, g2 = 0.0 * w0, w1, w2
+        elif l == 1:
+            g0, g1, g2 = -2.0 * w1, w0, 0.0 * w0
+        else:
+            g0, g1, g2 = -2.0 * w2, 0.0 * w0, w0
+        fb = 2.0 * s2 * wl * Bp
+        fc = 2.0 * s2 * wl * Cp
+        dp[0] += vk * (s2 * sigma * (fc * c0 + C * g0))
+        dp[1] += vk * (s2 * (fb * a1 + B * e1) + s2 * sigma * (fc * c1 + C * g1))
+        dp[2] += vk * (s2 * (fb * a2 + B * e2) + s2 * sigma * (fc * c2 + C * g2))
+        if l == 0:
+            x0, x1, x2 = 0.0 * w0, w2, -w1
+        elif l == 1:
+            x0, x1, x2 = -w2, 0.0 * w0, w0
+        else:
+            x0, x1, x2 = w1, -w0, 0.0 * w0
+        dphi[0] += vk * sigma * ((1.0 if l == 0 else 0.0) + sigma * B * x0 + s2 * C * (wl * w0 - (ww if l == 0 else 0.0)))
+        dphi[1] += vk * sigma * ((1.0 if l == 1 else 0.0) + sigma * B * x1 + s2 * C * (wl * w1 - (ww if l == 1 else 0.0)))
+        dphi[2] += vk * sigma * ((1.0 if l == 2 else 0.0) + sigma * B * x2 + s2 * C * (wl * w2 - (ww if l == 2 else 0.0)))
+
+
+_STEP = 1e-30  # complex step: exact first derivatives of the (analytic) rates
 
 
 @jit
-def _second_difference(xp, Fp, xm, Fm, x0, F0, h, a_out, alpha_out):
-    """Central second differences of node positions and frames at step ``h``."""
-    inv = 1.0 / (h * h)
-    for node in range(x0.shape[0]):
-        for i in range(3):
-            a_out[node, i] = ((xp[node, i] - x0[node, i]) + (xm[node, i] - x0[node, i])) * inv
-        p0, p1, p2 = _rotation_log(Fp[node], F0[node])
-        m0, m1, m2 = _rotation_log(Fm[node], F0[node])
-        alpha_out[node, 0] = (p0 + m0) * inv
-        alpha_out[node, 1] = (p1 + m1) * inv
-        alpha_out[node, 2] = (p2 + m2) * inv
+def _own_accelerations(omega_e, velocity_e, sigma, F, wc, pc, phic, acc, ang):
+    """The element's own share of the acceleration at zero generalized acceleration, world coordinates:
+    ``acc = F^T d/dt(dP v)`` and ``ang = F^T d/dt(dphi v)`` along ``omega + t v`` (the start frame held),
+    by complex step of :func:`_own_rates`. ``wc``, ``pc``, ``phic``: complex work arrays (3,)."""
+    for k in range(3):
+        wc[k] = omega_e[k] + 1j * _STEP * velocity_e[k]
+    _own_rates(wc, velocity_e, sigma, pc, phic)
+    for i in range(3):
+        acc[i] = (F[0, i] * pc[0].imag + F[1, i] * pc[1].imag + F[2, i] * pc[2].imag) / _STEP
+        ang[i] = (F[0, i] * phic[0].imag + F[1, i] * phic[1].imag + F[2, i] * phic[2].imag) / _STEP
+
+
+@jit
+def _cross_add(a, b, out):
+    """``out += a x b``."""
+    out[0] += a[1] * b[2] - a[2] * b[1]
+    out[1] += a[2] * b[0] - a[0] * b[2]
+    out[2] += a[0] * b[1] - a[1] * b[0]
 
 
 @jit
 def node_bias_accelerations(root, frame0, omega, length, velocity, gx, a_out, alpha_out):
-    """Node accelerations at zero generalized acceleration ("J-dot q_dot").
+    """Node accelerations at zero generalized acceleration ("J-dot q_dot"), closed form.
 
-    ``a0 = d^2/dh^2 x_n(omega + h v)`` and the angular ``al0 = d/dh W_n`` at
-    ``h = 0``, by central second differences of the chain along ``v``,
+    A node of element ``e`` moves at ``p_dot = U_e + W_e x p + dX v_e`` and turns
+    at ``W_e + dTh v_e``, with ``W_e = sum_{a<e} Th_a v_a`` the angular velocity of
+    the element's start frame and ``U_e = sum_{a<e} E_a v_a`` (positions relative
+    to the root). ``Th_a``, ``E_a``, ``dX``, ``dTh`` are world vectors: their local
+    parts depend on their own element's omega, and their frames turn at the start
+    frame's angular velocity. With ``v`` held,
 
-        D(h)  = (x(q + h v) - 2 x(q) + x(q - h v)) / h^2       = a0  + c h^2 + O(h^4),
-        Da(h) = (phi(q + h v) + phi(q - h v)) / h^2            = al0 + c' h^2 + O(h^4),
+        a0  = C_e + B_e x p + W_e x p_dot + W_e x (dX v_e) + F_e^T d/dt(dP v_e),
+        al0 = B_e + W_e x (dTh v_e) + F_e^T d/dt(dphi v_e),
 
-    with ``phi(q')`` the world rotation vector taking the node frame at ``q``
-    to the one at ``q'`` (``phi(h) = W h + al0 h^2 / 2 + O(h^3)``), then
-    Richardson-extrapolated: ``a0 = (4 D(h/2) - D(h)) / 3``. The step turns
-    no element by more than ``max_e |h v_e| length_e = 1e-2`` rad.
-    Truncation (~angle^4) and round-off (~eps / angle^2) both stay near 1e-9
-    of the largest node acceleration of the strand (a few 1e-9 for ``al0``);
-    a plain second difference is at best ~4e-8 (at ~3e-4 rad). The
-    round-off floor is ~2e-12 ``(max_e |v_e| length_e)^2`` (rad/s^2; times
-    the strand length for ``a0``), visible only where ``al0`` nearly cancels
-    (a near-straight element bending about a fixed axis). Positions
-    are differenced relative to the root (which ``q`` does not move), so the
-    strand's distance from the origin costs no accuracy. Both are exactly
-    zero when ``v = 0``. Cost: five chain evaluations, O(N m).
+    where ``B_e = sum_{a<e} d/dt(Th_a v_a)`` and ``C_e = sum_{a<e} d/dt(E_a v_a)``
+    accumulate element by element (``E_a = Dx_a - Th_a x x_{a+1}``), and the
+    elements' own second derivatives along ``v`` are complex steps of their
+    closed-form rates (exact to round-off). Both are exactly zero when
+    ``v = 0``. O(N m).
 
     Parameters
     ----------
@@ -576,47 +587,69 @@ def node_bias_accelerations(root, frame0, omega, length, velocity, gx, a_out, al
     a_out : (N m, 3) float64, out, m/s^2
     alpha_out : (N m, 3) float64, out, rad/s^2
     """
-    nodes = omega.shape[0] * gx.shape[0]
-    x0 = np.empty((nodes, 3))
-    F0 = np.empty((nodes, 3, 3))
-    _node_poses(frame0, omega, length, gx, np.empty((omega.shape[0] + 1, 3)), np.empty((omega.shape[0] + 1, 3, 3)),
-                x0, F0)
-    _bias_accelerations(frame0, omega, length, velocity, gx, x0, F0, a_out, alpha_out)
+    xs, Fs, Th, E, x, F, dX, dTh = _strand_kinematics(frame0, omega, length, gx)
+    _bias_accelerations(omega, length, velocity, gx, xs, Fs, Th, E, x, dX, dTh, a_out, alpha_out)
 
 
 @jit
-def _bias_accelerations(frame0, omega, length, velocity, gx, x0, F0, a_out, alpha_out):
-    """:func:`node_bias_accelerations` given the node poses ``x0``, ``F0`` at ``omega`` (root at the origin)."""
+def _bias_accelerations(omega, length, velocity, gx, xs, Fs, Th, E, x, dX, dTh, a_out, alpha_out):
+    """:func:`node_bias_accelerations` given the strand's kinematics (:func:`_kinematics`)."""
     n = omega.shape[0]
-    nodes = n * gx.shape[0]
-    big = 0.0
+    m = gx.shape[0]
+    W = np.zeros(3)  # angular velocity of the current element's start frame
+    U = np.zeros(3)  # sum E_a v_a
+    Bs = np.zeros(3)  # sum d/dt (Th_a v_a)
+    Cs = np.zeros(3)  # sum d/dt (E_a v_a)
+    wc = np.empty(3, np.complex128)
+    pc = np.empty(3, np.complex128)
+    phic = np.empty(3, np.complex128)
+    acc = np.empty(3)
+    ang = np.empty(3)
+    own = np.empty(3)
+    turn = np.empty(3)
+    pd = np.empty(3)
     for e in range(n):
-        ve = np.sqrt(velocity[e, 0] ** 2 + velocity[e, 1] ** 2 + velocity[e, 2] ** 2) * length[e]
-        if ve > big:
-            big = ve
-    if big == 0.0:
-        a_out[:, :] = 0.0
-        alpha_out[:, :] = 0.0
-        return
-    h = _BIAS_ANGLE / big
-    xs = np.empty((n + 1, 3))
-    Fs = np.empty((n + 1, 3, 3))
-    xp = np.empty((nodes, 3))
-    Fp = np.empty((nodes, 3, 3))
-    xm = np.empty((nodes, 3))
-    Fm = np.empty((nodes, 3, 3))
-    a_half = np.empty((nodes, 3))
-    alpha_half = np.empty((nodes, 3))
-    _node_poses(frame0, omega + h * velocity, length, gx, xs, Fs, xp, Fp)
-    _node_poses(frame0, omega - h * velocity, length, gx, xs, Fs, xm, Fm)
-    _second_difference(xp, Fp, xm, Fm, x0, F0, h, a_out, alpha_out)
-    _node_poses(frame0, omega + 0.5 * h * velocity, length, gx, xs, Fs, xp, Fp)
-    _node_poses(frame0, omega - 0.5 * h * velocity, length, gx, xs, Fs, xm, Fm)
-    _second_difference(xp, Fp, xm, Fm, x0, F0, 0.5 * h, a_half, alpha_half)
-    for node in range(nodes):
+        v = velocity[e]
+        for j in range(m):
+            node = e * m + j
+            for i in range(3):
+                own[i] = dX[node, 0, i] * v[0] + dX[node, 1, i] * v[1] + dX[node, 2, i] * v[2]
+                turn[i] = dTh[node, 0, i] * v[0] + dTh[node, 1, i] * v[1] + dTh[node, 2, i] * v[2]
+                pd[i] = U[i] + own[i]
+            _cross_add(W, x[node], pd)
+            _own_accelerations(omega[e], v, gx[j] * length[e], Fs[e], wc, pc, phic, acc, ang)
+            for i in range(3):
+                a_out[node, i] = Cs[i] + acc[i]
+                alpha_out[node, i] = Bs[i] + ang[i]
+            _cross_add(Bs, x[node], a_out[node])
+            _cross_add(W, pd, a_out[node])
+            _cross_add(W, own, a_out[node])
+            _cross_add(W, turn, alpha_out[node])
+        # element e as an upstream element of what follows: Th_e v_e, Dx_e v_e and their rates
+        thv = np.zeros(3)
+        dxv = np.zeros(3)
         for i in range(3):
-            a_out[node, i] = (4.0 * a_half[node, i] - a_out[node, i]) / 3.0
-            alpha_out[node, i] = (4.0 * alpha_half[node, i] - alpha_out[node, i]) / 3.0
+            for k in range(3):
+                thv[i] += Th[e, k, i] * v[k]
+                dxv[i] += E[e, k, i] * v[k]
+        ev = dxv.copy()  # E_e v_e
+        _cross_add(thv, xs[e + 1], dxv)  # Dx_e v_e = E_e v_e + Th_e v_e x x_{e+1}
+        _own_accelerations(omega[e], v, length[e], Fs[e], wc, pc, phic, acc, ang)
+        dthv = ang.copy()  # d/dt (Th_e v_e) = W x Th_e v_e + F_e^T d/dt(dphi v_e)
+        _cross_add(W, thv, dthv)
+        ddxv = acc.copy()  # d/dt (Dx_e v_e)
+        _cross_add(W, dxv, ddxv)
+        end_velocity = U + dxv  # velocity of x_{e+1}
+        _cross_add(W, xs[e + 1], end_velocity)
+        # d/dt (E_e v_e) = d/dt(Dx_e v_e) - d/dt(Th_e v_e) x x_{e+1} - Th_e v_e x x_{e+1}_dot
+        for i in range(3):
+            Cs[i] += ddxv[i]
+        _cross_add(xs[e + 1], dthv, Cs)
+        _cross_add(end_velocity, thv, Cs)
+        for i in range(3):
+            Bs[i] += dthv[i]
+            W[i] += thv[i]
+            U[i] += ev[i]
 
 
 @jit
@@ -673,7 +706,7 @@ def strand_velocity_forces(root, frame0, omega, length, velocity, gx, gw, lam, r
     if bias:
         a = np.empty((nodes, 3))
         alpha = np.empty((nodes, 3))
-        _bias_accelerations(frame0, omega, length, velocity, gx, x, F, a, alpha)
+        _bias_accelerations(omega, length, velocity, gx, xs, Fs, Th, E, x, dX, dTh, a, alpha)
         Wup = np.zeros(3)  # angular velocity of the frames after the elements so far
         for e in range(n):
             for j in range(m):

@@ -110,6 +110,21 @@ def helix_coefficient_derivatives(y):
 
 
 @jit
+def helix_coefficients_and_derivatives(y):
+    """``A, B, C, D`` (:func:`helix_coefficients`) and ``dB/dy, dC/dy``
+    (:func:`helix_coefficient_derivatives`) from one evaluation of the sines."""
+    A, B, C, D = helix_coefficients(y)
+    if abs(y) < _SERIES_Y:
+        bp = y * 0.0
+        cp = y * 0.0
+        for k in range(_SERIES_TERMS - 1, -1, -1):
+            bp = bp * y + _SERIES_D[0, k]
+            cp = cp * y + _SERIES_D[1, k]
+        return A, B, C, D, bp, cp
+    return A, B, C, D, (A - 2.0 * B) / (2.0 * y), (B - 3.0 * C) / (2.0 * y)
+
+
+@jit
 def element_step(w0, w1, w2, sigma, R, P, Q):
     """Closed-form step of one element in its start frame.
 
@@ -286,8 +301,7 @@ def element_derivatives(omega_e, sigma, F, dx, dth):
     ww = w0 * w0 + w1 * w1 + w2 * w2
     s2 = sigma * sigma
     y = ww * s2
-    A, B, C, D = helix_coefficients(y)
-    Bp, Cp = helix_coefficient_derivatives(y)
+    A, B, C, D, Bp, Cp = helix_coefficients_and_derivatives(y)
     # w x e1 and (w0 w - ww e1)
     a0, a1, a2 = 0.0, w2, -w1
     c0, c1, c2 = w0 * w0 - ww, w0 * w1, w0 * w2
