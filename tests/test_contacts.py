@@ -125,6 +125,20 @@ def test_arc_above_a_plane_touches_at_its_lowest_point():
     assert report.points_inside_body == 0 and report.strands_touching_body == 1
 
 
+@pytest.mark.parametrize("iterations", [4, 12])
+def test_fewer_refinement_steps_place_the_contact_within_their_bracket(iterations):
+    """The golden-section steps shrink the bracket between two samples by 0.618 each: the lowest point of
+    the arc is found within that bracket, and its distance is off by its square over twice the radius."""
+    radius, theta0, h_low = 0.05, 0.6, 0.002
+    strand, _ = arc_over_plane(h_low, radius, theta0)
+    contacts, _ = detect_contacts(helices([strand]), plane(), BODY_ONLY, refine_iterations=iterations)
+    spacing = strand[3][1] / (SETTINGS.samples_per_element - 1)
+    bracket = 2 * spacing * 0.6180339887498949 ** iterations
+    s_low = radius * theta0
+    assert abs(contacts.s[0, 0] - s_low) <= bracket
+    assert h_low <= contacts.gap[0] <= h_low + bracket ** 2 / (2 * radius) + 1e-12
+
+
 def test_arc_beyond_the_body_distance_gives_nothing():
     strand, _ = arc_over_plane(SETTINGS.body_distance * 1.01)
     contacts, report = detect_contacts(helices([strand]), plane(), BODY_ONLY)

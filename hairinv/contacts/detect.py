@@ -286,7 +286,8 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
 
 
 def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=None,
-                    up: np.ndarray | None = None) -> tuple[Contacts, DetectReport]:
+                    up: np.ndarray | None = None,
+                    refine_iterations: int = REFINE_ITERATIONS) -> tuple[Contacts, DetectReport]:
     """Declare hair-body and hair-hair contacts of fitted strands.
 
     Parameters
@@ -305,6 +306,9 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         The world up axis (against gravity). The wisp rule (``settings.wisp``)
         declares only contacts where a strand rests on one below it, so it
         needs it; without it only ``hair_distance`` applies.
+    refine_iterations : int
+        Golden-section steps that place a body contact between its element's samples (the default
+        places it to 1e-5 of the bracket; a distance near its least is off by the square of that).
 
     Returns
     -------
@@ -361,7 +365,7 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         if mesh is not None:
             element_body_contacts(e0, e1, samples, xs, Fs, omega, length, s0, is_last, *mesh.tree,
                                   body_reach, float(settings.root_clearance),
-                                  COINCIDENT * float(settings.body_distance), REFINE_ITERATIONS, inside, deepest,
+                                  COINCIDENT * float(settings.body_distance), int(refine_iterations), inside, deepest,
                                   has, sigma, b_point, b_normal, b_sd)
 
     run_chunks(strands_chunk, count, CHUNK, progress)

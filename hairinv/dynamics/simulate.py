@@ -33,7 +33,7 @@ from .._dense import cholesky
 from .._jit import jit
 from .._parallel import run_chunks
 from ..config import ContactSettings, DynamicsSettings
-from ..contacts.body import BodyMesh
+from ..contacts.body import REFINE_ITERATIONS, BodyMesh
 from ..contacts.detect import COINCIDENT, contact_frames, detect_contacts
 from ..rod.helix import chain, point_at
 from ..errors import InputError
@@ -302,6 +302,11 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
 # m: a remembered contact point stays while it is at most this much farther from the surface than
 # the point detection finds on the same element
 _PERSIST_SLACK = 1e-5
+# golden-section steps placing a body contact along its element once the groom moves: 2.5e-3 of the bracket
+# between two samples, a few micrometres, where the distance found is off by 1e-9 m (a distance near its
+# least is off by the square of the step); the first detection (the model's own contacts) keeps the
+# detector's default
+_MOVING_REFINE = 12
 # contacts per chunk of the per-step rows and factored rows: a few hundred already pay for a thread handoff
 _CONTACT_CHUNK = 256
 
@@ -547,7 +552,8 @@ class Simulation:
         # inverted with (the hair layer and wisps included), so the first step meets them again
         rules = self.contact_settings if self._last_found is None and self._initial is not None else \
             self._detect_settings
-        found, _ = detect_contacts(self.current(), self.body, rules, up=self._up)
+        found, _ = detect_contacts(self.current(), self.body, rules, up=self._up,
+                                   refine_iterations=REFINE_ITERATIONS if self._last_found is None else _MOVING_REFINE)
         self._stale = np.zeros(found.n_contacts, dtype=np.bool_)
         self._redetected = S
         self._last_found, self._q_detected = found, self.q.copy()
@@ -560,7 +566,7 @@ class Simulation:
         elements = np.concatenate([np.arange(h.offsets[k], h.offsets[k + 1]) for k in which])
         sub = Helices(h.root[which], h.frame0[which], np.r_[0, np.cumsum(counts[which])].astype(np.int64),
                       h.length[elements], self.q[elements], h.fit_error[which])
-        fresh, _ = detect_contacts(sub, self.body, self._detect_settings)
+        fresh, _ = detect_contacts(sub, self.body, self._detect_settings, refine_iterations=_MOVING_REFINE)
         # back to the groom's numbering: strands, and elements (a body contact's second is -1)
         fresh.strand[:, 0] = which[fresh.strand[:, 0]]
         fresh.element[:, 0] = elements[fresh.element[:, 0]]
