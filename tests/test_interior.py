@@ -204,6 +204,32 @@ def test_factor_cost_is_counted_exactly_and_too_large_falls_back_to_the_sweeps()
     assert any("solved by the sweeps instead" in n for n in rep.notes)
 
 
+def test_each_ordering_is_counted_exactly_and_the_cheapest_is_kept():
+    """AMD and METIS's nested dissection are both counted (against a dense Cholesky of a random matrix of the
+    same pattern under each) and the factor keeps the cheaper; nested dissection is a permutation."""
+    import scipy.sparse
+
+    from hairinv.solver import interior
+
+    helices, contacts = four_strands_in_a_pile()
+    rows = contact_rows(helices, contacts)
+    factor = interior._Factor(rows.ptr, rows.cols, rows.n_dofs, "cholmod")
+    lower = scipy.sparse.csc_matrix((np.ones(len(factor.Si)), factor.Si, factor.Sp), shape=(rows.n_dofs,) * 2)
+    pattern = (lower + lower.T).tocsc()
+    full = (lower + lower.T).toarray() * np.random.default_rng(1).uniform(0.1, 1.0, (rows.n_dofs,) * 2)
+    full = full + full.T
+    full += np.diag(np.abs(full).sum(axis=1) + 1.0)
+    counted = {}
+    for name, order in interior._Factor._orderings(pattern, "cholmod"):
+        assert np.array_equal(np.sort(order), np.arange(rows.n_dofs))
+        L = np.linalg.cholesky(full[np.ix_(order, order)])
+        dense = float(np.sum(np.count_nonzero(np.abs(L) > 0.0, axis=0).astype(float) ** 2))
+        counted[name] = interior._factor_flops(pattern, order, np.inf)
+        assert counted[name] == dense
+    assert set(counted) == {"amd", "metis"}
+    assert factor.flops == min(counted.values()) and counted[factor.ordering] == factor.flops
+
+
 def test_a_groom_too_large_to_lay_out_is_declined_before_anything_is_built(monkeypatch):
     from hairinv.solver import interior
 

@@ -279,6 +279,37 @@ def column_counts(n, Up, Ui, limit):
     return counts
 
 
+def nested_dissection(pattern) -> np.ndarray | None:
+    """METIS's nested-dissection ordering of a symmetric pattern (pymetis), or None without pymetis.
+    On ruby short's rod-coordinate system it needs about a fifth fewer flops than AMD."""
+    try:
+        import pymetis
+    except ImportError:
+        return None
+    graph = scipy.sparse.csr_matrix(pattern, copy=True)
+    graph.setdiag(0)
+    graph.eliminate_zeros()
+    graph.sort_indices()
+    if graph.nnz == 0:
+        return np.arange(pattern.shape[0], dtype=np.int64)
+    order, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(graph.indptr.astype(np.int32),
+                                                              graph.indices.astype(np.int32)))
+    return np.array(order, dtype=np.int64)
+
+
+def _factor_flops(pattern, order: np.ndarray, limit: float) -> float:
+    """``sum c_j^2`` over the column counts of the Cholesky factor of ``pattern`` permuted by ``order``
+    (the factorisation's flops up to a constant), or inf once it must pass ``limit``."""
+    permuted = pattern[order][:, order]
+    upper = scipy.sparse.triu(permuted, format="csc")
+    upper.sort_indices()
+    counts = column_counts(pattern.shape[0], upper.indptr.astype(np.int64), upper.indices.astype(np.int64),
+                           min(limit, 1e300))
+    if len(counts) == 0:
+        return np.inf
+    return float(np.sum(counts.astype(np.float64) ** 2))
+
+
 class TooLarge(Exception):
     """The rod-coordinate system's factorisation would cost more than the method allows."""
 
@@ -307,15 +338,14 @@ class _Factor:
         self.Sx = np.zeros(len(self.Si))
         self.n = n
         self._columns = np.repeat(np.arange(n), np.diff(self.Sp))
-        self.order = self._ordering(pattern, backend)
-        # the factor's cost under that ordering, counted before any factorisation
-        permuted = pattern[self.order][:, self.order]
-        upper = scipy.sparse.triu(permuted, format="csc")
-        upper.sort_indices()
         limit = float(max_flops) if np.isfinite(max_flops) else 1e300
-        counts = column_counts(n, upper.indptr.astype(np.int64), upper.indices.astype(np.int64), limit)
-        self.flops = float(np.sum(counts.astype(np.float64) ** 2))
-        if len(counts) == 0 or self.flops > limit:
+        # the fill-reducing orderings at hand, each counted before any factorisation; the cheapest kept
+        self.order, self.flops, self.ordering = None, np.inf, ""
+        for name, order in self._orderings(pattern, backend):
+            flops = _factor_flops(pattern, order, min(limit, self.flops))
+            if flops < self.flops:
+                self.order, self.flops, self.ordering = order, flops, name
+        if self.order is None or self.flops > limit:
             raise TooLarge(f"over {max_flops / 1e9:.3g} GFlop")
         if backend == "cholmod":
             import cvxopt
@@ -329,8 +359,9 @@ class _Factor:
             self.F = cvxopt.cholmod.symbolic(self.A, p=cvxopt.matrix(self.order))
 
     @staticmethod
-    def _ordering(pattern, backend: str) -> np.ndarray:
-        """A fill-reducing ordering of the pattern: AMD (cvxopt's) with CHOLMOD, else reverse Cuthill-McKee."""
+    def _orderings(pattern, backend: str):
+        """Fill-reducing orderings of the pattern, as (name, permutation): with CHOLMOD, AMD (cvxopt's) and
+        METIS's nested dissection (pymetis, where installed); else reverse Cuthill-McKee."""
         n = pattern.shape[0]
         if backend == "cholmod":
             import cvxopt
@@ -339,10 +370,14 @@ class _Factor:
             lower = scipy.sparse.tril(pattern, format="coo")
             A = cvxopt.spmatrix(np.ones(lower.nnz), cvxopt.matrix(lower.row.astype(np.int64)),
                                 cvxopt.matrix(lower.col.astype(np.int64)), (n, n))
-            return np.asarray(cvxopt.amd.order(A), dtype=np.int64).ravel()
+            yield "amd", np.asarray(cvxopt.amd.order(A), dtype=np.int64).ravel()
+            dissection = nested_dissection(pattern)
+            if dissection is not None:
+                yield "metis", dissection
+            return
         from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-        return np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=np.int64)
+        yield "rcm", np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=np.int64)
 
     def factor(self, ptr, cols, g, Binv) -> None:
         _assemble(ptr, cols, g, Binv, self.Sp, self.pos, self.Sx)
