@@ -319,6 +319,40 @@ def test_a_strands_body_contacts_solved_together_meet_the_de_saxce_law(mu):
     assert np.abs(result.r[~redo] - r[~redo]).max() <= 1e-9 * np.abs(r).max()  # (the fail-safe sweeps touch all)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("mu", [0.3, 1.0])
+def test_strands_newton_leaves_are_finished_by_the_fixed_point_of_convex_problems(seed, mu):
+    """Each strand's first contact sits near its root: the coordinates move it a hundredth as much as the
+    others (W_ii 1e-4 of theirs), which stalls Newton on the stacked FB function for some strands. The
+    fixed point of convex problems on each such strand's block finishes them: the De Saxce conditions
+    hold, checked on the dense W."""
+    from hairinv.dynamics.contact import strand_groups
+    from hairinv.solver.blocks import _group_newton
+    from hairinv.solver.rows import ContactRows
+
+    rng = np.random.default_rng(seed)
+    counts = [5, 6, 4, 8]
+    rows, strand, b = _strand_contacts(rng, counts)
+    vals = rows.vals.copy()
+    for i in np.r_[0, np.cumsum(counts)[:-1]]:
+        vals[rows.ptr[i]:rows.ptr[i + 1]] *= 1e-2
+    rows = ContactRows(rows.ptr, rows.cols, vals, rows.n_dofs)
+    n = rows.n_contacts
+    gamma = np.full(n, 1e-9)
+    mus = np.full(n, mu)
+    target = 1e-10
+    members, group_ptr, block_ptr, blocks, Wd = strand_groups(rows, gamma, strand)
+    r = np.zeros((n, 3))
+    done = np.zeros(len(group_ptr) - 1, np.bool_)
+    _group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mus, members, group_ptr, block_ptr, blocks, Wd, r,
+                  np.zeros(rows.n_dofs), target, contact.GROUP_NEWTON_ITERS, True, True, 0, len(done), done)
+    assert not done.all(), "Newton alone finishes every strand: the case does not test the fixed point"
+    result = solve_coulomb(rows, gamma, b, mus, strand, len(counts), 1.0, target, 200, np.zeros((n, 3)))
+    assert result.status == "CONVERGED"
+    assert desaxce_residual(rows, gamma, b, mus, result.r, Wd) <= target
+    assert _desaxce_violation(rows, gamma, b, mus, result.r) < 1e-6 * np.abs(b).max()
+
+
 # ---------------------------------------------------------------- free motion of one strand
 
 def _strand(n=4, total=0.08, curl=0.0):
