@@ -137,6 +137,9 @@ def test_fewer_refinement_steps_place_the_contact_within_their_bracket(iteration
     s_low = radius * theta0
     assert abs(contacts.s[0, 0] - s_low) <= bracket
     assert h_low <= contacts.gap[0] <= h_low + bracket ** 2 / (2 * radius) + 1e-12
+    finer, _ = detect_contacts(helices([strand]), plane(), BODY_ONLY)  # the default's 24 steps
+    assert abs(finer.s[0, 0] - s_low) <= 2 * spacing * 0.6180339887498949 ** 24
+    assert finer.s[0, 0] != contacts.s[0, 0]  # the steps asked for are the steps taken
 
 
 def test_arc_beyond_the_body_distance_gives_nothing():

@@ -249,34 +249,41 @@ def test_persisting_body_gaps_stay_within_the_bound_of_an_exact_measurement(monk
                 assert sum(queried) > 0
 
 
-def test_strand_blocks_solve_the_cone_problem_like_an_interior_point():
-    """Body contacts grouped by strand, each group solved on its dense block of W = Z^T Z + gamma:
-    the forces match Clarabel on the same problem (two strands, three nearly parallel contacts each)."""
-    from hairinv.dynamics.contact import solve_strand_blocks
+@pytest.mark.parametrize("solver", ["newton", "gauss-seidel"])
+def test_a_strands_block_solves_the_convex_cone_problem_like_an_interior_point(solver):
+    """The convex problem of each round of a strand's fixed point, on its dense block of W = Z^T Z + gamma
+    (three nearly parallel contacts), by the block's Newton steps and by its Gauss-Seidel passes (where
+    Newton stalls): the forces match Clarabel on the same problem."""
+    from hairinv.dynamics.contact import strand_groups
+    from hairinv.solver.blocks import _block_gauss_seidel, _block_newton, _newton_scratch
     from hairinv.solver.reference import solve_socqp_dense_clarabel
     from hairinv.solver.rows import ContactRows
 
     rng = np.random.default_rng(11)
-    n_dofs, per_strand = 12, 6
-    ptr, cols, vals, strand = [0], [], [], []
-    base = rng.normal(size=(2, per_strand, 3))
-    for k in range(2):
-        for c in range(3):
-            cols += list(range(k * per_strand, (k + 1) * per_strand))
-            vals.append(base[k] + 0.05 * rng.normal(size=(per_strand, 3)))  # nearly parallel rows
-            ptr.append(ptr[-1] + per_strand)
-            strand.append([k, -1])
-    rows = ContactRows(np.array(ptr), np.array(cols), np.concatenate(vals), n_dofs)
-    Z = rows.to_sparse().toarray()
-    gamma = np.full(6, 1e-6)
-    W = Z @ Z.T + np.diag(np.repeat(gamma, 3))
-    b = rng.normal(size=(6, 3))
+    n_dofs, m = 6, 3
+    base = rng.normal(size=(n_dofs, 3))
+    vals = [base + 0.05 * rng.normal(size=(n_dofs, 3)) for _ in range(m)]  # nearly parallel rows
+    rows = ContactRows(np.arange(m + 1) * n_dofs, np.tile(np.arange(n_dofs), m), np.concatenate(vals), n_dofs)
+    gamma = np.full(m, 1e-6)
+    members, group_ptr, block_ptr, blocks, Wd = strand_groups(rows, gamma, np.tile([0, -1], (m, 1)))
+    W = blocks.reshape(3 * m, 3 * m)
+    b = rng.normal(size=(m, 3))
     b[:, 0] = -np.abs(b[:, 0])  # pushing into the body
-    mu = np.full(6, 0.3)
-    ours = solve_strand_blocks(rows, gamma, b, mu, np.array(strand), 1.0, 1e-10, 500, np.zeros((6, 3)))
-    ref, info = solve_socqp_dense_clarabel(W, b.ravel(), mu, tol=1e-10)
-    assert ours.status == "CONVERGED" and info["status"] == "Solved"
-    assert np.abs(ours.r - ref).max() <= 1e-6 * np.abs(ref).max()
+    mu = np.full(m, 0.3)
+    rho = np.trace(Wd, axis1=1, axis2=2) / 3.0
+    x = np.zeros(3 * m)
+    if solver == "newton":
+        best, _ = _block_newton(W, 3 * m, b.ravel().copy(), rho, mu, x, xbest := np.empty(3 * m), 1e-13, 50, False,
+                                True, _newton_scratch(m))
+        assert best <= 1e-13
+        r = (xbest.reshape(m, 3) / rho[:, None])
+    else:
+        _block_gauss_seidel(W, 3 * m, b.ravel().copy(), rho, mu, x, 20000, False, _newton_scratch(m))
+        r = x.reshape(m, 3) / rho[:, None]
+    Z = rows.to_sparse().toarray()
+    ref, info = solve_socqp_dense_clarabel(Z @ Z.T + np.diag(np.repeat(gamma, 3)), b.ravel(), mu, tol=1e-10)
+    assert info["status"] == "Solved"
+    assert np.abs(r - ref).max() <= 1e-6 * np.abs(ref).max()
 
 
 @pytest.mark.parametrize("size", [1e-6, 1e-3, 0.1])

@@ -302,8 +302,6 @@ def test_a_strands_body_contacts_solved_together_meet_the_de_saxce_law(mu):
     np.testing.assert_allclose(f, expected_f, atol=1e-12 * np.abs(f).max())  # f kept up to date
     assert np.abs(r).max() > 0 and (r[:, 0] > 0).sum() < n, "no mix of touching and separating contacts"
 
-    if not np.isfinite(mu):
-        return  # the rounds' Gauss-Seidel gains a factor 10 per sweep on these nearly parallel rows
     # strands 1 and 4 restarted from zero and no Newton step: the fixed point of convex problems, strand by
     # strand, finishes them, and leaves the others
     r0 = r.copy()
@@ -314,9 +312,10 @@ def test_a_strands_body_contacts_solved_together_meet_the_de_saxce_law(mu):
         result = solve_coulomb(rows, gamma, b, mus, strand, 8, 1.0, target, 500, r0)
     finally:
         contact.GROUP_NEWTON_ITERS = saved
-    assert result.status == "CONVERGED" and result.sweeps > 2
+    assert result.status == "CONVERGED" and result.sweeps > 1
     assert _desaxce_violation(rows, gamma, b, mus, result.r) < 1e-8 * np.abs(b).max()
-    assert np.abs(result.r[~redo] - r[~redo]).max() <= 1e-9 * np.abs(r).max()  # (the fail-safe sweeps touch all)
+    # the strands already solved are left as they were, up to the rounding of their scaled forces' projection
+    assert np.abs(result.r[~redo] - r[~redo]).max() <= 1e-12 * np.abs(r).max()
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -226,7 +226,7 @@ def test_each_ordering_is_counted_exactly_and_the_cheapest_is_kept():
         dense = float(np.sum(np.count_nonzero(np.abs(L) > 0.0, axis=0).astype(float) ** 2))
         counted[name] = interior._factor_flops(pattern, order, np.inf)
         assert counted[name] == dense
-    assert set(counted) == {"amd", "metis"}
+    assert set(counted) == ({"amd", "metis"} if interior.nested_dissection(pattern) is not None else {"amd"})
     assert factor.flops == min(counted.values()) and counted[factor.ordering] == factor.flops
 
 

@@ -21,11 +21,11 @@ from .._jit import jit
 from .._parallel import run_chunks
 from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult, _accumulate_f, diagonal_blocks,
                                    natural_residuals, solve_cone_qp)
-from ..solver.blocks import _block_sweep, _group_fixed_point, _group_newton, strand_blocks
+from ..solver.blocks import _group_fixed_point, _group_newton, strand_blocks
 from ..solver.rows import ContactRows
 
 __all__ = ["REACH", "back_substitute", "contact_keys", "contact_velocities", "delassus_blocks", "desaxce_residual",
-           "factored_rows", "reachable", "solve_coulomb", "solve_strand_blocks"]
+           "factored_rows", "reachable", "solve_coulomb", "strand_groups"]
 
 #: a contact is not asked to move its point along a direction that a unit impulse moves it less than
 #: this fraction as fast as along the easiest one (eigenvalues of ``W_ii``; see :func:`reachable`)
@@ -224,80 +224,12 @@ def desaxce_residual(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np
 
 
 def strand_groups(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray, Wd: np.ndarray | None = None) -> tuple:
-    """The groups of :func:`solve_strand_blocks` and their dense blocks (for several solves on the same rows).
+    """A strand's body contacts grouped (hair-hair contacts alone) with their dense blocks of ``W``
+    (:func:`hairinv.solver.blocks.strand_blocks`).
 
     ``Wd``: the blocks ``W_ii`` (:func:`delassus_blocks`), if already at hand.
     """
     return (*strand_blocks(rows, gamma, strand), delassus_blocks(rows, gamma) if Wd is None else Wd)
-
-
-def _subset_groups(groups: tuple, keep: np.ndarray) -> tuple:
-    """The groups of :func:`strand_groups` where ``keep`` (one flag per group), on the same blocks."""
-    members, group_ptr, block_ptr, blocks, Wd = groups
-    which = np.flatnonzero(keep)
-    sizes = group_ptr[which + 1] - group_ptr[which]
-    take = np.concatenate([members[group_ptr[g]:group_ptr[g + 1]] for g in which]) if len(which) \
-        else np.zeros(0, np.int64)
-    return (take.astype(np.int64), np.r_[0, np.cumsum(sizes)].astype(np.int64),
-            np.r_[block_ptr[which], block_ptr[-1]].astype(np.int64), blocks, Wd)
-
-
-def solve_strand_blocks(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, strand: np.ndarray,
-                        velocity_scale: float, tolerance: float, max_sweeps: int, r0: np.ndarray,
-                        inner_max: int = 50, groups: tuple | None = None) -> SolverResult:
-    """The convex cone problem of ``W = Z^T Z + gamma`` by Gauss-Seidel over strands.
-
-    The body contacts of one strand form a group, solved together on their
-    dense block of ``W`` (small: a few contacts) until their forces stop
-    changing; each hair-hair contact is a group of its own. Contacts along
-    one strand have nearly parallel rows, which is what makes contact-by-contact
-    sweeps crawl; here they cost a few cheap inner sweeps on a small dense
-    block instead. Without hair-hair contact the strands do not interact and
-    one sweep solves the problem up to the inner tolerance. The stop test is
-    :func:`solve_cone_qp`'s (natural map in velocity units).
-    """
-    started = time.perf_counter()
-    n = rows.n_contacts
-    r = np.array(r0, dtype=np.float64, copy=True)
-    members, group_ptr, block_ptr, blocks, Wd = strand_groups(rows, gamma, strand) if groups is None else groups
-    ones = np.ones(rows.n_dofs)
-    f = np.empty(rows.n_dofs)
-    _accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, f)
-    per = np.empty(n)
-    target = tolerance * velocity_scale
-
-    def residual() -> float:
-        _accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, f)
-        return float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, False, True, per))
-
-    res = residual()
-    history = [(0, res)]
-    status = CONVERGED if res <= target else MAX_ITERS
-    sweeps = 0
-    n_groups = len(group_ptr) - 1
-    errors = np.zeros(max(n_groups, 1), dtype=np.int64)
-    independent = not np.any(strand[:, 1] >= 0)  # then groups share no strand, and so no entry of f
-
-    def work(lo: int, hi: int) -> None:
-        _block_sweep(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, r, f,
-                     inner_max, lo, hi, errors)
-
-    while status == MAX_ITERS and sweeps < max_sweeps:
-        if independent:
-            run_chunks(work, n_groups, max(16, -(-n_groups // 8)))
-        else:
-            work(0, n_groups)
-        if errors.any():
-            status = NUMERICAL
-            break
-        sweeps += 1
-        res = residual()
-        history.append((sweeps, res))
-        if not np.isfinite(res):
-            status = NUMERICAL
-        elif res <= target:
-            status = CONVERGED
-    return SolverResult(r, status, sweeps, res, res / velocity_scale, history, time.perf_counter() - started)
 
 
 def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, strand: np.ndarray,
@@ -323,6 +255,15 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     and the strands' median distance after two frames from a 1,000-sweep
     reference goes from 0.25 to 0.27 mm (docs/benchmarks.md).
 
+    Body contacts only (no hair-hair contact): the strands do not interact,
+    so the rounds run strand by strand, in the kernel, on each strand's dense
+    block (:func:`hairinv.solver.blocks._group_fixed_point`), after Newton on
+    the De Saxce problem itself has solved most strands at once; a round
+    counts as one sweep, a strand stops after ``FIXED_POINT_PATIENCE`` rounds
+    without a new best (with ``stall_rounds`` 0: once the sweeps are spent),
+    and the fail-safe runs only where every strand met the tolerance by its
+    own count and the whole does not (round-off), or with ``stall_rounds`` 0.
+
     ``rows`` are the factored rows ``Z_i^T`` (:func:`factored_rows`); the
     tolerance is on the De Saxce residual in velocity units, relative to
     ``velocity_scale``; ``Wd``: the blocks ``W_ii`` (:func:`delassus_blocks`,
@@ -332,13 +273,12 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     started = time.perf_counter()
     ones = np.ones(rows.n_dofs)
     target = tolerance * velocity_scale
-    # body contacts only: strand by strand on dense blocks (see solve_strand_blocks); with hair-hair
-    # contact, the accelerated contact-by-contact sweeps of the inversion
+    # body contacts only: strand by strand on dense blocks (Newton, then each strand's own fixed point);
+    # with hair-hair contact, the accelerated contact-by-contact sweeps of the inversion
     blocks = rows.n_contacts > 0 and not np.any(strand[:, 1] >= 0)
     # frictionless everywhere: the De Saxce shift mu |u_T| is zero, so the first round is the problem itself,
     # solved to the final tolerance at once (no rounds of loose tolerances chasing a shift)
     frictionless = not np.any(mu > 0.0)
-    groups = None  # made once a round is needed (a still groom's warm start often meets the tolerance)
     stalled = False
     r = np.array(r0, dtype=np.float64, copy=True)
     if Wd is None and rows.n_contacts:
@@ -380,36 +320,31 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         sweeps += 1
         if not done.all() and max_sweeps > 1:
             taken = np.zeros(n_groups, dtype=np.int64)
+            patience = FIXED_POINT_PATIENCE if stall_rounds else 0  # (0: every round the sweeps allow)
             run_chunks(lambda lo, hi: _group_fixed_point(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members,
                                                          group_ptr, block_ptr, blocks_g, Wd, r, f, target,
-                                                         FIXED_POINT_NEWTON_ITERS, max_sweeps - 1, FIXED_POINT_PATIENCE,
+                                                         FIXED_POINT_NEWTON_ITERS, max_sweeps - 1, patience,
                                                          lo, hi, done, taken), n_groups, chunk)
             rounds = int(taken.max())
             sweeps += rounds
         record(r)
-        # the strands that did not meet the tolerance stopped at their best (stalled or out of rounds):
-        # sweeps over all contacts would not do better; where each did by its own count and the whole
-        # does not (round-off), the fail-safe polishes
-        stalled = not done.all()
-        rounds = max_rounds
-    while status == MAX_ITERS and sweeps < max_sweeps and rounds < max_rounds:
+        # the strands that did not meet the tolerance stopped at their best (stalled, with stall_rounds, or
+        # out of sweeps): sweeps over all contacts would not do better; where each did by its own count and
+        # the whole does not (round-off), the fail-safe polishes
+        stalled = bool(stall_rounds) and not done.all()
+    while not blocks and status == MAX_ITERS and sweeps < max_sweeps and rounds < max_rounds:
         u = contact_velocities(rows, gamma, b, r)
         shifted = b.copy()
         shifted[:, 0] += np.where(mu < np.inf, mu, 0.0) * np.hypot(u[:, 1], u[:, 2])  # (inf: no De Saxce term)
         # each round only as exact as the shift it starts from deserves
         inner_tol = tolerance if frictionless else max(tolerance, 0.1 * best / velocity_scale)
-        if blocks:
-            groups = strand_groups(rows, gamma, strand, Wd) if groups is None else groups
-            inner = solve_strand_blocks(rows, gamma, shifted, mu, strand, velocity_scale, inner_tol,
-                                        max_sweeps - sweeps, r, groups=groups)
-        else:
-            # and, until it is the final tolerance, at most a tenth of the sweeps: with hair-hair contact
-            # Gauss-Seidel is slow, and one round spending every sweep on a stale shift left ruby's moving
-            # groom at 0.35 g h for good
-            budget = max_sweeps - sweeps if inner_tol <= tolerance else min(max(20, max_sweeps // 10),
-                                                                            max_sweeps - sweeps)
-            inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, inner_tol,
-                                  budget, 5, r0=r, s=s, part_of=part_of, velocity=True)
+        # and, until it is the final tolerance, at most a tenth of the sweeps: with hair-hair contact
+        # Gauss-Seidel is slow, and one round spending every sweep on a stale shift left ruby's moving
+        # groom at 0.35 g h for good
+        budget = max_sweeps - sweeps if inner_tol <= tolerance else min(max(20, max_sweeps // 10),
+                                                                        max_sweeps - sweeps)
+        inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, inner_tol,
+                              budget, 5, r0=r, s=s, part_of=part_of, velocity=True)
         if inner.status == NUMERICAL:
             return dataclasses.replace(inner, r=best_r, status=NUMERICAL, sweeps=sweeps + inner.sweeps)
         sweeps += inner.sweeps

@@ -302,10 +302,10 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
 # m: a remembered contact point stays while it is at most this much farther from the surface than
 # the point detection finds on the same element
 _PERSIST_SLACK = 1e-5
-# golden-section steps placing a body contact along its element once the groom moves: 2.5e-3 of the bracket
-# between two samples, a few micrometres, where the distance found is off by 1e-9 m (a distance near its
-# least is off by the square of the step); the first detection (the model's own contacts) keeps the
-# detector's default
+# golden-section steps placing a body contact along its element once the groom moves: 3.1e-3 of the bracket
+# between two samples (10-30 um on the samples' elements), where the distance found is off by the square
+# of that over twice the radius of curvature (below 1e-8 m); the first detection (the model's own contacts)
+# keeps the detector's default
 _MOVING_REFINE = 12
 # contacts per chunk of the per-step rows and factored rows: a few hundred already pay for a thread handoff
 _CONTACT_CHUNK = 256

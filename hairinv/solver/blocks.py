@@ -82,62 +82,6 @@ def _group_store(ptr, cols, vals, members, lo, m, x, scale, r, f):
             f[cols[t]] += vals[t, 0] * d0 + vals[t, 1] * d1 + vals[t, 2] * d2
 
 
-@jit
-def _block_sweep(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, r, f, inner_max, g_lo, g_hi,
-                 errors):
-    """A sweep over the groups ``g_lo:g_hi``: each group's contacts solved together (Gauss-Seidel on
-    its dense block until the forces stop changing, at most ``inner_max`` times) with the other groups
-    frozen. Counts numerical errors in ``errors[g_lo]``."""
-    numerical = 0
-    Wk = np.empty((3, 3))
-    bl = np.empty(3)
-    rk = np.empty(3)
-    widest = 0
-    for g in range(g_lo, g_hi):
-        widest = max(widest, group_ptr[g + 1] - group_ptr[g])
-    ones = np.ones(widest)
-    for g in range(g_lo, g_hi):
-        lo = group_ptr[g]
-        m = group_ptr[g + 1] - lo
-        n = 3 * m
-        base = block_ptr[g]
-        # q = u - W_g r_g: what the group sees of b and of the other groups
-        q = np.empty(n)
-        old = np.empty(n)
-        _group_load(ptr, cols, vals, gamma, b, r, f, members, lo, m, q, old)
-        for a in range(n):
-            acc = 0.0
-            for c in range(n):
-                acc += blocks[base + a * n + c] * old[c]
-            q[a] -= acc
-        x = old.copy()
-        for sweep in range(inner_max):
-            change = 0.0
-            size = 0.0
-            for a in range(m):
-                for ra in range(3):
-                    acc = q[3 * a + ra]
-                    for c in range(n):
-                        if c // 3 != a:
-                            acc += blocks[base + (3 * a + ra) * n + c] * x[c]
-                    bl[ra] = acc
-                    for rc in range(3):
-                        Wk[ra, rc] = blocks[base + (3 * a + ra) * n + 3 * a + rc]
-                    rk[ra] = x[3 * a + ra]
-                status, _ = solve_contact(Wk, bl, mu[members[lo + a]], rk, LOCAL_TOL, 50, False)
-                if status == NUMERICAL_ERROR:
-                    numerical += 1
-                    continue
-                for ra in range(3):
-                    change = max(change, abs(rk[ra] - x[3 * a + ra]))
-                    size = max(size, abs(rk[ra]))
-                    x[3 * a + ra] = rk[ra]
-            if m == 1 or change <= 1e-9 * size:
-                break
-        _group_store(ptr, cols, vals, members, lo, m, x, ones, r, f)
-    errors[g_lo] += numerical
-
-
 def strand_blocks(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray) -> tuple:
     """Groups of contacts and their dense blocks: a strand's body contacts together, each hair-hair
     contact alone. Returns ``(members, group_ptr, block_ptr, blocks)``: group ``g`` is
@@ -430,7 +374,7 @@ def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, 
         if not _group_setup(ptr, cols, vals, gamma, b, mu, members, lo, m, blocks, block_ptr[g], Wd, r, f, W, rho,
                             mug, q, x):
             done[g] = False
-            continue  # a contact no coordinate moves (or a non-finite W): left to the local solves' checks
+            continue  # a contact no coordinate moves (or a non-finite W): left unsolved, and reported so
         best, improved = _block_newton(W, 3 * m, q, rho, mug, x, xbest, target, max_iter, desaxce, velocity, scratch)
         done[g] = best <= target
         if not improved:
@@ -443,12 +387,13 @@ def _group_fixed_point(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_
                        max_iter, max_rounds, patience, g_lo, g_hi, done, rounds):
     """The De Saxce problem of each group not yet ``done`` as a fixed point of convex ones, group by
     group (the other groups frozen): with the shift ``s_i = mu_i |u_T,i|`` of the current forces held,
-    the convex cone problem of ``u + s e_N`` is solved by :func:`_block_newton`; its answer gives the
-    next shift (Acary, Cadoux et al.; at a fixed point the De Saxce conditions hold exactly). Each
-    group keeps its iterate of smallest De Saxce residual (velocity units; a round's convex solve is
-    asked for a tenth of it) and stops once it meets ``target``, after ``max_rounds``, or once
-    ``stall_rounds`` rounds in a row have not halved it. ``rounds[g]``: the rounds it took;
-    ``done[g]``: whether it meets ``target``."""
+    the convex cone problem of ``u + s e_N`` is solved by :func:`_block_newton` to a tenth of the
+    group's best De Saxce residual, and where Newton stops short of that, by
+    :func:`_block_gauss_seidel`; its answer gives the next shift (Acary, Cadoux et al.; at a fixed
+    point the De Saxce conditions hold exactly). Each group keeps its iterate of smallest De Saxce
+    residual (velocity units) and stops once it meets ``target``, after ``max_rounds`` rounds, or
+    after ``patience`` rounds in a row without a new best (0: never). ``rounds[g]``: the rounds it
+    took; ``done[g]``: whether it meets ``target``. Groups :func:`_group_setup` rejects are skipped."""
     big = 0
     for g in range(g_lo, g_hi):
         if not done[g]:
@@ -468,7 +413,7 @@ def _group_fixed_point(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_
     rho = np.empty(big)
     mug = np.empty(big)
     scratch = _newton_scratch(big)
-    G, Gt, A, Jr, Ju = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
+    Gt, Jr, Ju = scratch[1], scratch[3], scratch[4]
     for g in range(g_lo, g_hi):
         if done[g]:
             continue
@@ -480,8 +425,7 @@ def _group_fixed_point(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_
             continue
         best = _projected_worst(W, n, q, rho, mug, x, xbest, u, phi, Gt, Jr, Ju, True, True)
         improved = False
-        last_halving = 0
-        reference = best
+        last_best = 0  # the round that found the best so far
         k = 0
         for k in range(1, max_rounds + 1):
             # the shift of the current forces' velocities
@@ -509,10 +453,9 @@ def _group_fixed_point(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_
                     xbest[a] = xp[a]
             if best <= target:
                 break
-            if best < reference:
-                reference = best
-                last_halving = k
-            elif patience > 0 and k - last_halving >= patience:
+            if best == residual:
+                last_best = k
+            elif patience > 0 and k - last_best >= patience:
                 break
         rounds[g] = k
         done[g] = best <= target
