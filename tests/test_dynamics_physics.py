@@ -218,6 +218,20 @@ def _strand_contacts(rng, counts, n_dofs=24, spread=0.05):
     return rows, np.array(strand, np.int64), b
 
 
+def _strands_by_newton(rows, strand, b, gamma, mus, target, iterations):
+    """Each strand's body contacts from zero by the strands' Newton kernel: ``(r, f, done, Wd)``."""
+    from hairinv.dynamics.contact import strand_groups
+    from hairinv.solver.blocks import _group_newton
+
+    members, group_ptr, block_ptr, blocks, Wd = strand_groups(rows, gamma, strand)
+    r = np.zeros((rows.n_contacts, 3))
+    f = np.zeros(rows.n_dofs)
+    done = np.zeros(len(group_ptr) - 1, np.bool_)
+    _group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mus, members, group_ptr, block_ptr, blocks, Wd, r, f,
+                  target, iterations, True, True, 0, len(done), done)
+    return r, f, done, Wd
+
+
 def _desaxce_violation(rows, gamma, b, mu, r):
     """Largest violation of ``K ∋ r ⟂ u~ ∈ K*`` (u~ = u + mu |u_T| e_N), from dense W assembled here."""
     Z = rows.to_sparse().toarray()
@@ -277,22 +291,13 @@ def test_a_strands_body_contacts_solved_together_meet_the_de_saxce_law(mu):
     """Each strand's body contacts solved at once (Newton on the stacked De Saxce FB function): the
     forces are in the cones, the De Saxce velocities in the dual cones and complementary, checked on
     the dense W; and a strand it does not finish is finished by the rounds that follow."""
-    from hairinv.dynamics.contact import strand_groups
-    from hairinv.solver.blocks import _group_newton
     from hairinv.solver.gauss_seidel import _accumulate_f
 
     rng = np.random.default_rng(5)
     rows, strand, b = _strand_contacts(rng, [1, 2, 3, 4, 5, 3, 2, 4])
     n = rows.n_contacts
-    gamma = np.full(n, 1e-9)
-    mus = np.full(n, mu)
-    target = 1e-10
-    members, group_ptr, block_ptr, blocks, Wd = strand_groups(rows, gamma, strand)
-    r = np.zeros((n, 3))
-    f = np.zeros(rows.n_dofs)
-    done = np.zeros(len(group_ptr) - 1, np.bool_)
-    _group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mus, members, group_ptr, block_ptr, blocks, Wd, r, f,
-                  target, 30, True, True, 0, len(group_ptr) - 1, done)
+    gamma, mus, target = np.full(n, 1e-9), np.full(n, mu), 1e-10
+    r, f, done, Wd = _strands_by_newton(rows, strand, b, gamma, mus, target, 30)
     assert done.all()
     assert _desaxce_violation(rows, gamma, b, mus, r) < 1e-8 * np.abs(b).max()
     assert desaxce_residual(rows, gamma, b, mus, r, Wd) <= target  # the solver's own stop test agrees
@@ -325,8 +330,6 @@ def test_strands_newton_leaves_are_finished_by_the_fixed_point_of_convex_problem
     others (W_ii 1e-4 of theirs), which stalls Newton on the stacked FB function for some strands. The
     fixed point of convex problems on each such strand's block finishes them: the De Saxce conditions
     hold, checked on the dense W."""
-    from hairinv.dynamics.contact import strand_groups
-    from hairinv.solver.blocks import _group_newton
     from hairinv.solver.rows import ContactRows
 
     rng = np.random.default_rng(seed)
@@ -337,14 +340,8 @@ def test_strands_newton_leaves_are_finished_by_the_fixed_point_of_convex_problem
         vals[rows.ptr[i]:rows.ptr[i + 1]] *= 1e-2
     rows = ContactRows(rows.ptr, rows.cols, vals, rows.n_dofs)
     n = rows.n_contacts
-    gamma = np.full(n, 1e-9)
-    mus = np.full(n, mu)
-    target = 1e-10
-    members, group_ptr, block_ptr, blocks, Wd = strand_groups(rows, gamma, strand)
-    r = np.zeros((n, 3))
-    done = np.zeros(len(group_ptr) - 1, np.bool_)
-    _group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mus, members, group_ptr, block_ptr, blocks, Wd, r,
-                  np.zeros(rows.n_dofs), target, contact.GROUP_NEWTON_ITERS, True, True, 0, len(done), done)
+    gamma, mus, target = np.full(n, 1e-9), np.full(n, mu), 1e-10
+    _, _, done, Wd = _strands_by_newton(rows, strand, b, gamma, mus, target, contact.GROUP_NEWTON_ITERS)
     assert not done.all(), "Newton alone finishes every strand: the case does not test the fixed point"
     result = solve_coulomb(rows, gamma, b, mus, strand, len(counts), 1.0, target, 200, np.zeros((n, 3)))
     assert result.status == "CONVERGED"

@@ -75,7 +75,7 @@ import functools
 import numpy as np
 
 from .._jit import jit
-from ..rod.helix import _advance, chain, element_derivatives, helix_coefficients_and_derivatives
+from ..rod.helix import _advance, _element_rate, chain, element_derivatives, helix_coefficients_and_derivatives
 
 __all__ = [
     "gauss_nodes",
@@ -488,7 +488,7 @@ def strand_node_loads(root, frame0, omega, length, gx, f, torque, out):
 def _own_rates(omega_e, velocity_e, sigma, dp, dphi):
     """``dp = sum_k v_k dP/dw_k`` and ``dphi = sum_k v_k dphi/dw_k`` after ``sigma`` of one element, in its
     start frame: the velocity of its point and the angular velocity of its frame at the rates
-    ``velocity_e`` (the formulas of :func:`hairinv.rod.helix.element_derivatives`, summed over k).
+    ``velocity_e`` (:func:`hairinv.rod.helix._element_rate`, summed over k).
     Real or complex ``omega_e`` (the complex step of :func:`_own_accelerations`)."""
     w0 = omega_e[2]
     w1 = omega_e[0]
@@ -496,8 +496,6 @@ def _own_rates(omega_e, velocity_e, sigma, dp, dphi):
     ww = w0 * w0 + w1 * w1 + w2 * w2
     s2 = sigma * sigma
     A, B, C, D, Bp, Cp = helix_coefficients_and_derivatives(ww * s2)
-    a1, a2 = w2, -w1  # w x e1 = (0, w2, -w1)
-    c0, c1, c2 = w0 * w0 - ww, w0 * w1, w0 * w2  # w0 w - ww e1
     for i in range(3):
         dp[i] = 0.0 * w0
         dphi[i] = 0.0 * w0
@@ -505,30 +503,13 @@ def _own_rates(omega_e, velocity_e, sigma, dp, dphi):
         vk = velocity_e[k]
         if vk == 0.0:
             continue
-        l = (k + 1) % 3  # local index of stored component k: (kappa1, kappa2, tau) -> (1, 2, 0)
-        wl = w0 if l == 0 else (w1 if l == 1 else w2)
-        e1 = 1.0 if l == 2 else 0.0  # e_l x e1 = (0, e1, e2)
-        e2 = -1.0 if l == 1 else 0.0
-        if l == 0:
-            g0, g1, g2 = 0.0 * w0, w1, w2
-        elif l == 1:
-            g0, g1, g2 = -2.0 * w1, w0, 0.0 * w0
-        else:
-            g0, g1, g2 = -2.0 * w2, 0.0 * w0, w0
-        fb = 2.0 * s2 * wl * Bp
-        fc = 2.0 * s2 * wl * Cp
-        dp[0] += vk * (s2 * sigma * (fc * c0 + C * g0))
-        dp[1] += vk * (s2 * (fb * a1 + B * e1) + s2 * sigma * (fc * c1 + C * g1))
-        dp[2] += vk * (s2 * (fb * a2 + B * e2) + s2 * sigma * (fc * c2 + C * g2))
-        if l == 0:
-            x0, x1, x2 = 0.0 * w0, w2, -w1
-        elif l == 1:
-            x0, x1, x2 = -w2, 0.0 * w0, w0
-        else:
-            x0, x1, x2 = w1, -w0, 0.0 * w0
-        dphi[0] += vk * sigma * ((1.0 if l == 0 else 0.0) + sigma * B * x0 + s2 * C * (wl * w0 - (ww if l == 0 else 0.0)))
-        dphi[1] += vk * sigma * ((1.0 if l == 1 else 0.0) + sigma * B * x1 + s2 * C * (wl * w1 - (ww if l == 1 else 0.0)))
-        dphi[2] += vk * sigma * ((1.0 if l == 2 else 0.0) + sigma * B * x2 + s2 * C * (wl * w2 - (ww if l == 2 else 0.0)))
+        p0, p1, p2, f0, f1, f2 = _element_rate(w0, w1, w2, ww, s2, sigma, B, C, Bp, Cp, k)
+        dp[0] += vk * p0
+        dp[1] += vk * p1
+        dp[2] += vk * p2
+        dphi[0] += vk * f0
+        dphi[1] += vk * f1
+        dphi[2] += vk * f2
 
 
 _STEP = 1e-30  # complex step: exact first derivatives of the (analytic) rates

@@ -98,15 +98,8 @@ def helix_coefficient_derivatives(y):
     Closed forms ``(A - 2B) / (2y)`` and ``(B - 3C) / (2y)``, series below
     ``y < 1`` where they cancel.
     """
-    if abs(y) < _SERIES_Y:
-        bp = y * 0.0
-        cp = y * 0.0
-        for k in range(_SERIES_TERMS - 1, -1, -1):
-            bp = bp * y + _SERIES_D[0, k]
-            cp = cp * y + _SERIES_D[1, k]
-        return bp, cp
-    A, B, C, D = helix_coefficients(y)
-    return (A - 2.0 * B) / (2.0 * y), (B - 3.0 * C) / (2.0 * y)
+    _, _, _, _, bp, cp = helix_coefficients_and_derivatives(y)
+    return bp, cp
 
 
 @jit
@@ -274,6 +267,44 @@ def frames_at(root, frame0, omega, length, s, x_out, F_out):
 
 
 @jit
+def _element_rate(w0, w1, w2, ww, s2, sigma, B, C, Bp, Cp, k):
+    """``dP/dw_k`` and ``dphi/dw_k`` (stored component ``k``) of an element after ``sigma``, in its start
+    frame, given ``ww = |w|^2``, ``s2 = sigma^2`` and the coefficients at ``ww s2`` (see
+    :func:`element_derivatives`). Real or complex."""
+    # local index l of stored component k: (kappa1, kappa2, tau) -> (1, 2, 0)
+    l = (k + 1) % 3
+    wl = w0 if l == 0 else (w1 if l == 1 else w2)
+    # w x e1 = (0, w2, -w1), (w0 w - ww e1), and d(w x e1)/dw_l = e_l x e1 = (0, e1, e2)
+    a1, a2 = w2, -w1
+    c0, c1, c2 = w0 * w0 - ww, w0 * w1, w0 * w2
+    e1 = 1.0 if l == 2 else 0.0
+    e2 = -1.0 if l == 1 else 0.0
+    # d(w0 w - ww e1)/dw_l
+    if l == 0:
+        g0, g1, g2 = 0.0 * w0, w1, w2
+    elif l == 1:
+        g0, g1, g2 = -2.0 * w1, w0, 0.0 * w0
+    else:
+        g0, g1, g2 = -2.0 * w2, 0.0 * w0, w0
+    fb = 2.0 * s2 * wl * Bp
+    fc = 2.0 * s2 * wl * Cp
+    p0 = s2 * sigma * (fc * c0 + C * g0)
+    p1 = s2 * (fb * a1 + B * e1) + s2 * sigma * (fc * c1 + C * g1)
+    p2 = s2 * (fb * a2 + B * e2) + s2 * sigma * (fc * c2 + C * g2)
+    # w x e_l and (w_l w - ww e_l)
+    if l == 0:
+        x0, x1, x2 = 0.0 * w0, w2, -w1
+    elif l == 1:
+        x0, x1, x2 = -w2, 0.0 * w0, w0
+    else:
+        x0, x1, x2 = w1, -w0, 0.0 * w0
+    f0 = sigma * ((1.0 if l == 0 else 0.0) + sigma * B * x0 + s2 * C * (wl * w0 - (ww if l == 0 else 0.0)))
+    f1 = sigma * ((1.0 if l == 1 else 0.0) + sigma * B * x1 + s2 * C * (wl * w1 - (ww if l == 1 else 0.0)))
+    f2 = sigma * ((1.0 if l == 2 else 0.0) + sigma * B * x2 + s2 * C * (wl * w2 - (ww if l == 2 else 0.0)))
+    return p0, p1, p2, f0, f1, f2
+
+
+@jit
 def element_derivatives(omega_e, sigma, F, dx, dth):
     """Derivatives of an element's point and frame after ``sigma`` w.r.t. its omega.
 
@@ -302,39 +333,8 @@ def element_derivatives(omega_e, sigma, F, dx, dth):
     s2 = sigma * sigma
     y = ww * s2
     A, B, C, D, Bp, Cp = helix_coefficients_and_derivatives(y)
-    # w x e1 and (w0 w - ww e1)
-    a0, a1, a2 = 0.0, w2, -w1
-    c0, c1, c2 = w0 * w0 - ww, w0 * w1, w0 * w2
-    dP = np.empty(3)
-    dphi = np.empty(3)
     for k in range(3):
-        # local index l of stored component k: (kappa1, kappa2, tau) -> (1, 2, 0)
-        l = (k + 1) % 3
-        wl = w0 if l == 0 else (w1 if l == 1 else w2)
-        # d(w x e1)/dw_l = e_l x e1
-        e0, e1, e2 = 0.0, (1.0 if l == 2 else 0.0), (-1.0 if l == 1 else 0.0)
-        # d(w0 w - ww e1)/dw_l
-        if l == 0:
-            g0, g1, g2 = 0.0, w1, w2
-        elif l == 1:
-            g0, g1, g2 = -2.0 * w1, w0, 0.0
-        else:
-            g0, g1, g2 = -2.0 * w2, 0.0, w0
-        fb = 2.0 * s2 * wl * Bp
-        fc = 2.0 * s2 * wl * Cp
-        dP[0] = s2 * (fb * a0 + B * e0) + s2 * sigma * (fc * c0 + C * g0)
-        dP[1] = s2 * (fb * a1 + B * e1) + s2 * sigma * (fc * c1 + C * g1)
-        dP[2] = s2 * (fb * a2 + B * e2) + s2 * sigma * (fc * c2 + C * g2)
-        # w x e_l and (w_l w - ww e_l)
-        if l == 0:
-            x0, x1, x2 = 0.0, w2, -w1
-        elif l == 1:
-            x0, x1, x2 = -w2, 0.0, w0
-        else:
-            x0, x1, x2 = w1, -w0, 0.0
-        dphi[0] = sigma * ((1.0 if l == 0 else 0.0) + sigma * B * x0 + s2 * C * (wl * w0 - (ww if l == 0 else 0.0)))
-        dphi[1] = sigma * ((1.0 if l == 1 else 0.0) + sigma * B * x1 + s2 * C * (wl * w1 - (ww if l == 1 else 0.0)))
-        dphi[2] = sigma * ((1.0 if l == 2 else 0.0) + sigma * B * x2 + s2 * C * (wl * w2 - (ww if l == 2 else 0.0)))
+        p0, p1, p2, f0, f1, f2 = _element_rate(w0, w1, w2, ww, s2, sigma, B, C, Bp, Cp, k)
         for i in range(3):
-            dx[k, i] = F[0, i] * dP[0] + F[1, i] * dP[1] + F[2, i] * dP[2]
-            dth[k, i] = F[0, i] * dphi[0] + F[1, i] * dphi[1] + F[2, i] * dphi[2]
+            dx[k, i] = F[0, i] * p0 + F[1, i] * p1 + F[2, i] * p2
+            dth[k, i] = F[0, i] * f0 + F[1, i] * f1 + F[2, i] * f2

@@ -129,6 +129,16 @@ def gravity_forces(root, frame0, omega, length, lam, gravity, out):
 
 
 @jit
+def _perturbed_end(x, F, omega_e, ell, k, dw, w, x_end, F_end, R, P, Q):
+    """An element's end point and frame with its ``omega_e[k]`` moved by ``dw`` (``w``: the moved omega),
+    for the central differences of the Hessians' diagonal blocks."""
+    for i in range(3):
+        w[i] = omega_e[i]
+    w[k] += dw
+    _advance(x, F, w, ell, x_end, F_end, R, P, Q)
+
+
+@jit
 def gravity_hessian(root, frame0, omega, length, lam, gravity, out):
     """Hessian of the gravity potential, ``-dF_g/d omega``, (3N, 3N), from the rigid-downstream structure.
 
@@ -202,10 +212,7 @@ def gravity_hessian(root, frame0, omega, length, lam, gravity, out):
         for k2 in range(3):
             h = 1e-5 * (1.0 / total + abs(omega[a, k2]))
             for side in range(2):
-                for i in range(3):
-                    w[i] = omega[a, i]
-                w[k2] += h if side == 0 else -h
-                _advance(xs[a], Fs[a], w, length[a], x_end, F_end, R, P, Q)
+                _perturbed_end(xs[a], Fs[a], omega[a], length[a], k2, h if side == 0 else -h, w, x_end, F_end, R, P, Q)
                 for i in range(3):
                     arm[i] = local[0] * F_end[0, i] + local[1] * F_end[1, i] + local[2] * F_end[2, i]
                 element_derivatives(w, length[a], Fs[a], dx, dth)
@@ -422,12 +429,9 @@ def point_load_hessian(root, frame0, omega, length, s, force, out):
         for k2 in range(3):
             h = 1e-5 * (1.0 / total + abs(omega[a, k2]))
             for side in range(2):
-                for i in range(3):
-                    w[i] = omega[a, i]
-                w[k2] += h if side == 0 else -h
                 G = Gp if side == 0 else Gm
                 G[:] = 0.0
-                _advance(xs[a], Fs[a], w, length[a], x_end, F_end, R, P, Q)
+                _perturbed_end(xs[a], Fs[a], omega[a], length[a], k2, h if side == 0 else -h, w, x_end, F_end, R, P, Q)
                 element_derivatives(w, length[a], Fs[a], dx, dth)
                 for l in range(first, K):
                     f = force[l]

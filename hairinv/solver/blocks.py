@@ -208,8 +208,7 @@ def _block_newton(W, n, q, rho, mug, x, xbest, target, max_iter, desaxce, veloci
     ``x`` (overwritten). ``xbest`` receives the projection onto the cones of the iterate with the
     smallest largest natural-map residual, the start included. Returns that residual and whether
     ``xbest`` differs from the start."""
-    G, Gt, A, Jr, Ju, xt, xp, up, phip, u, phi, phit, rhs, d, grad, Wk, bl, rk = scratch
-    m = n // 3
+    G, Gt, A, Jr, Ju, xt, xp, up, phip, u, phi, phit, rhs, d, grad, _, _, _ = scratch
     merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True, desaxce, velocity)
     best = _projected_worst(W, n, q, rho, mug, x, xbest, up, phip, Gt, Jr, Ju, desaxce, velocity)
     improved = False
@@ -260,21 +259,7 @@ def _block_newton(W, n, q, rho, mug, x, xbest, target, max_iter, desaxce, veloci
         else:
             # a kink of the FB function or of |u_T| stops the descent: one Gauss-Seidel pass of exact
             # local solves moves off it
-            for a in range(m):
-                k = 3 * a
-                for ra in range(3):
-                    acc = q[k + ra]
-                    for c in range(n):
-                        if c // 3 != a:
-                            acc += W[k + ra, c] * x[c] / rho[c // 3]
-                    bl[ra] = acc
-                    rk[ra] = x[k + ra] / rho[a]
-                    for rc in range(3):
-                        Wk[ra, rc] = W[k + ra, k + rc]
-                status, _ = solve_contact(Wk, bl, mug[a], rk, LOCAL_TOL, 50, desaxce)
-                if status != NUMERICAL_ERROR:
-                    for ra in range(3):
-                        x[k + ra] = rho[a] * rk[ra]
+            _block_gauss_seidel(W, n, q, rho, mug, x, 1, desaxce, scratch)
             merit, worst = _group_merit(W, n, q, rho, mug, x, u, phi, G, Jr, Ju, True, desaxce, velocity)
         projected = _projected_worst(W, n, q, rho, mug, x, xp, up, phip, Gt, Jr, Ju, desaxce, velocity)
         if projected < best:
