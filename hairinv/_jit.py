@@ -46,6 +46,7 @@ class _PackageStampedLocator(caching._CacheLocator):
 
     def __init__(self, py_func, py_file, cache_path):
         self._lineno = py_func.__code__.co_firstlineno
+        self._py_file = py_file  # numba names it when a kernel cannot be cached
         self._cache_path = cache_path
 
     def get_cache_path(self):

@@ -94,6 +94,27 @@ def run_chunks(work: Callable[[int, int], None], count: int, chunk: int,
         _run(work, count, chunk, progress)
 
 
+def run_ranges(work: Callable[[int, int], None], ranges: list[tuple[int, int]]) -> None:
+    """Call ``work(lo, hi)`` for each range, on worker threads (inline on one, or from a worker); each call
+    must write only its own outputs. BLAS is left as it is (callers pin it where they need to)."""
+    workers = worker_count()
+    if workers <= 1 or len(ranges) <= 1 or in_worker():
+        for lo, hi in ranges:
+            work(lo, hi)
+        return
+    pool = executor(workers)
+    futures = [pool.submit(work, lo, hi) for lo, hi in ranges]
+    try:
+        for future in futures:
+            future.result()
+    finally:
+        for future in futures:
+            future.cancel()
+        for future in futures:
+            if not future.cancelled():
+                future.exception()
+
+
 def _run(work, count, chunk, progress) -> None:
     bounds = [(lo, min(count, lo + chunk)) for lo in range(0, count, chunk)]
     workers = min(worker_count(), len(bounds))

@@ -24,10 +24,11 @@ one system in the rod coordinates,
 ``n x n`` with ``n`` the number of coordinates of ``q``, sparse as the
 contacts couple the elements (a contact at element ``e`` touches elements
 ``0..e`` of its strands). It is assembled from per-contact dense blocks in
-a pattern fixed once, factored by CHOLMOD's supernodal Cholesky (through
-cvxopt) with the symbolic analysis done once, and solved with one step of
-iterative refinement against the force-space operator. Without cvxopt,
-scipy's SuperLU factors the same system.
+a pattern fixed once, ordered (AMD or METIS's nested dissection, the one
+whose factor costs fewer flops) and analysed once, factored by a supernodal
+Cholesky on every core (:mod:`.supernodal`; cvxopt's CHOLMOD and scipy's
+SuperLU can be asked for), and solved with one step of iterative refinement
+against the force-space operator.
 
 ``B^-1`` is formed as ``W_nt (I + W_nt Gamma W_nt)^-1 W_nt`` from the
 scaling itself: near the optimum ``S_nt`` spans many orders of magnitude
@@ -59,7 +60,9 @@ import scipy.sparse
 import scipy.sparse.linalg
 
 from .._jit import jit
+from .._parallel import blas_pinned
 from .rows import ContactRows, _rows_matvec, _rows_rmatvec
+from .supernodal import SupernodalCholesky
 
 __all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "column_counts", "mu_in_range", "solve_interior"]
 
@@ -123,12 +126,10 @@ class InteriorResult:
 
 
 def cholesky_backend() -> str:
-    """"cholmod" (cvxopt's CHOLMOD, supernodal) when cvxopt imports, else "superlu" (scipy)."""
-    try:
-        import cvxopt.cholmod  # noqa: F401
-    except ImportError:  # pragma: no cover - cvxopt is a dependency; the fallback is for trimmed installs
-        return "superlu"
-    return "cholmod"
+    """The sparse Cholesky factorisation the method uses unless told otherwise: "supernodal"
+    (:mod:`.supernodal`, on scipy's BLAS, every core). "cholmod" (cvxopt's CHOLMOD, one core with the
+    wheel's BLAS) and "superlu" (scipy's SuperLU, much slower) can be asked for."""
+    return "supernodal"
 
 
 @jit
@@ -357,27 +358,36 @@ class _Factor:
             self.A = cvxopt.spmatrix(np.ones(len(self.Si)), cvxopt.matrix(self.Si), cvxopt.matrix(self._columns),
                                      (n, n))
             self.F = cvxopt.cholmod.symbolic(self.A, p=cvxopt.matrix(self.order))
+        elif backend == "supernodal":
+            self.supernodal = SupernodalCholesky(self.Sp, self.Si, self.order)
 
     @staticmethod
     def _orderings(pattern, backend: str):
-        """Fill-reducing orderings of the pattern, as (name, permutation): with CHOLMOD, AMD (cvxopt's) and
-        METIS's nested dissection (pymetis, where installed); else reverse Cuthill-McKee."""
+        """Fill-reducing orderings of the pattern, as (name, permutation): for the Cholesky factorisations,
+        AMD (cvxopt's, where installed) and METIS's nested dissection (pymetis, where installed), else
+        reverse Cuthill-McKee; for SuperLU, reverse Cuthill-McKee."""
         n = pattern.shape[0]
-        if backend == "cholmod":
-            import cvxopt
-            import cvxopt.amd
-
-            lower = scipy.sparse.tril(pattern, format="coo")
-            A = cvxopt.spmatrix(np.ones(lower.nnz), cvxopt.matrix(lower.row.astype(np.int64)),
-                                cvxopt.matrix(lower.col.astype(np.int64)), (n, n))
-            yield "amd", np.asarray(cvxopt.amd.order(A), dtype=np.int64).ravel()
+        found = False
+        if backend != "superlu":
+            try:
+                import cvxopt
+                import cvxopt.amd
+            except ImportError:
+                pass
+            else:
+                lower = scipy.sparse.tril(pattern, format="coo")
+                A = cvxopt.spmatrix(np.ones(lower.nnz), cvxopt.matrix(lower.row.astype(np.int64)),
+                                    cvxopt.matrix(lower.col.astype(np.int64)), (n, n))
+                found = True
+                yield "amd", np.asarray(cvxopt.amd.order(A), dtype=np.int64).ravel()
             dissection = nested_dissection(pattern)
             if dissection is not None:
+                found = True
                 yield "metis", dissection
-            return
-        from scipy.sparse.csgraph import reverse_cuthill_mckee
+        if not found:
+            from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-        yield "rcm", np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=np.int64)
+            yield "rcm", np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=np.int64)
 
     def factor(self, ptr, cols, g, Binv) -> None:
         _assemble(ptr, cols, g, Binv, self.Sp, self.pos, self.Sx)
@@ -391,6 +401,12 @@ class _Factor:
                 self.Sx[self.Sp[:-1]] *= 1.0 + 1e-10
                 self.A.V = self._cvxopt.matrix(self.Sx)
                 self._cholmod.numeric(self.A, self.F)
+        elif self.backend == "supernodal":
+            try:
+                self.supernodal.factor(self.Sx)
+            except ArithmeticError:  # as above
+                self.Sx[self.Sp[:-1]] *= 1.0 + 1e-10
+                self.supernodal.factor(self.Sx)
         else:
             lower = scipy.sparse.csc_matrix((self.Sx, self.Si, self.Sp), shape=(self.n, self.n))
             full = (lower + lower.T - scipy.sparse.diags(lower.diagonal())).tocsc()
@@ -402,6 +418,8 @@ class _Factor:
             b = self._cvxopt.matrix(w)
             self._cholmod.solve(self.F, b)
             return np.asarray(b).ravel()
+        if self.backend == "supernodal":
+            return self.supernodal.solve(w)
         return self.lu.solve(w)
 
 
@@ -420,7 +438,7 @@ def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: n
     rest_tolerance : float, 1/m, stop once the rest-shape bound (module docstring) is below it
     max_iterations : int
     max_seconds : float, stop at the next iteration after this much time (0: no limit)
-    backend : "cholmod" or "superlu", default :func:`cholesky_backend`
+    backend : "supernodal", "cholmod" or "superlu", default :func:`cholesky_backend`
     progress : callable(iteration, rest_bound), optional
     max_gflop : float, the most a factorisation may cost (counted first, from the ordering's elimination
         tree; default ``MAX_GFLOP``); above it nothing is solved, the status is "TOO_LARGE" and ``gflop``
@@ -459,7 +477,8 @@ def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: n
     x = np.zeros((C, 3))
     x[:, 0] = start
     history = []
-    with np.errstate(all="ignore"):
+    # numpy's BLAS on one thread: its idle threads would spin, taking the cores from the factorisation's
+    with np.errstate(all="ignore"), blas_pinned():
         status, it, best = _iterate(problem, x, x.copy(), rest_tolerance, max_iterations, max_seconds, started,
                                     history, progress)
     bound, xb, relgap, dres, _ = best

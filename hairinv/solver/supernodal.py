@@ -1,0 +1,820 @@
+"""A supernodal multifrontal Cholesky factorisation on the BLAS numpy's scipy ships.
+
+The interior point's rod-coordinate system (:mod:`.interior`) is factored once per step with the same
+pattern. This module analyses the pattern once (elimination tree, postorder, column counts, supernodes,
+each supernode's rows and where its update goes in its parent's front) and then factors new values by the
+multifrontal method: for each supernode, children before parents, the front (its columns and the rows
+below them) is assembled from the matrix and from its children's update matrices, its diagonal block is
+factored (LAPACK ``dpotrf``), the rows below are solved against it (``dtrsm``) and the update matrix for
+the parent is formed (``dsyrk``). The dense kernels are scipy's (``scipy.linalg.cython_blas`` and
+``cython_lapack``), called from compiled code: the OpenBLAS wheel scipy ships runs the large fronts near
+the top of the tree on every core, where a CHOLMOD linked to a single-threaded BLAS uses one.
+
+Supernodes are fundamental (a column joins its parent's supernode when it is the parent's only child and
+their patterns nest) and then relaxed: a child supernode is merged into its parent while the explicit
+zeros this adds stay small (CHOLMOD's rules, ``nrelax`` and ``zrelax``), so that the many tiny supernodes
+of a strand's tip do not each pay a call.
+
+Same answer on any thread count: OpenBLAS's level-3 kernels split the output among threads, not the sums,
+so the factor's bits do not depend on how many threads run them (checked in the tests).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import threading
+
+import llvmlite.binding as llvm
+import numpy as np
+import scipy.linalg.cython_blas
+import scipy.sparse
+from numba import cfunc
+from numba.core import types
+from numba.extending import get_cython_function_address
+
+from .._jit import jit
+from .._parallel import run_ranges, worker_count
+
+__all__ = ["SupernodalCholesky"]
+
+
+
+def _external(symbol: str, address: int, signature):
+    """A C function at ``address`` as a compiled-code external function. It is declared by a symbol name
+    registered with LLVM, not by its address, so the kernels calling it can be cached."""
+    llvm.add_symbol(symbol, address)
+    return types.ExternalFunction(symbol, signature)
+
+
+def _lapack(module: str, name: str, nargs: int):
+    """scipy's Fortran-convention ``name`` (every argument a pointer). Pointers are passed as addresses
+    (``array.ctypes.data``), which the x86-64 and AArch64 calling conventions pass exactly as pointers."""
+    return _external(f"hairinv_{name}", get_cython_function_address(module, name),
+                     types.void(*([types.uintp] * nargs)))
+
+
+_dpotrf = _lapack("scipy.linalg.cython_lapack", "dpotrf", 5)
+_dtrsm = _lapack("scipy.linalg.cython_blas", "dtrsm", 11)
+_dsyrk = _lapack("scipy.linalg.cython_blas", "dsyrk", 10)
+_dgemm = _lapack("scipy.linalg.cython_blas", "dgemm", 13)
+_dgemv = _lapack("scipy.linalg.cython_blas", "dgemv", 11)
+_dtrsv = _lapack("scipy.linalg.cython_blas", "dtrsv", 8)
+
+
+@cfunc(types.int32(types.int32))
+def _same_threads(n):
+    return n
+
+
+def _thread_control() -> tuple[int, bool]:
+    """The address of OpenBLAS's ``openblas_set_num_threads_local`` in the library scipy's BLAS comes from
+    (found through the extension's own dependencies), and whether it was found. OpenBLAS's threaded
+    ``dpotrf`` and ``dtrsm`` round differently from their one-thread runs (``dgemm`` and ``dsyrk`` split
+    the output among threads, not the sums, and do not); they are run on the calling thread alone, so the
+    factor does not depend on the thread count. Without it (another BLAS), a no-op."""
+    try:
+        handle = ctypes.CDLL(scipy.linalg.cython_blas.__file__)
+        return ctypes.cast(handle.openblas_set_num_threads_local, ctypes.c_void_p).value, True
+    except (OSError, AttributeError):
+        return _same_threads.address, False
+
+
+_address, THREADS_PINNED = _thread_control()
+_set_threads_local = _external("hairinv_openblas_set_num_threads_local", _address, types.int32(types.int32))
+
+# CHOLMOD's relaxed amalgamation (cholmod_super.c defaults): merge while the merged supernode has at most
+# NRELAX[0] columns, or at most NRELAX[1] columns and a fraction of explicit zeros under ZRELAX[0], or at
+# most NRELAX[2] columns and under ZRELAX[1], or any size under ZRELAX[2].
+_NRELAX = (4, 16, 48)
+# the most columns (gathered) and rows below (solved) of a panel one piece of the factorisation's work covers
+# (fixed: the pieces, and so the factor's bits, do not depend on the thread count)
+_COLUMNS_PER_TASK = 64
+# a subtree costing at most this share of the whole factorisation is one thread's job
+_SUBTREE_SHARE = 1.0 / 64
+_ROWS_PER_TASK = 256
+_ZRELAX = (0.8, 0.1, 0.05)
+
+
+@jit
+def _etree_postorder(n, Up, Ui):
+    """The elimination tree (parent, -1 at roots) of the pattern whose upper triangle is (Up, Ui) in CSC,
+    and a postorder of it (children in increasing order, each subtree contiguous)."""
+    parent = np.full(n, -1, np.int64)
+    ancestor = np.full(n, -1, np.int64)
+    for k in range(n):
+        for p in range(Up[k], Up[k + 1]):
+            i = Ui[p]
+            while i != -1 and i < k:
+                nxt = ancestor[i]
+                ancestor[i] = k
+                if nxt == -1:
+                    parent[i] = k
+                i = nxt
+    # children lists (head/next), built backwards so that each list is in increasing order
+    head = np.full(n, -1, np.int64)
+    nxt = np.full(n, -1, np.int64)
+    for j in range(n - 1, -1, -1):
+        if parent[j] != -1:
+            nxt[j] = head[parent[j]]
+            head[parent[j]] = j
+    post = np.empty(n, np.int64)
+    stack = np.empty(n, np.int64)
+    k = 0
+    for root in range(n):
+        if parent[root] != -1:
+            continue
+        top = 0
+        stack[0] = root
+        while top >= 0:
+            j = stack[top]
+            child = head[j]
+            if child == -1:
+                top -= 1
+                post[k] = j
+                k += 1
+            else:
+                head[j] = nxt[child]
+                top += 1
+                stack[top] = child
+    return parent, post
+
+
+@jit
+def _column_counts(n, parent, Up, Ui):
+    """Column counts (diagonal included) of the factor, each row's subtree walked up the tree."""
+    counts = np.ones(n, np.int64)
+    mark = np.full(n, -1, np.int64)
+    for k in range(n):
+        mark[k] = k
+        for p in range(Up[k], Up[k + 1]):
+            i = Ui[p]
+            while i < k and mark[i] != k:
+                counts[i] += 1
+                mark[i] = k
+                i = parent[i]
+    return counts
+
+
+@jit
+def _supernodes(n, parent, counts, nrelax0, nrelax1, nrelax2, zrelax0, zrelax1, zrelax2):
+    """Supernodes of a postordered tree: fundamental, then relaxed. Returns the first column of each
+    supernode (``super_ptr``, length S + 1)."""
+    children = np.zeros(n, np.int64)
+    for j in range(n):
+        if parent[j] != -1:
+            children[parent[j]] += 1
+    # fundamental: j + 1 continues j's supernode if it is j's parent, j its only child, and counts nest
+    start = np.zeros(n + 1, np.int64)
+    S = 0
+    for j in range(n):
+        if j > 0 and parent[j - 1] == j and children[j] == 1 and counts[j - 1] == counts[j] + 1:
+            continue
+        start[S] = j
+        S += 1
+    start[S] = n
+    first = start[:S + 1].copy()
+    # supernode tree
+    sparent = np.full(S, -1, np.int64)
+    of = np.empty(n, np.int64)
+    for s in range(S):
+        for j in range(first[s], first[s + 1]):
+            of[j] = s
+    for s in range(S):
+        last = first[s + 1] - 1
+        if parent[last] != -1:
+            sparent[s] = of[parent[last]]
+    ncols = np.empty(S, np.int64)
+    nrows = np.empty(S, np.int64)  # rows of the supernode's first column (its columns included)
+    zeros = np.zeros(S, np.float64)
+    for s in range(S):
+        ncols[s] = first[s + 1] - first[s]
+        nrows[s] = counts[first[s]]
+    # relaxed amalgamation: in postorder the last child of s ends right before s; merge it into s when
+    # the zeros allow (as cholmod_super's relaxed merge of a supernode with its last child)
+    merged = np.zeros(S, np.bool_)
+    for s in range(1, S):
+        c = s - 1
+        while c >= 0 and merged[c]:
+            c -= 1  # (c is merged into a later supernode only when that one is s itself)
+        if c < 0 or sparent[c] != s:
+            continue
+        nscol = ncols[c] + ncols[s]
+        # the merged supernode's first column has the child's columns plus the parent's rows
+        total_rows = ncols[c] + nrows[s]
+        lnz_merged = nscol * (nscol + 1) // 2 + nscol * (total_rows - nscol)
+        lnz_c = ncols[c] * (ncols[c] + 1) // 2 + ncols[c] * (nrows[c] - ncols[c])
+        lnz_s = ncols[s] * (ncols[s] + 1) // 2 + ncols[s] * (nrows[s] - ncols[s])
+        new_zeros = zeros[c] + zeros[s] + (lnz_merged - lnz_c - lnz_s)
+        z = new_zeros / lnz_merged
+        if (nscol <= nrelax0 or (nscol <= nrelax1 and z < zrelax0) or (nscol <= nrelax2 and z < zrelax1)
+                or z < zrelax2):
+            merged[c] = True
+            ncols[s] = nscol
+            nrows[s] = total_rows
+            zeros[s] = new_zeros
+            first[s] = first[c]
+    keep = 0
+    for s in range(S):
+        if not merged[s]:
+            first[keep] = first[s]
+            keep += 1
+    first[keep] = n
+    return first[:keep + 1].copy()
+
+
+@jit
+def _structure(n, super_ptr, Lp, Li):
+    """Each supernode's rows below its columns (sorted), from the lower pattern (Lp, Li) and its children.
+    Returns (rows_ptr, rows, sparent)."""
+    S = super_ptr.shape[0] - 1
+    of = np.empty(n, np.int64)
+    for s in range(S):
+        for j in range(super_ptr[s], super_ptr[s + 1]):
+            of[j] = s
+    mark = np.full(n, -1, np.int64)
+    # pass 1: count with marks, keeping per-supernode row lists in a growing buffer
+    rows_ptr = np.zeros(S + 1, np.int64)
+    sparent = np.full(S, -1, np.int64)
+    buf = np.empty(max(16, Lp[n]), np.int64)
+    used = 0
+    for s in range(S):
+        lo, hi = super_ptr[s], super_ptr[s + 1]
+        k = 0
+        if used + n > buf.shape[0]:
+            grown = np.empty(max(2 * buf.shape[0], used + n), np.int64)
+            grown[:used] = buf[:used]
+            buf = grown
+        for j in range(lo, hi):
+            for p in range(Lp[j], Lp[j + 1]):
+                i = Li[p]
+                if i >= hi and mark[i] != s:
+                    mark[i] = s
+                    buf[used + k] = i
+                    k += 1
+        rows_ptr[s + 1] = used + k
+        used += k
+    # children's rows: children come before parents, so fold each supernode's rows into its parent's list
+    # (the parent is the supernode of the first row below it); repeated marking in a second pass
+    final_ptr = np.zeros(S + 1, np.int64)
+    out = np.empty(max(16, used), np.int64)
+    out_used = 0
+    child_head = np.full(S, -1, np.int64)
+    child_next = np.full(S, -1, np.int64)
+    mark[:] = -1
+    for s in range(S):
+        lo, hi = super_ptr[s], super_ptr[s + 1]
+        if out_used + n > out.shape[0]:
+            grown = np.empty(max(2 * out.shape[0], out_used + n), np.int64)
+            grown[:out_used] = out[:out_used]
+            out = grown
+        k = 0
+        for p in range(rows_ptr[s], rows_ptr[s + 1]):
+            i = buf[p]
+            mark[i] = s
+            out[out_used + k] = i
+            k += 1
+        c = child_head[s]
+        while c != -1:
+            for p in range(final_ptr[c], final_ptr[c + 1]):
+                i = out[p]
+                if i >= hi and mark[i] != s:
+                    mark[i] = s
+                    out[out_used + k] = i
+                    k += 1
+            c = child_next[c]
+        rows = out[out_used:out_used + k]
+        rows.sort()
+        final_ptr[s + 1] = out_used + k
+        out_used += k
+        if k > 0:
+            sparent[s] = of[rows[0]]
+            child_next[s] = child_head[sparent[s]]
+            child_head[sparent[s]] = s
+    return final_ptr, out[:out_used].copy(), sparent
+
+
+@jit
+def _updates(n, super_ptr, rows_ptr, rows):
+    """For each supernode ``s``, the supernodes below it whose rows reach its columns, as (``d``, first and
+    end index into ``d``'s rows below of the rows in ``s``'s columns): ``upd_ptr`` (S + 1), ``upd`` (U, 3);
+    and the largest product a factorisation forms (rows x columns). Each supernode's list is in the order a
+    left-looking factorisation meets them (fixed by the pattern, so the sums' order is too)."""
+    S = super_ptr.shape[0] - 1
+    of = np.empty(n, np.int64)
+    for s in range(S):
+        of[super_ptr[s]:super_ptr[s + 1]] = s
+    head = np.full(S, -1, np.int64)
+    nxt = np.full(S, -1, np.int64)
+    at = np.zeros(S, np.int64)
+    count = 0
+    for s in range(S):
+        nr = rows_ptr[s + 1] - rows_ptr[s]
+        # every row below reaches one supernode's columns once per distinct supernode it passes
+        count += nr
+    upd = np.empty((count, 3), np.int64)
+    upd_ptr = np.zeros(S + 1, np.int64)
+    k = 0
+    most = 0
+    for s in range(S):
+        hi = super_ptr[s + 1]
+        d = head[s]
+        while d != -1:
+            dn = nxt[d]
+            dr = rows_ptr[d]
+            nd = rows_ptr[d + 1] - dr
+            q0 = at[d]
+            q1 = q0
+            while q1 < nd and rows[dr + q1] < hi:
+                q1 += 1
+            upd[k, 0] = d
+            upd[k, 1] = q0
+            upd[k, 2] = q1
+            k += 1
+            size = (q1 - q0) * (nd - q0)
+            if size > most:
+                most = size
+            at[d] = q1
+            if q1 < nd:
+                t = of[rows[dr + q1]]
+                nxt[d] = head[t]
+                head[t] = d
+            d = dn
+        upd_ptr[s + 1] = k
+        if rows_ptr[s + 1] > rows_ptr[s]:
+            t = of[rows[rows_ptr[s]]]
+            nxt[s] = head[t]
+            head[t] = s
+    return upd_ptr, upd[:k].copy(), most
+
+
+@jit
+def _tasks(super_ptr, rows_ptr, columns_per_task, rows_per_task):
+    """The factorisation's pieces of work, supernode by supernode (``node_ptr``: each one's range), as
+    (supernode, kind, first, end) in ``tasks``: kind 0 gathers a block of at most ``columns_per_task`` of its
+    columns (every row on or below the diagonal), kind 1 solves a block of at most ``rows_per_task`` of its
+    rows below the diagonal block (positions in its panel). The split depends on the pattern alone."""
+    S = super_ptr.shape[0] - 1
+    node_ptr = np.zeros(S + 1, np.int64)
+    for s in range(S):
+        ns = super_ptr[s + 1] - super_ptr[s]
+        nr = rows_ptr[s + 1] - rows_ptr[s]
+        node_ptr[s + 1] = node_ptr[s] + (ns + columns_per_task - 1) // columns_per_task + (
+            nr + rows_per_task - 1) // rows_per_task
+    tasks = np.empty((node_ptr[S], 4), np.int64)
+    k = 0
+    for s in range(S):
+        ns = super_ptr[s + 1] - super_ptr[s]
+        m = ns + rows_ptr[s + 1] - rows_ptr[s]
+        for c0 in range(0, ns, columns_per_task):
+            tasks[k, 0] = s
+            tasks[k, 1] = 0
+            tasks[k, 2] = c0
+            tasks[k, 3] = min(c0 + columns_per_task, ns)
+            k += 1
+        for g0 in range(ns, m, rows_per_task):
+            tasks[k, 0] = s
+            tasks[k, 1] = 1
+            tasks[k, 2] = g0
+            tasks[k, 3] = min(g0 + rows_per_task, m)
+            k += 1
+    return node_ptr, tasks
+
+
+@jit
+def _schedule(sparent, node_cost, threshold):
+    """Where the work's parallelism lies. The subtrees whose whole cost is at most ``threshold`` (and whose
+    parent's is not) are independent jobs, each a contiguous run of supernodes (a postorder), as ``jobs``
+    (first, end) with their costs; the supernodes above them (``top``) are grouped by height among
+    themselves (``level_ptr``), each level's supernodes depending only on earlier levels and jobs."""
+    S = sparent.shape[0]
+    first = np.arange(S)
+    total = node_cost.copy()
+    for s in range(S):
+        p = sparent[s]
+        if p != -1:
+            total[p] += total[s]
+            if first[s] < first[p]:
+                first[p] = first[s]
+    top = total > threshold
+    jobs = np.empty((S, 2), np.int64)
+    job_cost = np.empty(S)
+    J = 0
+    for s in range(S):
+        if not top[s] and (sparent[s] == -1 or top[sparent[s]]):
+            jobs[J, 0] = first[s]
+            jobs[J, 1] = s + 1
+            job_cost[J] = total[s]
+            J += 1
+    height = np.zeros(S, np.int64)
+    for s in range(S):
+        p = sparent[s]
+        if top[s] and p != -1 and height[s] + 1 > height[p]:
+            height[p] = height[s] + 1
+    levels = 0
+    for s in range(S):
+        if top[s] and height[s] + 1 > levels:
+            levels = height[s] + 1
+    level_ptr = np.zeros(levels + 1, np.int64)
+    for s in range(S):
+        if top[s]:
+            level_ptr[height[s] + 1] += 1
+    for h in range(levels):
+        level_ptr[h + 1] += level_ptr[h]
+    fill = level_ptr[:-1].copy()
+    nodes = np.empty(level_ptr[levels], np.int64)
+    for s in range(S):
+        if top[s]:
+            nodes[fill[height[s]]] = s
+            fill[height[s]] += 1
+    return jobs[:J].copy(), job_cost[:J].copy(), level_ptr, nodes
+
+
+@jit
+def _first_at_least(a, lo, hi, value):
+    """The first index in ``a[lo:hi]`` (sorted) whose value is at least ``value`` (``hi`` if none)."""
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < value:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@jit
+def _gather(s, c0, c1, super_ptr, rows_ptr, rows, upd_ptr, upd, Lp, Li, Lx, x_ptr, X, C, where, rmap):
+    """Columns ``c0:c1`` of supernode ``s``'s panel (rows: its columns, then its rows below), on and below
+    the diagonal: the matrix's entries, less the updates of the supernodes below it, in the order of its
+    update list (``C``: each update's product, one ``dgemm`` on this thread alone, then scattered, or
+    written in place where its rows and columns are runs of the panel's)."""
+    g0 = c0
+    chars = np.empty(2, np.uint8)
+    chars[0] = ord("N")
+    chars[1] = ord("T")
+    ints = np.empty(5, np.int32)
+    scal = np.empty(3)
+    scal[0] = 1.0
+    scal[1] = 0.0
+    scal[2] = -1.0
+    lo, hi = super_ptr[s], super_ptr[s + 1]
+    ns = hi - lo
+    r0 = rows_ptr[s]
+    nr = rows_ptr[s + 1] - r0
+    m = ns + nr
+    L = X[x_ptr[s]:x_ptr[s + 1]]
+    for c in range(c0, c1):
+        L[c * m + g0:(c + 1) * m] = 0.0
+    for q in range(g0, m):
+        where[lo + q if q < ns else rows[r0 + q - ns]] = q
+    first = lo + g0  # the block's rows, as rows of the matrix: from its first column's on
+    end = 1 << 62
+    for j in range(lo + c0, lo + c1):
+        col = (j - lo) * m
+        for p in range(_first_at_least(Li, Lp[j], Lp[j + 1], first), Lp[j + 1]):
+            if Li[p] >= end:
+                break
+            L[col + where[Li[p]]] += Lx[p]
+    threads = _set_threads_local(1)
+    for u in range(upd_ptr[s], upd_ptr[s + 1]):
+        d = upd[u, 0]
+        q0 = upd[u, 1]
+        q1 = upd[u, 2]
+        nsd = super_ptr[d + 1] - super_ptr[d]
+        dr = rows_ptr[d]
+        nd = rows_ptr[d + 1] - dr
+        md = nsd + nd
+        # d's rows in this block's columns, and from there on: contiguous ranges (every row list is sorted)
+        i0 = _first_at_least(rows, dr + q0, dr + q1, lo + c0) - dr
+        i1 = _first_at_least(rows, dr + i0, dr + q1, lo + c1) - dr
+        if i1 <= i0:
+            continue
+        j0 = _first_at_least(rows, dr + i0, dr + nd, first) - dr
+        j1 = _first_at_least(rows, dr + j0, dr + nd, end) - dr
+        if j1 <= j0:
+            continue
+        kc = i1 - i0
+        kr = j1 - j0
+        Ld = X[x_ptr[d]:x_ptr[d + 1]]
+        ints[0] = kr
+        ints[1] = kc
+        ints[2] = nsd
+        ints[3] = md
+        for ii in range(kr):
+            rmap[ii] = where[rows[dr + j0 + ii]]
+        if rmap[kr - 1] - rmap[0] == kr - 1 and rows[dr + i1 - 1] - rows[dr + i0] == kc - 1:
+            # d's rows and columns are runs of s's: L[rows, columns] -= L_d[rows j0:j1] L_d[rows i0:i1]' in
+            # place (entries above the diagonal block's diagonal are written too, and never read)
+            ints[4] = m
+            _dgemm(chars[0:].ctypes.data, chars[1:].ctypes.data, ints[0:].ctypes.data, ints[1:].ctypes.data,
+                   ints[2:].ctypes.data, scal[2:].ctypes.data, Ld[nsd + j0:].ctypes.data, ints[3:].ctypes.data,
+                   Ld[nsd + i0:].ctypes.data, ints[3:].ctypes.data, scal[0:].ctypes.data,
+                   L[(rows[dr + i0] - lo) * m + rmap[0]:].ctypes.data, ints[4:].ctypes.data)
+            continue
+        # C (kr x kc) = L_d[rows j0:j1] L_d[rows i0:i1]', scattered
+        _dgemm(chars[0:].ctypes.data, chars[1:].ctypes.data, ints[0:].ctypes.data, ints[1:].ctypes.data,
+               ints[2:].ctypes.data, scal[0:].ctypes.data, Ld[nsd + j0:].ctypes.data, ints[3:].ctypes.data,
+               Ld[nsd + i0:].ctypes.data, ints[3:].ctypes.data, scal[1:].ctypes.data, C.ctypes.data,
+               ints[0:].ctypes.data)
+        for jj in range(kc):
+            base = (rows[dr + i0 + jj] - lo) * m
+            cb = jj * kr
+            for ii in range(max(0, i0 + jj - j0), kr):  # on or below the diagonal only
+                L[base + rmap[ii]] -= C[cb + ii]
+    _set_threads_local(threads)
+
+
+@jit
+def _pivot(s, super_ptr, rows_ptr, x_ptr, X):
+    """Factor supernode ``s``'s diagonal block in place (``dpotrf`` on this thread alone); 0, or the
+    1-based column of a non-positive pivot."""
+    chars = np.empty(1, np.uint8)
+    chars[0] = ord("L")
+    ints = np.empty(2, np.int32)
+    res = np.zeros(1, np.int32)
+    lo = super_ptr[s]
+    ns = super_ptr[s + 1] - lo
+    ints[0] = ns
+    ints[1] = ns + rows_ptr[s + 1] - rows_ptr[s]
+    L = X[x_ptr[s]:x_ptr[s + 1]]
+    threads = _set_threads_local(1)
+    _dpotrf(chars.ctypes.data, ints[0:].ctypes.data, L.ctypes.data, ints[1:].ctypes.data, res.ctypes.data)
+    _set_threads_local(threads)
+    return 0 if res[0] == 0 else lo + res[0]
+
+
+@jit
+def _below(s, c0, c1, super_ptr, rows_ptr, x_ptr, X):
+    """Rows ``c0:c1`` (below the diagonal block) of supernode ``s``'s panel solved against its factored
+    diagonal block: ``L21 = A21 L11^-T`` (``dtrsm`` on this thread alone)."""
+    chars = np.empty(4, np.uint8)
+    chars[0] = ord("R")
+    chars[1] = ord("L")
+    chars[2] = ord("T")
+    chars[3] = ord("N")
+    ints = np.empty(3, np.int32)
+    scal = np.ones(1)
+    ns = super_ptr[s + 1] - super_ptr[s]
+    ints[0] = c1 - c0
+    ints[1] = ns
+    ints[2] = ns + rows_ptr[s + 1] - rows_ptr[s]
+    L = X[x_ptr[s]:x_ptr[s + 1]]
+    threads = _set_threads_local(1)
+    _dtrsm(chars[0:].ctypes.data, chars[1:].ctypes.data, chars[2:].ctypes.data, chars[3:].ctypes.data,
+           ints[0:].ctypes.data, ints[1:].ctypes.data, scal.ctypes.data, L.ctypes.data, ints[2:].ctypes.data,
+           L[c0:].ctypes.data, ints[2:].ctypes.data)
+    _set_threads_local(threads)
+
+
+@jit
+def _run_tasks(index, lo, hi, kind, tasks, super_ptr, rows_ptr, rows, upd_ptr, upd, Lp, Li, Lx, x_ptr, X, C,
+               where, rmap):
+    """The pieces ``tasks[index[lo:hi]]`` of the given kind (0 gather, 1 solve), in order."""
+    for i in range(lo, hi):
+        k = index[i]
+        if tasks[k, 1] != kind:
+            continue
+        s = tasks[k, 0]
+        if kind == 0:
+            _gather(s, tasks[k, 2], tasks[k, 3], super_ptr, rows_ptr, rows, upd_ptr, upd, Lp, Li, Lx, x_ptr, X,
+                    C, where, rmap)
+        else:
+            _below(s, tasks[k, 2], tasks[k, 3], super_ptr, rows_ptr, x_ptr, X)
+
+
+@jit
+def _pivot_nodes(lo, hi, nodes, super_ptr, rows_ptr, x_ptr, X, failed):
+    """The diagonal blocks of supernodes ``nodes[lo:hi]`` factored; ``failed[s]``: 0 or a pivot's column."""
+    for i in range(lo, hi):
+        failed[nodes[i]] = _pivot(nodes[i], super_ptr, rows_ptr, x_ptr, X)
+
+
+@jit
+def _run_jobs(lo, hi, jobs, node_ptr, tasks, super_ptr, rows_ptr, rows, upd_ptr, upd, Lp, Li, Lx, x_ptr, X, C,
+              where, rmap, failed):
+    """Jobs ``lo:hi``: each a subtree's supernodes factored in order, each with all its pieces on this thread
+    (a subtree stops at a non-positive pivot, ``failed``)."""
+    for j in range(lo, hi):
+        for s in range(jobs[j, 0], jobs[j, 1]):
+            for k in range(node_ptr[s], node_ptr[s + 1]):
+                if tasks[k, 1] == 0:
+                    _gather(s, tasks[k, 2], tasks[k, 3], super_ptr, rows_ptr, rows, upd_ptr, upd, Lp, Li, Lx,
+                            x_ptr, X, C, where, rmap)
+            failed[s] = _pivot(s, super_ptr, rows_ptr, x_ptr, X)
+            if failed[s] != 0:
+                break
+            for k in range(node_ptr[s], node_ptr[s + 1]):
+                if tasks[k, 1] == 1:
+                    _below(s, tasks[k, 2], tasks[k, 3], super_ptr, rows_ptr, x_ptr, X)
+
+
+@jit
+def _task_costs(tasks, super_ptr, rows_ptr, upd_ptr, upd):
+    """A rough cost of each piece of work (the products' multiply-adds, plus its entries for the overheads),
+    to hand out pieces of about equal cost to the threads."""
+    cost = np.empty(tasks.shape[0])
+    for k in range(tasks.shape[0]):
+        s = tasks[k, 0]
+        ns = super_ptr[s + 1] - super_ptr[s]
+        m = ns + rows_ptr[s + 1] - rows_ptr[s]
+        if tasks[k, 1] == 1:
+            rows = tasks[k, 3] - tasks[k, 2]
+            cost[k] = float(rows) * ns * ns + rows
+            continue
+        width = tasks[k, 3] - tasks[k, 2]
+        rows = m - tasks[k, 2]
+        total = 0.0
+        for u in range(upd_ptr[s], upd_ptr[s + 1]):
+            d = upd[u, 0]
+            total += (super_ptr[d + 1] - super_ptr[d]) * min(width, upd[u, 2] - upd[u, 1])
+        cost[k] = total * rows + float(rows) * width + (float(width) ** 3 if tasks[k, 2] == 0 else 0.0)
+    return cost
+
+
+@jit
+def _solve(super_ptr, rows_ptr, rows, x_ptr, X, y, work):
+    """``y <- L^-T L^-1 y`` in place (the permuted system), a supernode's block at a time (``dtrsv``,
+    ``dgemv``, on this thread alone); ``work`` holds the largest supernode's rows below."""
+    S = super_ptr.shape[0] - 1
+    chars = np.empty(3, np.uint8)
+    chars[0] = ord("L")
+    chars[1] = ord("N")
+    chars[2] = ord("T")
+    ints = np.empty(4, np.int32)
+    ints[3] = 1
+    scal = np.empty(3)
+    scal[0] = 1.0
+    scal[1] = 0.0
+    scal[2] = -1.0
+    threads = _set_threads_local(1)
+    for s in range(S):
+        lo, hi = super_ptr[s], super_ptr[s + 1]
+        ns = hi - lo
+        r0 = rows_ptr[s]
+        nr = rows_ptr[s + 1] - r0
+        m = ns + nr
+        L = X[x_ptr[s]:x_ptr[s + 1]]
+        ints[0] = ns
+        ints[1] = m
+        ints[2] = nr
+        # y1 <- L11^-1 y1; then y2 -= L21 y1
+        _dtrsv(chars[0:].ctypes.data, chars[1:].ctypes.data, chars[1:].ctypes.data, ints[0:].ctypes.data,
+               L.ctypes.data, ints[1:].ctypes.data, y[lo:].ctypes.data, ints[3:].ctypes.data)
+        if nr > 0:
+            _dgemv(chars[1:].ctypes.data, ints[2:].ctypes.data, ints[0:].ctypes.data, scal[0:].ctypes.data,
+                   L[ns:].ctypes.data, ints[1:].ctypes.data, y[lo:].ctypes.data, ints[3:].ctypes.data,
+                   scal[1:].ctypes.data, work.ctypes.data, ints[3:].ctypes.data)
+            for q in range(nr):
+                y[rows[r0 + q]] -= work[q]
+    for s in range(S - 1, -1, -1):
+        lo, hi = super_ptr[s], super_ptr[s + 1]
+        ns = hi - lo
+        r0 = rows_ptr[s]
+        nr = rows_ptr[s + 1] - r0
+        m = ns + nr
+        L = X[x_ptr[s]:x_ptr[s + 1]]
+        ints[0] = ns
+        ints[1] = m
+        ints[2] = nr
+        # y1 -= L21' y2; then y1 <- L11^-T y1
+        if nr > 0:
+            for q in range(nr):
+                work[q] = y[rows[r0 + q]]
+            _dgemv(chars[2:].ctypes.data, ints[2:].ctypes.data, ints[0:].ctypes.data, scal[2:].ctypes.data,
+                   L[ns:].ctypes.data, ints[1:].ctypes.data, work.ctypes.data, ints[3:].ctypes.data,
+                   scal[0:].ctypes.data, y[lo:].ctypes.data, ints[3:].ctypes.data)
+        _dtrsv(chars[0:].ctypes.data, chars[2:].ctypes.data, chars[1:].ctypes.data, ints[0:].ctypes.data,
+               L.ctypes.data, ints[1:].ctypes.data, y[lo:].ctypes.data, ints[3:].ctypes.data)
+    _set_threads_local(threads)
+
+
+def _runs(cost: np.ndarray, lo: int, hi: int, parts: int) -> list[tuple[int, int]]:
+    """``[lo, hi)`` cut into consecutive runs of about equal cost, ``parts`` at most."""
+    total = float(np.sum(cost[lo:hi]))
+    runs, start, acc = [], lo, 0.0
+    for k in range(lo, hi):
+        acc += cost[k]
+        if acc >= total / parts or k == hi - 1:
+            runs.append((start, k + 1))
+            start, acc = k + 1, 0.0
+    return runs
+
+
+class SupernodalCholesky:
+    """Cholesky factorisation ``P A P' = L L'`` of symmetric positive definite matrices sharing one pattern.
+
+    Parameters
+    ----------
+    Sp, Si : the lower triangle's pattern, CSC (sorted rows, diagonal present in every column)
+    order : (n,) int, a fill-reducing permutation (row ``order[k]`` of ``A`` is row ``k`` of ``P A P'``);
+        the analysis postorders its elimination tree, which changes neither the fill nor the flops
+    """
+
+    def __init__(self, Sp: np.ndarray, Si: np.ndarray, order: np.ndarray):
+        n = len(Sp) - 1
+        self.n = n
+        nnz = len(Si)
+        cols = np.repeat(np.arange(n), np.diff(Sp))
+        inv = np.empty(n, np.int64)
+        inv[order] = np.arange(n)
+        # the etree of the matrix permuted by order, to postorder it
+        r, c = inv[Si], inv[cols]
+        a = scipy.sparse.csc_matrix((np.arange(1, nnz + 1, dtype=np.float64), (np.maximum(r, c), np.minimum(r, c))),
+                                    shape=(n, n))
+        upper = a.T.tocsc()
+        upper.sort_indices()
+        parent, post = _etree_postorder(n, upper.indptr.astype(np.int64), upper.indices.astype(np.int64))
+        self.perm = np.asarray(order, dtype=np.int64)[post]  # postordered permutation
+        inv[self.perm] = np.arange(n)
+        r, c = inv[Si], inv[cols]
+        a = scipy.sparse.csc_matrix((np.arange(1, nnz + 1, dtype=np.float64), (np.maximum(r, c), np.minimum(r, c))),
+                                    shape=(n, n))
+        a.sort_indices()
+        self.Lp = a.indptr.astype(np.int64)
+        self.Li = a.indices.astype(np.int64)
+        self.source = (a.data - 1).astype(np.int64)  # entry k of the permuted lower triangle is Sx[source[k]]
+        upper = a.T.tocsc()
+        upper.sort_indices()
+        Up, Ui = upper.indptr.astype(np.int64), upper.indices.astype(np.int64)
+        parent, post = _etree_postorder(n, Up, Ui)
+        self.counts = _column_counts(n, parent, Up, Ui)
+        self.super_ptr = _supernodes(n, parent, self.counts, *_NRELAX, *_ZRELAX)
+        self.rows_ptr, self.rows, self.sparent = _structure(n, self.super_ptr, self.Lp, self.Li)
+        ns = np.diff(self.super_ptr)
+        m = ns + np.diff(self.rows_ptr)
+        self.x_ptr = np.concatenate([[0], np.cumsum(ns * m)]).astype(np.int64)
+        self.X = np.empty(int(self.x_ptr[-1]))
+        self.upd_ptr, self.upd, most = _updates(n, self.super_ptr, self.rows_ptr, self.rows)
+        self.node_ptr, self.tasks = _tasks(self.super_ptr, self.rows_ptr, _COLUMNS_PER_TASK, _ROWS_PER_TASK)
+        cost = _task_costs(self.tasks, self.super_ptr, self.rows_ptr, self.upd_ptr, self.upd)
+        node_cost = np.add.reduceat(cost, self.node_ptr[:-1]) if len(cost) else np.zeros(len(ns))
+        self.jobs, job_cost, self.level_ptr, self.nodes = _schedule(self.sparent, node_cost,
+                                                                    float(np.sum(cost)) * _SUBTREE_SHARE)
+        parts = 4 * max(1, worker_count())  # how the pieces are handed out (not what they compute)
+        self._job_runs = _runs(job_cost, 0, len(job_cost), parts)
+        # the pieces of the supernodes above the jobs, level by level
+        self._index = np.concatenate([np.arange(self.node_ptr[t], self.node_ptr[t + 1]) for t in self.nodes]
+                                     ).astype(np.int64) if len(self.nodes) else np.zeros(0, np.int64)
+        level_tasks = np.cumsum(np.concatenate([[0], np.diff(self.node_ptr)[self.nodes]]))[self.level_ptr]
+        self._level_runs = [_runs(cost[self._index], int(level_tasks[h]), int(level_tasks[h + 1]), parts)
+                            for h in range(len(self.level_ptr) - 1)]
+        self._pivot_runs = [_runs(np.ones(len(self.nodes)), int(self.level_ptr[h]), int(self.level_ptr[h + 1]),
+                                  parts) for h in range(len(self.level_ptr) - 1)]
+        widest = int(np.max(np.diff(self.rows_ptr), initial=0))
+        self._c_size = max(1, min(int(most), _COLUMNS_PER_TASK * (widest + _COLUMNS_PER_TASK)))
+        self._rmap_size = max(1, widest + _COLUMNS_PER_TASK)
+        self._buffers = threading.local()
+        self._failed = np.zeros(len(self.sparent), np.int64)
+        self.flops = float(np.sum(ns * m.astype(np.float64) ** 2))
+        self._Lx = np.empty(nnz)
+        self._work = np.empty(max(1, widest))
+
+    def _scratch(self):
+        """This thread's buffers for the gathering pieces (product, row positions, row map)."""
+        b = self._buffers
+        if getattr(b, "C", None) is None:
+            b.C = np.empty(self._c_size)
+            b.where = np.empty(self.n, np.int64)
+            b.rmap = np.empty(self._rmap_size, np.int64)
+        return b
+
+    @property
+    def supernodes(self) -> int:
+        return len(self.super_ptr) - 1
+
+    def factor(self, Sx: np.ndarray) -> None:
+        """Factor the matrix with lower-triangle values ``Sx`` (in the pattern given at construction);
+        raises ArithmeticError at a non-positive pivot."""
+        np.take(Sx, self.source, out=self._Lx)
+        self._failed[:] = 0
+        args = (self.super_ptr, self.rows_ptr, self.rows, self.upd_ptr, self.upd, self.Lp, self.Li, self._Lx,
+                self.x_ptr, self.X)
+
+        def jobs(lo, hi):
+            b = self._scratch()
+            _run_jobs(lo, hi, self.jobs, self.node_ptr, self.tasks, *args, b.C, b.where, b.rmap, self._failed)
+
+        def pieces(kind):
+            def run(lo, hi):
+                b = self._scratch()
+                _run_tasks(self._index, lo, hi, kind, self.tasks, *args, b.C, b.where, b.rmap)
+            return run
+
+        run_ranges(jobs, self._job_runs)
+        for h in range(len(self.level_ptr) - 1):
+            if np.any(self._failed):
+                break
+            run_ranges(pieces(0), self._level_runs[h])
+            run_ranges(lambda a, b: _pivot_nodes(a, b, self.nodes, self.super_ptr, self.rows_ptr, self.x_ptr,
+                                                 self.X, self._failed), self._pivot_runs[h])
+            if not np.any(self._failed):
+                run_ranges(pieces(1), self._level_runs[h])
+        bad = self._failed[self._failed != 0]
+        if len(bad):
+            raise ArithmeticError(f"non-positive pivot at column {int(bad.min())}")
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        y = np.asarray(b, dtype=np.float64)[self.perm]
+        _solve(self.super_ptr, self.rows_ptr, self.rows, self.x_ptr, self.X, y, self._work)
+        out = np.empty_like(y)
+        out[self.perm] = y
+        return out
