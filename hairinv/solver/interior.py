@@ -62,7 +62,7 @@ import scipy.sparse.linalg
 from .._jit import jit
 from .._parallel import blas_pinned
 from .rows import ContactRows, _rows_matvec, _rows_rmatvec
-from .supernodal import SupernodalCholesky
+from .supernodal import SupernodalCholesky, permuted_pattern
 
 __all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "column_counts", "mu_in_range", "solve_interior"]
 
@@ -298,17 +298,52 @@ def nested_dissection(pattern) -> np.ndarray | None:
     return np.array(order, dtype=np.int64)
 
 
-def _factor_flops(pattern, order: np.ndarray, limit: float) -> float:
-    """``sum c_j^2`` over the column counts of the Cholesky factor of ``pattern`` permuted by ``order``
-    (the factorisation's flops up to a constant), or inf once it must pass ``limit``."""
-    permuted = pattern[order][:, order]
-    upper = scipy.sparse.triu(permuted, format="csc")
-    upper.sort_indices()
-    counts = column_counts(pattern.shape[0], upper.indptr.astype(np.int64), upper.indices.astype(np.int64),
-                           min(limit, 1e300))
+def _factor_flops(Sp: np.ndarray, Si: np.ndarray, order: np.ndarray, limit: float) -> float:
+    """``sum c_j^2`` over the column counts of the Cholesky factor of the pattern whose lower triangle is
+    (Sp, Si) permuted by ``order`` (the factorisation's flops up to a constant), or inf once it must pass
+    ``limit``."""
+    n = len(Sp) - 1
+    inv = np.empty(n, np.int64)
+    inv[order] = np.arange(n)
+    Up, Ui, _, _, _ = permuted_pattern(n, Sp, Si, inv)
+    counts = column_counts(n, Up, Ui, min(limit, 1e300))
     if len(counts) == 0:
         return np.inf
     return float(np.sum(counts.astype(np.float64) ** 2))
+
+
+def _groups(incidence, n: int) -> np.ndarray:
+    """The first coordinate of each run of consecutive coordinates that the same contacts touch (columns of
+    the contacts' incidence, CSC with sorted rows, that are equal), and ``n`` last."""
+    incidence.sort_indices()
+    return _group_starts(incidence.indptr.astype(np.int64), incidence.indices.astype(np.int64), n)
+
+
+@jit
+def _group_starts(ptr, idx, n):
+    starts = np.empty(n + 1, np.int64)
+    g = 0
+    for j in range(n):
+        same = j > 0 and ptr[j + 1] - ptr[j] == ptr[j] - ptr[j - 1]
+        if same:
+            a, b = ptr[j - 1], ptr[j]
+            for k in range(ptr[j + 1] - ptr[j]):
+                if idx[a + k] != idx[b + k]:
+                    same = False
+                    break
+        if not same:
+            starts[g] = j
+            g += 1
+    starts[g] = n
+    return starts[:g + 1].copy()
+
+
+def _expand(group_order: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """A permutation of the groups as one of the coordinates, each group's in increasing order."""
+    sizes = np.diff(starts)[group_order]
+    first = np.repeat(starts[group_order], sizes)
+    offset = np.arange(len(first)) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    return (first + offset).astype(np.int64)
 
 
 class TooLarge(Exception):
@@ -340,10 +375,19 @@ class _Factor:
         self.n = n
         self._columns = np.repeat(np.arange(n), np.diff(self.Sp))
         limit = float(max_flops) if np.isfinite(max_flops) else 1e300
-        # the fill-reducing orderings at hand, each counted before any factorisation; the cheapest kept
+        # the fill-reducing orderings at hand, each counted before any factorisation; the cheapest kept. They
+        # order the coordinates' groups with the same contacts (an element's three, often a few elements:
+        # ruby short's 38,391 coordinates are 11,403 groups), each group's coordinates kept together: the
+        # same fill, for a sixth of the ordering's time.
+        starts = _groups(incidence.tocsc(), n)
+        members = scipy.sparse.csr_matrix(incidence.tocsc()[:, starts[:-1]])
+        grouped = (members.T @ members + scipy.sparse.eye(len(starts) - 1, format="csr")).tocsc()
         self.order, self.flops, self.ordering = None, np.inf, ""
-        for name, order in self._orderings(pattern, backend):
-            flops = _factor_flops(pattern, order, min(limit, self.flops))
+        self.candidates = {}
+        for name, group_order in self._orderings(grouped, backend):
+            order = _expand(group_order, starts)
+            flops = _factor_flops(self.Sp, self.Si, order, min(limit, self.flops))
+            self.candidates[name] = (order, flops)
             if flops < self.flops:
                 self.order, self.flops, self.ordering = order, flops, name
         if self.order is None or self.flops > limit:
@@ -360,6 +404,10 @@ class _Factor:
             self.F = cvxopt.cholmod.symbolic(self.A, p=cvxopt.matrix(self.order))
         elif backend == "supernodal":
             self.supernodal = SupernodalCholesky(self.Sp, self.Si, self.order)
+            # assembled straight into the factorisation's own (permuted) order
+            into = np.empty(len(self.Si), np.int64)
+            into[self.supernodal.source] = np.arange(len(self.Si))
+            self.pos = into[self.pos]
 
     @staticmethod
     def _orderings(pattern, backend: str):
@@ -390,23 +438,26 @@ class _Factor:
             yield "rcm", np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=np.int64)
 
     def factor(self, ptr, cols, g, Binv) -> None:
+        if self.backend == "supernodal":
+            sn = self.supernodal
+            _assemble(ptr, cols, g, Binv, sn.Lp, self.pos, sn.values)
+            try:
+                sn.factor_values()
+            except ArithmeticError:
+                # round-off made a pivot non-positive (the system is I + a positive semidefinite matrix, so
+                # mathematically never): a relative shift of the diagonal, corrected by the refinement
+                sn.values[sn.Lp[:-1]] *= 1.0 + 1e-10
+                sn.factor_values()
+            return
         _assemble(ptr, cols, g, Binv, self.Sp, self.pos, self.Sx)
         if self.backend == "cholmod":
             self.A.V = self._cvxopt.matrix(self.Sx)
             try:
                 self._cholmod.numeric(self.A, self.F)
-            except ArithmeticError:
-                # round-off made a pivot non-positive (the system is I + a positive semidefinite matrix, so
-                # mathematically never): a relative shift of the diagonal, corrected by the refinement
+            except ArithmeticError:  # as above
                 self.Sx[self.Sp[:-1]] *= 1.0 + 1e-10
                 self.A.V = self._cvxopt.matrix(self.Sx)
                 self._cholmod.numeric(self.A, self.F)
-        elif self.backend == "supernodal":
-            try:
-                self.supernodal.factor(self.Sx)
-            except ArithmeticError:  # as above
-                self.Sx[self.Sp[:-1]] *= 1.0 + 1e-10
-                self.supernodal.factor(self.Sx)
         else:
             lower = scipy.sparse.csc_matrix((self.Sx, self.Si, self.Sp), shape=(self.n, self.n))
             full = (lower + lower.T - scipy.sparse.diags(lower.diagonal())).tocsc()

@@ -35,7 +35,7 @@ from numba.extending import get_cython_function_address
 from .._jit import jit
 from .._parallel import run_ranges, worker_count
 
-__all__ = ["SupernodalCholesky"]
+__all__ = ["SupernodalCholesky", "permuted_pattern"]
 
 
 
@@ -93,6 +93,45 @@ _COLUMNS_PER_TASK = 64
 _SUBTREE_SHARE = 1.0 / 64
 _ROWS_PER_TASK = 256
 _ZRELAX = (0.8, 0.1, 0.05)
+
+
+@jit
+def permuted_pattern(n, Sp, Si, inv):
+    """The lower triangle (Sp, Si, CSC) permuted (row ``i`` becomes ``inv[i]``): its transpose by rows
+    (``Up``, ``Ui``: each column of the upper triangle, unsorted), and by columns with sorted rows (``Lp``,
+    ``Li``) with each entry's index in the original (``source``)."""
+    nnz = Si.shape[0]
+    Up = np.zeros(n + 1, np.int64)
+    Lp = np.zeros(n + 1, np.int64)
+    for j in range(n):
+        for p in range(Sp[j], Sp[j + 1]):
+            a, b = inv[Si[p]], inv[j]
+            Up[max(a, b) + 1] += 1
+            Lp[min(a, b) + 1] += 1
+    for k in range(n):
+        Up[k + 1] += Up[k]
+        Lp[k + 1] += Lp[k]
+    Ui = np.empty(nnz, np.int64)
+    Us = np.empty(nnz, np.int64)
+    fill = Up[:-1].copy()
+    for j in range(n):
+        for p in range(Sp[j], Sp[j + 1]):
+            a, b = inv[Si[p]], inv[j]
+            row = max(a, b)
+            Ui[fill[row]] = min(a, b)
+            Us[fill[row]] = p
+            fill[row] += 1
+    # rows in increasing order give every column its rows sorted
+    Li = np.empty(nnz, np.int64)
+    source = np.empty(nnz, np.int64)
+    fill = Lp[:-1].copy()
+    for i in range(n):
+        for q in range(Up[i], Up[i + 1]):
+            c = Ui[q]
+            Li[fill[c]] = i
+            source[fill[c]] = Us[q]
+            fill[c] += 1
+    return Up, Ui, Lp, Li, source
 
 
 @jit
@@ -713,28 +752,16 @@ class SupernodalCholesky:
         n = len(Sp) - 1
         self.n = n
         nnz = len(Si)
-        cols = np.repeat(np.arange(n), np.diff(Sp))
+        Sp, Si = np.asarray(Sp, dtype=np.int64), np.asarray(Si, dtype=np.int64)
         inv = np.empty(n, np.int64)
         inv[order] = np.arange(n)
         # the etree of the matrix permuted by order, to postorder it
-        r, c = inv[Si], inv[cols]
-        a = scipy.sparse.csc_matrix((np.arange(1, nnz + 1, dtype=np.float64), (np.maximum(r, c), np.minimum(r, c))),
-                                    shape=(n, n))
-        upper = a.T.tocsc()
-        upper.sort_indices()
-        parent, post = _etree_postorder(n, upper.indptr.astype(np.int64), upper.indices.astype(np.int64))
+        Up, Ui, _, _, _ = permuted_pattern(n, Sp, Si, inv)
+        parent, post = _etree_postorder(n, Up, Ui)
         self.perm = np.asarray(order, dtype=np.int64)[post]  # postordered permutation
         inv[self.perm] = np.arange(n)
-        r, c = inv[Si], inv[cols]
-        a = scipy.sparse.csc_matrix((np.arange(1, nnz + 1, dtype=np.float64), (np.maximum(r, c), np.minimum(r, c))),
-                                    shape=(n, n))
-        a.sort_indices()
-        self.Lp = a.indptr.astype(np.int64)
-        self.Li = a.indices.astype(np.int64)
-        self.source = (a.data - 1).astype(np.int64)  # entry k of the permuted lower triangle is Sx[source[k]]
-        upper = a.T.tocsc()
-        upper.sort_indices()
-        Up, Ui = upper.indptr.astype(np.int64), upper.indices.astype(np.int64)
+        # entry k of the permuted lower triangle (Lp, Li) is Sx[source[k]]
+        Up, Ui, self.Lp, self.Li, self.source = permuted_pattern(n, Sp, Si, inv)
         parent, post = _etree_postorder(n, Up, Ui)
         self.counts = _column_counts(n, parent, Up, Ui)
         self.super_ptr = _supernodes(n, parent, self.counts, *_NRELAX, *_ZRELAX)
@@ -742,7 +769,7 @@ class SupernodalCholesky:
         ns = np.diff(self.super_ptr)
         m = ns + np.diff(self.rows_ptr)
         self.x_ptr = np.concatenate([[0], np.cumsum(ns * m)]).astype(np.int64)
-        self.X = np.empty(int(self.x_ptr[-1]))
+        self.X = np.zeros(int(self.x_ptr[-1]))  # (entries above a panel's diagonal are never read)
         self.upd_ptr, self.upd, most = _updates(n, self.super_ptr, self.rows_ptr, self.rows)
         self.node_ptr, self.tasks = _tasks(self.super_ptr, self.rows_ptr, _COLUMNS_PER_TASK, _ROWS_PER_TASK)
         cost = _task_costs(self.tasks, self.super_ptr, self.rows_ptr, self.upd_ptr, self.upd)
@@ -765,7 +792,7 @@ class SupernodalCholesky:
         self._buffers = threading.local()
         self._failed = np.zeros(len(self.sparent), np.int64)
         self.flops = float(np.sum(ns * m.astype(np.float64) ** 2))
-        self._Lx = np.empty(nnz)
+        self.values = np.empty(nnz)
         self._work = np.empty(max(1, widest))
 
     def _scratch(self):
@@ -784,9 +811,14 @@ class SupernodalCholesky:
     def factor(self, Sx: np.ndarray) -> None:
         """Factor the matrix with lower-triangle values ``Sx`` (in the pattern given at construction);
         raises ArithmeticError at a non-positive pivot."""
-        np.take(Sx, self.source, out=self._Lx)
+        np.take(Sx, self.source, out=self.values)
+        self.factor_values()
+
+    def factor_values(self) -> None:
+        """Factor the matrix whose permuted lower triangle (``Lp``, ``Li``) has the values ``self.values``
+        (entry ``k`` is ``Sx[source[k]]``), for callers that assemble them there directly."""
         self._failed[:] = 0
-        args = (self.super_ptr, self.rows_ptr, self.rows, self.upd_ptr, self.upd, self.Lp, self.Li, self._Lx,
+        args = (self.super_ptr, self.rows_ptr, self.rows, self.upd_ptr, self.upd, self.Lp, self.Li, self.values,
                 self.x_ptr, self.X)
 
         def jobs(lo, hi):
