@@ -124,6 +124,25 @@ def test_the_pieces_split_panels_and_the_bits_do_not_depend_on_the_thread_count(
     assert np.max(np.abs(_dense_factor(f) - expected)) <= 1e-12 * np.max(np.abs(expected))
 
 
+def test_the_bits_do_not_depend_on_the_thread_count_at_sizes_blas_would_thread(monkeypatch):
+    """Default pieces on a system whose top supernodes are large enough for OpenBLAS to thread its calls
+    (which would round differently): the factor and a solve are the same to the bit on 1 and 2 threads."""
+    A = scipy.sparse.csc_matrix(_grid(60))
+    order = supernodal_order(A.toarray())
+    low = scipy.sparse.tril(A, format="csc")
+    low.sort_indices()
+    bits = []
+    for threads in ("1", "2"):
+        monkeypatch.setenv("HAIRINV_THREADS", threads)
+        f = SupernodalCholesky(low.indptr.astype(np.int64), low.indices.astype(np.int64), order)
+        assert np.max(np.diff(f.super_ptr)) >= 60  # a separator's supernode: dpotrf and dgemm on real blocks
+        f.factor(low.data.copy())
+        bits.append((f.X.copy(), f.solve(np.ones(A.shape[0]))))
+    assert np.array_equal(bits[0][0], bits[1][0]) and np.array_equal(bits[0][1], bits[1][1])
+    x = bits[0][1]
+    assert np.linalg.norm(A @ x - 1.0) <= 1e-12 * np.sqrt(A.shape[0]) * 1e3
+
+
 def test_a_matrix_that_is_not_positive_definite_is_refused():
     A = _grid(8)
     A[20, 20] = -5.0

@@ -1,22 +1,28 @@
-"""A supernodal multifrontal Cholesky factorisation on the BLAS numpy's scipy ships.
+"""A supernodal Cholesky factorisation on scipy's BLAS, on every core, the same to the bit on any.
 
 The interior point's rod-coordinate system (:mod:`.interior`) is factored once per step with the same
-pattern. This module analyses the pattern once (elimination tree, postorder, column counts, supernodes,
-each supernode's rows and where its update goes in its parent's front) and then factors new values by the
-multifrontal method: for each supernode, children before parents, the front (its columns and the rows
-below them) is assembled from the matrix and from its children's update matrices, its diagonal block is
-factored (LAPACK ``dpotrf``), the rows below are solved against it (``dtrsm``) and the update matrix for
-the parent is formed (``dsyrk``). The dense kernels are scipy's (``scipy.linalg.cython_blas`` and
-``cython_lapack``), called from compiled code: the OpenBLAS wheel scipy ships runs the large fronts near
-the top of the tree on every core, where a CHOLMOD linked to a single-threaded BLAS uses one.
+pattern. This module analyses the pattern once: the fill-reducing ordering given, postordered along its
+elimination tree; the factor's column counts; supernodes, fundamental (a column joins its parent's
+supernode when it is the parent's only child and their patterns nest) and then relaxed by CHOLMOD's rules
+(a child merged into its parent while the explicit zeros this adds stay few), so that the many small
+supernodes near a strand's tip do not each pay a call; each supernode's rows below its columns; and, for
+each supernode, the supernodes below it whose rows reach its columns (its update list).
 
-Supernodes are fundamental (a column joins its parent's supernode when it is the parent's only child and
-their patterns nest) and then relaxed: a child supernode is merged into its parent while the explicit
-zeros this adds stay small (CHOLMOD's rules, ``nrelax`` and ``zrelax``), so that the many tiny supernodes
-of a strand's tip do not each pay a call.
+New values are then factored left-looking: a supernode's panel (its columns, every row of the factor in
+them, dense, column-major) gathers the matrix's entries less each update, the product of a lower
+supernode's rows (``dgemm``), scattered into the panel or written in place where the rows and columns
+are runs of the panel's; its diagonal block is factored (``dpotrf``) and the rows below solved against it
+(``dtrsm``). The dense kernels are scipy's (``scipy.linalg.cython_blas``, ``cython_lapack``), called from
+compiled code.
 
-Same answer on any thread count: OpenBLAS's level-3 kernels split the output among threads, not the sums,
-so the factor's bits do not depend on how many threads run them (checked in the tests).
+Parallel, and the same to the bit on any thread count. The work is cut into pieces by the pattern alone:
+the subtrees costing at most ``_SUBTREE_SHARE`` of the whole are one job each (their supernodes in
+order); above them, level by level, each supernode's gathering is cut into blocks of columns and its
+solve into blocks of rows. Pieces run on the worker threads (:mod:`hairinv._parallel`), each on one thread
+with its own buffers, BLAS limited to one thread meanwhile (:func:`hairinv._parallel.blas_pinned`, for the
+BLAS libraries threadpoolctl controls: OpenBLAS, MKL, BLIS): OpenBLAS's threaded ``dpotrf``, ``dtrsm``
+and, on some shapes, ``dgemm`` round differently from their one-thread runs, so a threaded BLAS would make
+the factor depend on the thread count. Which thread runs a piece changes nothing it computes.
 """
 
 from __future__ import annotations
@@ -28,12 +34,11 @@ import llvmlite.binding as llvm
 import numpy as np
 import scipy.linalg.cython_blas
 import scipy.sparse
-from numba import cfunc
 from numba.core import types
 from numba.extending import get_cython_function_address
 
 from .._jit import jit
-from .._parallel import run_ranges, worker_count
+from .._parallel import blas_pinned, run_ranges, worker_count
 
 __all__ = ["SupernodalCholesky", "permuted_pattern"]
 
@@ -55,32 +60,10 @@ def _lapack(module: str, name: str, nargs: int):
 
 _dpotrf = _lapack("scipy.linalg.cython_lapack", "dpotrf", 5)
 _dtrsm = _lapack("scipy.linalg.cython_blas", "dtrsm", 11)
-_dsyrk = _lapack("scipy.linalg.cython_blas", "dsyrk", 10)
 _dgemm = _lapack("scipy.linalg.cython_blas", "dgemm", 13)
 _dgemv = _lapack("scipy.linalg.cython_blas", "dgemv", 11)
 _dtrsv = _lapack("scipy.linalg.cython_blas", "dtrsv", 8)
 
-
-@cfunc(types.int32(types.int32))
-def _same_threads(n):
-    return n
-
-
-def _thread_control() -> tuple[int, bool]:
-    """The address of OpenBLAS's ``openblas_set_num_threads_local`` in the library scipy's BLAS comes from
-    (found through the extension's own dependencies), and whether it was found. OpenBLAS's threaded
-    ``dpotrf`` and ``dtrsm`` round differently from their one-thread runs (``dgemm`` and ``dsyrk`` split
-    the output among threads, not the sums, and do not); they are run on the calling thread alone, so the
-    factor does not depend on the thread count. Without it (another BLAS), a no-op."""
-    try:
-        handle = ctypes.CDLL(scipy.linalg.cython_blas.__file__)
-        return ctypes.cast(handle.openblas_set_num_threads_local, ctypes.c_void_p).value, True
-    except (OSError, AttributeError):
-        return _same_threads.address, False
-
-
-_address, THREADS_PINNED = _thread_control()
-_set_threads_local = _external("hairinv_openblas_set_num_threads_local", _address, types.int32(types.int32))
 
 # CHOLMOD's relaxed amalgamation (cholmod_super.c defaults): merge while the merged supernode has at most
 # NRELAX[0] columns, or at most NRELAX[1] columns and a fraction of explicit zeros under ZRELAX[0], or at
@@ -232,10 +215,8 @@ def _supernodes(n, parent, counts, nrelax0, nrelax1, nrelax2, zrelax0, zrelax1, 
     # the zeros allow (as cholmod_super's relaxed merge of a supernode with its last child)
     merged = np.zeros(S, np.bool_)
     for s in range(1, S):
-        c = s - 1
-        while c >= 0 and merged[c]:
-            c -= 1  # (c is merged into a later supernode only when that one is s itself)
-        if c < 0 or sparent[c] != s:
+        c = s - 1  # the last child of s, if any (supernode c is not merged yet: merges go to c + 1)
+        if sparent[c] != s:
             continue
         nscol = ncols[c] + ncols[s]
         # the merged supernode's first column has the child's columns plus the parent's rows
@@ -484,9 +465,8 @@ def _first_at_least(a, lo, hi, value):
 def _gather(s, c0, c1, super_ptr, rows_ptr, rows, upd_ptr, upd, Lp, Li, Lx, x_ptr, X, C, where, rmap):
     """Columns ``c0:c1`` of supernode ``s``'s panel (rows: its columns, then its rows below), on and below
     the diagonal: the matrix's entries, less the updates of the supernodes below it, in the order of its
-    update list (``C``: each update's product, one ``dgemm`` on this thread alone, then scattered, or
-    written in place where its rows and columns are runs of the panel's)."""
-    g0 = c0
+    update list (``C``: each update's product, one ``dgemm``, then scattered, or written in place where its
+    rows and columns are runs of the panel's)."""
     chars = np.empty(2, np.uint8)
     chars[0] = ord("N")
     chars[1] = ord("T")
@@ -502,18 +482,13 @@ def _gather(s, c0, c1, super_ptr, rows_ptr, rows, upd_ptr, upd, Lp, Li, Lx, x_pt
     m = ns + nr
     L = X[x_ptr[s]:x_ptr[s + 1]]
     for c in range(c0, c1):
-        L[c * m + g0:(c + 1) * m] = 0.0
-    for q in range(g0, m):
+        L[c * m + c0:(c + 1) * m] = 0.0
+    for q in range(c0, m):
         where[lo + q if q < ns else rows[r0 + q - ns]] = q
-    first = lo + g0  # the block's rows, as rows of the matrix: from its first column's on
-    end = 1 << 62
     for j in range(lo + c0, lo + c1):
         col = (j - lo) * m
-        for p in range(_first_at_least(Li, Lp[j], Lp[j + 1], first), Lp[j + 1]):
-            if Li[p] >= end:
-                break
+        for p in range(_first_at_least(Li, Lp[j], Lp[j + 1], lo + c0), Lp[j + 1]):
             L[col + where[Li[p]]] += Lx[p]
-    threads = _set_threads_local(1)
     for u in range(upd_ptr[s], upd_ptr[s + 1]):
         d = upd[u, 0]
         q0 = upd[u, 1]
@@ -522,17 +497,15 @@ def _gather(s, c0, c1, super_ptr, rows_ptr, rows, upd_ptr, upd, Lp, Li, Lx, x_pt
         dr = rows_ptr[d]
         nd = rows_ptr[d + 1] - dr
         md = nsd + nd
-        # d's rows in this block's columns, and from there on: contiguous ranges (every row list is sorted)
+        # d's rows in this block's columns (a contiguous range: every row list is sorted), and all of its
+        # rows from there on
         i0 = _first_at_least(rows, dr + q0, dr + q1, lo + c0) - dr
         i1 = _first_at_least(rows, dr + i0, dr + q1, lo + c1) - dr
         if i1 <= i0:
             continue
-        j0 = _first_at_least(rows, dr + i0, dr + nd, first) - dr
-        j1 = _first_at_least(rows, dr + j0, dr + nd, end) - dr
-        if j1 <= j0:
-            continue
+        j0 = i0
         kc = i1 - i0
-        kr = j1 - j0
+        kr = nd - j0
         Ld = X[x_ptr[d]:x_ptr[d + 1]]
         ints[0] = kr
         ints[1] = kc
@@ -557,15 +530,14 @@ def _gather(s, c0, c1, super_ptr, rows_ptr, rows, upd_ptr, upd, Lp, Li, Lx, x_pt
         for jj in range(kc):
             base = (rows[dr + i0 + jj] - lo) * m
             cb = jj * kr
-            for ii in range(max(0, i0 + jj - j0), kr):  # on or below the diagonal only
+            for ii in range(jj, kr):  # on or below the diagonal only
                 L[base + rmap[ii]] -= C[cb + ii]
-    _set_threads_local(threads)
 
 
 @jit
 def _pivot(s, super_ptr, rows_ptr, x_ptr, X):
-    """Factor supernode ``s``'s diagonal block in place (``dpotrf`` on this thread alone); 0, or the
-    1-based column of a non-positive pivot."""
+    """Factor supernode ``s``'s diagonal block in place (``dpotrf``); 0, or the 1-based column (in the
+    factorisation's order) of a non-positive pivot."""
     chars = np.empty(1, np.uint8)
     chars[0] = ord("L")
     ints = np.empty(2, np.int32)
@@ -575,16 +547,14 @@ def _pivot(s, super_ptr, rows_ptr, x_ptr, X):
     ints[0] = ns
     ints[1] = ns + rows_ptr[s + 1] - rows_ptr[s]
     L = X[x_ptr[s]:x_ptr[s + 1]]
-    threads = _set_threads_local(1)
     _dpotrf(chars.ctypes.data, ints[0:].ctypes.data, L.ctypes.data, ints[1:].ctypes.data, res.ctypes.data)
-    _set_threads_local(threads)
     return 0 if res[0] == 0 else lo + res[0]
 
 
 @jit
 def _below(s, c0, c1, super_ptr, rows_ptr, x_ptr, X):
     """Rows ``c0:c1`` (below the diagonal block) of supernode ``s``'s panel solved against its factored
-    diagonal block: ``L21 = A21 L11^-T`` (``dtrsm`` on this thread alone)."""
+    diagonal block: ``L21 = A21 L11^-T`` (``dtrsm``)."""
     chars = np.empty(4, np.uint8)
     chars[0] = ord("R")
     chars[1] = ord("L")
@@ -597,11 +567,9 @@ def _below(s, c0, c1, super_ptr, rows_ptr, x_ptr, X):
     ints[1] = ns
     ints[2] = ns + rows_ptr[s + 1] - rows_ptr[s]
     L = X[x_ptr[s]:x_ptr[s + 1]]
-    threads = _set_threads_local(1)
     _dtrsm(chars[0:].ctypes.data, chars[1:].ctypes.data, chars[2:].ctypes.data, chars[3:].ctypes.data,
            ints[0:].ctypes.data, ints[1:].ctypes.data, scal.ctypes.data, L.ctypes.data, ints[2:].ctypes.data,
            L[c0:].ctypes.data, ints[2:].ctypes.data)
-    _set_threads_local(threads)
 
 
 @jit
@@ -672,7 +640,7 @@ def _task_costs(tasks, super_ptr, rows_ptr, upd_ptr, upd):
 @jit
 def _solve(super_ptr, rows_ptr, rows, x_ptr, X, y, work):
     """``y <- L^-T L^-1 y`` in place (the permuted system), a supernode's block at a time (``dtrsv``,
-    ``dgemv``, on this thread alone); ``work`` holds the largest supernode's rows below."""
+    ``dgemv``); ``work`` holds the largest supernode's rows below."""
     S = super_ptr.shape[0] - 1
     chars = np.empty(3, np.uint8)
     chars[0] = ord("L")
@@ -684,7 +652,6 @@ def _solve(super_ptr, rows_ptr, rows, x_ptr, X, y, work):
     scal[0] = 1.0
     scal[1] = 0.0
     scal[2] = -1.0
-    threads = _set_threads_local(1)
     for s in range(S):
         lo, hi = super_ptr[s], super_ptr[s + 1]
         ns = hi - lo
@@ -723,7 +690,6 @@ def _solve(super_ptr, rows_ptr, rows, x_ptr, X, y, work):
                    scal[0:].ctypes.data, y[lo:].ctypes.data, ints[3:].ctypes.data)
         _dtrsv(chars[0:].ctypes.data, chars[2:].ctypes.data, chars[1:].ctypes.data, ints[0:].ctypes.data,
                L.ctypes.data, ints[1:].ctypes.data, y[lo:].ctypes.data, ints[3:].ctypes.data)
-    _set_threads_local(threads)
 
 
 def _runs(cost: np.ndarray, lo: int, hi: int, parts: int) -> list[tuple[int, int]]:
@@ -817,6 +783,10 @@ class SupernodalCholesky:
     def factor_values(self) -> None:
         """Factor the matrix whose permuted lower triangle (``Lp``, ``Li``) has the values ``self.values``
         (entry ``k`` is ``Sx[source[k]]``), for callers that assemble them there directly."""
+        with blas_pinned():
+            self._factor_values()
+
+    def _factor_values(self) -> None:
         self._failed[:] = 0
         args = (self.super_ptr, self.rows_ptr, self.rows, self.upd_ptr, self.upd, self.Lp, self.Li, self.values,
                 self.x_ptr, self.X)
@@ -842,11 +812,13 @@ class SupernodalCholesky:
                 run_ranges(pieces(1), self._level_runs[h])
         bad = self._failed[self._failed != 0]
         if len(bad):
-            raise ArithmeticError(f"non-positive pivot at column {int(bad.min())}")
+            raise ArithmeticError(f"non-positive pivot at column {int(bad.min())} of the factorisation's order")
 
     def solve(self, b: np.ndarray) -> np.ndarray:
+        """``A^-1 b`` from the factor."""
         y = np.asarray(b, dtype=np.float64)[self.perm]
-        _solve(self.super_ptr, self.rows_ptr, self.rows, self.x_ptr, self.X, y, self._work)
+        with blas_pinned():
+            _solve(self.super_ptr, self.rows_ptr, self.rows, self.x_ptr, self.X, y, self._work)
         out = np.empty_like(y)
         out[self.perm] = y
         return out
