@@ -47,7 +47,7 @@ TARGETS = ("actual", "zero", "uniform", "tip", "gravity-only")
 STABILIZE = ("stiffen", "off")
 METHODS = ("auto", "sweeps", "interior-point")
 #: GFlop a step up to which ``solver.method = auto`` takes the interior-point method: ruby short whole (1,867
-#: strands, 25,468 contacts) needs 23, 0.8 s a step on 2 cores; above it the sweeps solve the groom
+#: strands, 25,468 contacts) needs 19, 0.4 s a factorisation on 2 cores; above it the sweeps solve the groom
 AUTO_GFLOP = 30.0
 #: what the stability check holds: the contact forces fixed (every motion), or the loaded contact points
 STABLE_UNDER = ("forces", "supports")

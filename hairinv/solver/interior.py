@@ -76,7 +76,7 @@ _ROUND_OFF = 1e-12
 # steps without a new smallest bound before the method stops at its best iterate
 _PATIENCE = 12
 # The most one factorisation may cost, in GFlop (sum of the factor's squared column counts). ruby short's
-# 25,468 contacts need 19 (0.6 s a step on 2 cores); a groom whose strands all touch each other along their
+# 25,468 contacts need 19 (0.4 s a step on 2 cores); a groom whose strands all touch each other along their
 # length (a bun) makes the system nearly dense, and its factorisation would take minutes a step.
 MAX_GFLOP = 60.0
 # The most pairs of coordinates the contacts may touch together (sum over contacts of m (m + 1) / 2 for m
