@@ -19,6 +19,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+import scipy.sparse
 
 from hairinv.errors import InputError
 from hairinv.invert import generalized_gravity, invert, stiffness
@@ -289,3 +290,41 @@ def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_els
     assert any("solver.method = auto: the sweeps solved this groom" in n for n in rep.notes)
     assert any("started from the given forces" in n for n in rep.notes)
     assert np.abs(swept.omega_rest - tight.omega_rest).max() <= 1e-6 * scale
+
+
+def test_a_round_off_pivot_is_retried_with_the_diagonal_shifted(monkeypatch):
+    """The supernodal path's retry: the entries it scales are the diagonal of the permuted system, scaled by
+    1 + 1e-10 and nothing else, and the factor then solves the shifted system."""
+    from hairinv.solver import interior, supernodal
+
+    helices, contacts = four_strands_in_a_pile()
+    rows = contact_rows(helices, contacts)
+    factor = interior._Factor(rows.ptr, rows.cols, rows.n_dofs, "supernodal")
+    sn = factor.supernodal
+    assert np.array_equal(sn.Li[sn.Lp[:-1]], np.arange(rows.n_dofs))  # the first entry of each column
+    C = rows.n_contacts
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((C, 3, 3))
+    Binv = M @ M.transpose(0, 2, 1)
+    interior._assemble(rows.ptr, rows.cols, rows.vals, Binv, sn.Lp, factor.pos, sn.values)
+    before = sn.values.copy()
+    real = supernodal.SupernodalCholesky._factor_values
+    calls = []
+
+    def once_refused(self):
+        calls.append(self.values.copy())
+        if len(calls) == 1:
+            raise ArithmeticError("non-positive pivot")
+        real(self)
+
+    monkeypatch.setattr(supernodal.SupernodalCholesky, "_factor_values", once_refused)
+    factor.factor(rows.ptr, rows.cols, rows.vals, Binv)
+    assert len(calls) == 2 and np.array_equal(calls[0], before)
+    expected = before.copy()
+    expected[sn.Lp[:-1]] *= 1.0 + 1e-10
+    assert np.array_equal(calls[1], expected)
+    lower = scipy.sparse.csc_matrix((expected, sn.Li, sn.Lp), shape=(rows.n_dofs,) * 2).toarray()
+    S = lower + np.tril(lower, -1).T
+    w = rng.standard_normal(rows.n_dofs)
+    x = factor.solve(w)[sn.perm]  # the permuted system's solution
+    assert np.linalg.norm(S @ x - w[sn.perm]) <= 1e-9 * np.linalg.norm(w) * np.linalg.cond(S)
