@@ -62,7 +62,8 @@ import scipy.sparse.linalg
 from .._jit import jit
 from .._parallel import blas_pinned
 from .rows import ContactRows, _rows_matvec, _rows_rmatvec
-from .supernodal import SupernodalCholesky, permuted_pattern
+from .supernodal import SupernodalCholesky, etree, permuted_pattern
+from .supernodal import column_counts as supernodal_counts
 
 __all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "column_counts", "mu_in_range", "solve_interior"]
 
@@ -256,38 +257,11 @@ def _mv(M: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.einsum("cij,cj->ci", M, x)
 
 
-@jit
 def column_counts(n, Up, Ui, limit):
     """Column counts (diagonal included) of the Cholesky factor of the symmetric pattern whose upper
-    triangle is (Up, Ui), by columns: the elimination tree, then each row's subtree. Stops early, returning
-    an empty array, as soon as ``sum c_j^2`` (the factorisation's flops, up to a constant) must pass
-    ``limit``, so that the count costs at most what the limit allows."""
-    parent = np.full(n, -1, np.int64)
-    ancestor = np.full(n, -1, np.int64)
-    for k in range(n):
-        for p in range(Up[k], Up[k + 1]):
-            i = Ui[p]
-            while i != -1 and i < k:
-                nxt = ancestor[i]
-                ancestor[i] = k
-                if nxt == -1:
-                    parent[i] = k
-                i = nxt
-    counts = np.ones(n, np.int64)
-    mark = np.full(n, -1, np.int64)
-    entries = n
-    for k in range(n):
-        mark[k] = k
-        for p in range(Up[k], Up[k + 1]):
-            i = Ui[p]
-            while i < k and mark[i] != k:
-                counts[i] += 1
-                entries += 1
-                mark[i] = k
-                i = parent[i]
-        if float(entries) * float(entries) / n > limit:  # sum c^2 >= (sum c)^2 / n: already over
-            return np.zeros(0, np.int64)
-    return counts
+    triangle is (Up, Ui), by columns: the elimination tree, then each row's subtree; an empty array as soon
+    as ``sum c_j^2`` must pass ``limit`` (:func:`.supernodal.column_counts`)."""
+    return supernodal_counts(n, etree(n, Up, Ui), Up, Ui, float(limit))
 
 
 def nested_dissection(pattern) -> np.ndarray | None:
@@ -389,8 +363,9 @@ class _Factor:
         # order the coordinates' groups with the same contacts (an element's three, often a few elements:
         # ruby short's 38,391 coordinates are 11,403 groups), each group's coordinates kept together: on
         # ruby short the same fill (18.9 GFlop under METIS either way), for a sixth of the ordering's time.
-        starts = _groups(incidence.tocsc(), n)
-        members = scipy.sparse.csr_matrix(incidence.tocsc()[:, starts[:-1]])
+        by_coordinate = incidence.tocsc()
+        starts = _groups(by_coordinate, n)
+        members = scipy.sparse.csr_matrix(by_coordinate[:, starts[:-1]])
         grouped = (members.T @ members + scipy.sparse.eye(len(starts) - 1, format="csr")).tocsc()
         self.order, self.flops, self.ordering = None, np.inf, ""
         self.candidates = {}

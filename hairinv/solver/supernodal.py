@@ -27,20 +27,17 @@ the factor depend on the thread count. Which thread runs a piece changes nothing
 
 from __future__ import annotations
 
-import ctypes
 import threading
 
 import llvmlite.binding as llvm
 import numpy as np
-import scipy.linalg.cython_blas
-import scipy.sparse
 from numba.core import types
 from numba.extending import get_cython_function_address
 
 from .._jit import jit
 from .._parallel import blas_pinned, run_ranges, worker_count
 
-__all__ = ["SupernodalCholesky", "permuted_pattern"]
+__all__ = ["SupernodalCholesky", "column_counts", "etree", "permuted_pattern"]
 
 
 
@@ -118,9 +115,9 @@ def permuted_pattern(n, Sp, Si, inv):
 
 
 @jit
-def _etree_postorder(n, Up, Ui):
-    """The elimination tree (parent, -1 at roots) of the pattern whose upper triangle is (Up, Ui) in CSC,
-    and a postorder of it (children in increasing order, each subtree contiguous)."""
+def etree(n, Up, Ui):
+    """The elimination tree (parent, -1 at roots) of the pattern whose upper triangle is (Up, Ui) in CSC
+    (rows of each column in any order; entries on or below the diagonal are ignored)."""
     parent = np.full(n, -1, np.int64)
     ancestor = np.full(n, -1, np.int64)
     for k in range(n):
@@ -132,6 +129,14 @@ def _etree_postorder(n, Up, Ui):
                 if nxt == -1:
                     parent[i] = k
                 i = nxt
+    return parent
+
+
+@jit
+def _etree_postorder(n, Up, Ui):
+    """The elimination tree of the pattern whose upper triangle is (Up, Ui) (:func:`etree`), and a
+    postorder of it (children in increasing order, each subtree contiguous)."""
+    parent = etree(n, Up, Ui)
     # children lists (head/next), built backwards so that each list is in increasing order
     head = np.full(n, -1, np.int64)
     nxt = np.full(n, -1, np.int64)
@@ -162,18 +167,25 @@ def _etree_postorder(n, Up, Ui):
 
 
 @jit
-def _column_counts(n, parent, Up, Ui):
-    """Column counts (diagonal included) of the factor, each row's subtree walked up the tree."""
+def column_counts(n, parent, Up, Ui, limit):
+    """Column counts (diagonal included) of the Cholesky factor of the pattern whose upper triangle is
+    (Up, Ui), from its elimination tree ``parent``: each row's subtree walked up the tree. Stops early,
+    returning an empty array, as soon as ``sum c_j^2`` (the factorisation's flops, up to a constant) must
+    pass ``limit``, so that the count costs at most what the limit allows."""
     counts = np.ones(n, np.int64)
     mark = np.full(n, -1, np.int64)
+    entries = n
     for k in range(n):
         mark[k] = k
         for p in range(Up[k], Up[k + 1]):
             i = Ui[p]
             while i < k and mark[i] != k:
                 counts[i] += 1
+                entries += 1
                 mark[i] = k
                 i = parent[i]
+        if float(entries) * float(entries) / n > limit:  # sum c^2 >= (sum c)^2 / n: already over
+            return np.zeros(0, np.int64)
     return counts
 
 
@@ -729,7 +741,7 @@ class SupernodalCholesky:
         # entry k of the permuted lower triangle (Lp, Li) is Sx[source[k]]
         Up, Ui, self.Lp, self.Li, self.source = permuted_pattern(n, Sp, Si, inv)
         parent, post = _etree_postorder(n, Up, Ui)
-        self.counts = _column_counts(n, parent, Up, Ui)
+        self.counts = column_counts(n, parent, Up, Ui, np.inf)
         self.super_ptr = _supernodes(n, parent, self.counts, *_NRELAX, *_ZRELAX)
         self.rows_ptr, self.rows, self.sparent = _structure(n, self.super_ptr, self.Lp, self.Li)
         ns = np.diff(self.super_ptr)
