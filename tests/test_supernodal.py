@@ -153,3 +153,35 @@ def test_a_matrix_that_is_not_positive_definite_is_refused():
     # and the next values factor cleanly
     f.factor(_lower(_grid(8))[2])
     assert np.allclose(_dense_factor(f) @ _dense_factor(f).T, _grid(8)[np.ix_(f.perm, f.perm)], atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_weighted_column_counts_are_those_of_the_expanded_pattern(seed):
+    """Nodes standing for cliques of indistinguishable unknowns (``weight`` each, eliminated one after the
+    other): the weighted counts give the same ``sum c^2`` as a dense Cholesky of a matrix of the expanded
+    pattern, under a random order of the nodes."""
+    rng = np.random.default_rng(seed)
+    m = 40
+    weight = rng.integers(1, 5, m).astype(np.int64)
+    adjacency = np.triu(rng.random((m, m)) < 0.08, 1)
+    adjacency = adjacency | adjacency.T | np.eye(m, dtype=bool)
+    node_order = rng.permutation(m)
+    # the expanded matrix, in the order the nodes' order expands to
+    starts = np.r_[0, np.cumsum(weight)]
+    order = np.concatenate([np.arange(starts[k], starts[k + 1]) for k in node_order])
+    owner = np.repeat(np.arange(m), weight)
+    A = adjacency[np.ix_(owner, owner)] * rng.uniform(0.1, 1.0, (len(owner),) * 2)
+    A = A + A.T
+    A += np.diag(np.abs(A).sum(axis=1) + 1.0)
+    L = np.linalg.cholesky(A[np.ix_(order, order)])
+    dense = float(np.sum(np.count_nonzero(L, axis=0).astype(float) ** 2))
+    inv = np.empty(m, np.int64)
+    inv[node_order] = np.arange(m)
+    Sp, Si, _ = _lower(adjacency.astype(float))
+    Up, Ui, _, _, _ = supernodal.permuted_pattern(m, Sp, Si, inv)
+    w = weight[node_order]
+    counts = supernodal.column_counts(m, supernodal.etree(m, Up, Ui), Up, Ui, np.inf, w)
+    assert supernodal.expanded_flops(counts, w) == dense
+    # the early stop: never below the count, and only once the count passes the limit
+    assert len(supernodal.column_counts(m, supernodal.etree(m, Up, Ui), Up, Ui, dense, w)) == m
+    assert len(supernodal.column_counts(m, supernodal.etree(m, Up, Ui), Up, Ui, dense / len(order), w)) == 0

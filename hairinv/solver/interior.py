@@ -61,8 +61,9 @@ import scipy.sparse.linalg
 
 from .._jit import jit
 from .._parallel import blas_pinned
+from .blocked import BlockedSystem
 from .rows import ContactRows, _rows_matvec, _rows_rmatvec
-from .supernodal import SupernodalCholesky, etree, permuted_pattern
+from .supernodal import SupernodalCholesky, etree, expanded_flops, permuted_pattern
 from .supernodal import column_counts as supernodal_counts
 
 __all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "column_counts", "mu_in_range", "solve_interior"]
@@ -80,10 +81,10 @@ _PATIENCE = 12
 # 25,468 contacts need 19 (0.4 s a step on 2 cores); a groom whose strands all touch each other along their
 # length (a bun) makes the system nearly dense, and its factorisation would take minutes a step.
 MAX_GFLOP = 60.0
-# The most pairs of coordinates the contacts may touch together (sum over contacts of m (m + 1) / 2 for m
-# columns): the system's pattern and its assembly map grow with it (8 bytes a pair). ruby short has 8 million;
-# a full head of 100,000 strands some 600 million, whose factorisation would be far over MAX_GFLOP anyway.
-_MAX_PAIRS = 100_000_000
+# The most entries the system's lower triangle may have (its pattern, values and the factorisation's copy
+# of them: about 32 bytes an entry before the factor's own fill). ruby short has 2.9 million; a full head of
+# 100,000 strands far more, whose factorisation would be far over MAX_GFLOP anyway.
+_MAX_ENTRIES = 100_000_000
 _J = np.diag([1.0, -1.0, -1.0])
 _SIGN = np.array([1.0, -1.0, -1.0])
 
@@ -141,58 +142,6 @@ def cholesky_backend() -> str:
     except ImportError:  # pragma: no cover - cvxopt is a dependency; the fallback is for trimmed installs
         return "superlu"
     return "cholmod"
-
-
-@jit
-def _pattern_positions(ptr, cols, Sp, Si, pos):
-    """For each contact and each pair (a, b) of its columns with cols[a] >= cols[b], the index of
-    entry (cols[a], cols[b]) in the lower-triangular CSC arrays (Sp, Si), in loop order."""
-    k = 0
-    for i in range(ptr.shape[0] - 1):
-        lo = ptr[i]
-        m = ptr[i + 1] - lo
-        for a in range(m):
-            ra = cols[lo + a]
-            for c in range(m):
-                rb = cols[lo + c]
-                if rb > ra:
-                    continue
-                first = Sp[rb]
-                last = Sp[rb + 1]
-                while first < last:
-                    mid = (first + last) >> 1
-                    if Si[mid] < ra:
-                        first = mid + 1
-                    else:
-                        last = mid
-                pos[k] = first
-                k += 1
-    return k
-
-
-@jit
-def _assemble(ptr, cols, g, Binv, Sp, pos, Sx):
-    """``Sx``: the lower triangle of ``I + G Binv G'`` in the CSC pattern (Sp, pos)."""
-    Sx[:] = 0.0
-    for j in range(Sp.shape[0] - 1):
-        Sx[Sp[j]] = 1.0  # the diagonal entry comes first in each (sorted) column
-    k = 0
-    F = np.empty((64, 3))
-    for i in range(ptr.shape[0] - 1):
-        lo = ptr[i]
-        m = ptr[i + 1] - lo
-        if m > F.shape[0]:
-            F = np.empty((m, 3))
-        for a in range(m):
-            for t in range(3):
-                F[a, t] = g[lo + a, 0] * Binv[i, 0, t] + g[lo + a, 1] * Binv[i, 1, t] + g[lo + a, 2] * Binv[i, 2, t]
-        for a in range(m):
-            ra = cols[lo + a]
-            for c in range(m):
-                if cols[lo + c] > ra:
-                    continue
-                Sx[pos[k]] += F[a, 0] * g[lo + c, 0] + F[a, 1] * g[lo + c, 1] + F[a, 2] * g[lo + c, 2]
-                k += 1
 
 
 def _jdet(x: np.ndarray) -> np.ndarray:
@@ -261,7 +210,7 @@ def column_counts(n, Up, Ui, limit):
     """Column counts (diagonal included) of the Cholesky factor of the symmetric pattern whose upper
     triangle is (Up, Ui), by columns: the elimination tree, then each row's subtree; an empty array as soon
     as ``sum c_j^2`` must pass ``limit`` (:func:`.supernodal.column_counts`)."""
-    return supernodal_counts(n, etree(n, Up, Ui), Up, Ui, float(limit))
+    return supernodal_counts(n, etree(n, Up, Ui), Up, Ui, float(limit), np.ones(n, np.int64))
 
 
 def nested_dissection(pattern) -> np.ndarray | None:
@@ -282,18 +231,22 @@ def nested_dissection(pattern) -> np.ndarray | None:
     return np.array(order, dtype=np.int64)
 
 
-def _factor_flops(Sp: np.ndarray, Si: np.ndarray, order: np.ndarray, limit: float) -> float:
-    """``sum c_j^2`` over the column counts of the Cholesky factor of the pattern whose lower triangle is
-    (Sp, Si) permuted by ``order`` (the factorisation's flops up to a constant), or inf once it must pass
-    ``limit``."""
-    n = len(Sp) - 1
-    inv = np.empty(n, np.int64)
-    inv[order] = np.arange(n)
-    Up, Ui, _, _, _ = permuted_pattern(n, Sp, Si, inv)
-    counts = column_counts(n, Up, Ui, min(limit, 1e300))
+def _grouped_flops(gSp: np.ndarray, gSi: np.ndarray, group_order: np.ndarray, sizes: np.ndarray,
+                   limit: float) -> float:
+    """``sum c_j^2`` over the column counts of the system's Cholesky factor (its flops up to a constant) in
+    the coordinates' order that ``group_order`` expands to, or inf once it must pass ``limit``. Counted on
+    the groups' pattern (lower triangle ``gSp``, ``gSi``): a group's coordinates have the same neighbours,
+    each other included, and are eliminated one after the other, so the factor's structure is the groups'
+    expanded (:func:`.supernodal.column_counts` with the groups' sizes as weights)."""
+    m = len(gSp) - 1
+    inv = np.empty(m, np.int64)
+    inv[group_order] = np.arange(m)
+    Up, Ui, _, _, _ = permuted_pattern(m, gSp, gSi, inv)
+    weight = np.ascontiguousarray(sizes[group_order], dtype=np.int64)
+    counts = supernodal_counts(m, etree(m, Up, Ui), Up, Ui, min(limit, 1e300), weight)
     if len(counts) == 0:
         return np.inf
-    return float(np.sum(counts.astype(np.float64) ** 2))
+    return expanded_flops(counts, weight)
 
 
 def _groups(incidence, n: int) -> np.ndarray:
@@ -341,24 +294,18 @@ class _Factor:
         self.backend = backend
         C = len(ptr) - 1
         counts = np.diff(ptr)
-        pairs = int(np.sum(counts * (counts + 1) // 2))
-        if pairs > _MAX_PAIRS:  # before building anything: the pattern alone would take gigabytes
-            raise TooLarge(f"{pairs} coordinate pairs")
-        incidence = scipy.sparse.csr_matrix((np.ones(len(cols)), (np.repeat(np.arange(C), counts), cols)),
-                                            shape=(C, n))
-        pattern = (incidence.T @ incidence + scipy.sparse.eye(n, format="csr")).tocsc()
-        lower = scipy.sparse.tril(pattern, format="csc")
-        lower.sort_indices()
-        self.Sp = lower.indptr.astype(np.int64)
-        self.Si = lower.indices.astype(np.int64)
-        self.pos = np.empty(pairs, dtype=np.int64)
-        used = _pattern_positions(ptr, cols, self.Sp, self.Si, self.pos)
-        if used != len(self.pos):  # two columns of one contact are the same coordinate: count again
-            self.pos = self.pos[:used]
+        self.system = BlockedSystem(ptr, cols, n)
+        if self.system.entries > _MAX_ENTRIES:
+            raise TooLarge(f"{self.system.entries} entries in the system's lower triangle")
+        limit = float(max_flops) if np.isfinite(max_flops) else 1e300
+        # the factor holds the system's entries, so under any ordering sum c^2 >= (sum c)^2 / n >= entries^2 / n
+        if float(self.system.entries) ** 2 / max(n, 1) > limit:
+            raise TooLarge(f"over {max_flops / 1e9:.3g} GFlop under any ordering")
+        self.Sp, self.Si = self.system.Sp, self.system.Si
         self.Sx = np.zeros(len(self.Si))
         self.n = n
-        self._columns = np.repeat(np.arange(n), np.diff(self.Sp))
-        limit = float(max_flops) if np.isfinite(max_flops) else 1e300
+        incidence = scipy.sparse.csr_matrix((np.ones(len(cols)), (np.repeat(np.arange(C), counts), cols)),
+                                            shape=(C, n))
         # the fill-reducing orderings at hand, each counted before any factorisation; the cheapest kept. They
         # order the coordinates' groups with the same contacts (an element's three, often a few elements:
         # ruby short's 38,391 coordinates are 11,403 groups), each group's coordinates kept together: on
@@ -367,11 +314,25 @@ class _Factor:
         starts = _groups(by_coordinate, n)
         members = scipy.sparse.csr_matrix(by_coordinate[:, starts[:-1]])
         grouped = (members.T @ members + scipy.sparse.eye(len(starts) - 1, format="csr")).tocsc()
+        # counted on the groups too, but a group no contact touches is not a clique (its coordinates are not
+        # neighbours of each other): those are counted coordinate by coordinate
+        touched = np.diff(by_coordinate.indptr)[starts[:-1]] > 0
+        nodes = np.where(touched, 1, np.diff(starts))
+        node_starts = np.r_[0, np.cumsum(nodes)].astype(np.int64)
+        first = np.zeros(n, np.bool_)
+        first[starts[:-1]] = True
+        first[~np.repeat(touched, np.diff(starts))] = True
+        node_first = np.r_[np.flatnonzero(first), n].astype(np.int64)
+        counted = scipy.sparse.csr_matrix(by_coordinate[:, node_first[:-1]])
+        counted = scipy.sparse.tril(counted.T @ counted + scipy.sparse.eye(len(node_first) - 1), format="csc")
+        counted.sort_indices()
+        cSp, cSi = counted.indptr.astype(np.int64), counted.indices.astype(np.int64)
         self.order, self.flops, self.ordering = None, np.inf, ""
         self.candidates = {}
         for name, group_order in self._orderings(grouped, backend):
             order = _expand(group_order, starts)
-            flops = _factor_flops(self.Sp, self.Si, order, min(limit, self.flops))
+            flops = _grouped_flops(cSp, cSi, _expand(group_order, node_starts), np.diff(node_first),
+                                   min(limit, self.flops))
             self.candidates[name] = (order, flops)
             if flops < self.flops:
                 self.order, self.flops, self.ordering = order, flops, name
@@ -384,15 +345,11 @@ class _Factor:
             self._cvxopt = cvxopt
             self._cholmod = cvxopt.cholmod
             cvxopt.cholmod.options["supernodal"] = 2
-            self.A = cvxopt.spmatrix(np.ones(len(self.Si)), cvxopt.matrix(self.Si), cvxopt.matrix(self._columns),
-                                     (n, n))
+            columns = np.repeat(np.arange(n), np.diff(self.Sp))
+            self.A = cvxopt.spmatrix(np.ones(len(self.Si)), cvxopt.matrix(self.Si), cvxopt.matrix(columns), (n, n))
             self.F = cvxopt.cholmod.symbolic(self.A, p=cvxopt.matrix(self.order))
         elif backend == "supernodal":
             self.supernodal = SupernodalCholesky(self.Sp, self.Si, self.order)
-            # assembled straight into the factorisation's own (permuted) order
-            into = np.empty(len(self.Si), np.int64)
-            into[self.supernodal.source] = np.arange(len(self.Si))
-            self.pos = into[self.pos]
 
     @staticmethod
     def _orderings(pattern, backend: str):
@@ -422,19 +379,18 @@ class _Factor:
 
             yield "rcm", np.asarray(reverse_cuthill_mckee(pattern.tocsr(), symmetric_mode=True), dtype=np.int64)
 
-    def factor(self, ptr, cols, g, Binv) -> None:
+    def factor(self, g, Binv) -> None:
+        self.system.assemble(g, Binv, self.Sx)
         if self.backend == "supernodal":
             sn = self.supernodal
-            _assemble(ptr, cols, g, Binv, sn.Lp, self.pos, sn.values)
             try:
-                sn.factor_values()
+                sn.factor(self.Sx)
             except ArithmeticError:
                 # round-off made a pivot non-positive (the system is I + a positive semidefinite matrix, so
                 # mathematically never): a relative shift of the diagonal, corrected by the refinement
                 sn.values[sn.Lp[:-1]] *= 1.0 + 1e-10
                 sn.factor_values()
             return
-        _assemble(ptr, cols, g, Binv, self.Sp, self.pos, self.Sx)
         if self.backend == "cholmod":
             self.A.V = self._cvxopt.matrix(self.Sx)
             try:
@@ -551,7 +507,7 @@ class _Scaled:
         return self._Gt(self._G(x), self._Px) + self.gam * x
 
     def factor_step(self, Binv: np.ndarray) -> None:
-        self.factor.factor(self.ptr, self.cols, self.g, Binv)
+        self.factor.factor(self.g, Binv)
 
     def newton(self, Binv: np.ndarray, D: np.ndarray, v: np.ndarray, refine: int = _REFINEMENT) -> np.ndarray:
         """``(P + D) dx = v`` (``D`` the cones' scaling, ``Binv = (D + diag(gam))^-1``) by Woodbury through

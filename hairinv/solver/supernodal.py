@@ -37,7 +37,7 @@ from numba.extending import get_cython_function_address
 from .._jit import jit
 from .._parallel import blas_pinned, run_ranges, worker_count
 
-__all__ = ["SupernodalCholesky", "column_counts", "etree", "permuted_pattern"]
+__all__ = ["SupernodalCholesky", "column_counts", "etree", "expanded_flops", "permuted_pattern"]
 
 
 
@@ -167,26 +167,44 @@ def _etree_postorder(n, Up, Ui):
 
 
 @jit
-def column_counts(n, parent, Up, Ui, limit):
+def column_counts(n, parent, Up, Ui, limit, weight):
     """Column counts (diagonal included) of the Cholesky factor of the pattern whose upper triangle is
-    (Up, Ui), from its elimination tree ``parent``: each row's subtree walked up the tree. Stops early,
-    returning an empty array, as soon as ``sum c_j^2`` (the factorisation's flops, up to a constant) must
-    pass ``limit``, so that the count costs at most what the limit allows."""
-    counts = np.ones(n, np.int64)
+    (Up, Ui), from its elimination tree ``parent``: each row's subtree walked up the tree.
+
+    With ``weight`` (n,) int64, node ``j`` stands for ``weight[j]`` indistinguishable unknowns (the same
+    neighbours, each other included, eliminated one after the other) and the count is of unknowns: the
+    node's first unknown's column count, ``weight[j]`` plus the weights of the other nodes in its column of
+    the factor; its next unknowns' are one less each. Ones for a plain pattern.
+
+    Stops early, returning an empty array, as soon as ``sum c^2`` over the unknowns' columns (the
+    factorisation's flops, up to a constant) must pass ``limit``, so that the count costs at most what
+    the limit allows."""
+    counts = weight.copy()
     mark = np.full(n, -1, np.int64)
-    entries = n
+    unknowns = 0.0
+    entries = 0.0
+    for j in range(n):
+        unknowns += weight[j]
+        entries += 0.5 * weight[j] * (weight[j] + 1)
     for k in range(n):
         mark[k] = k
         for p in range(Up[k], Up[k + 1]):
             i = Ui[p]
             while i < k and mark[i] != k:
-                counts[i] += 1
-                entries += 1
+                counts[i] += weight[k]
+                entries += float(weight[i]) * float(weight[k])
                 mark[i] = k
                 i = parent[i]
-        if float(entries) * float(entries) / n > limit:  # sum c^2 >= (sum c)^2 / n: already over
+        if entries * entries / unknowns > limit:  # sum c^2 >= (sum c)^2 / unknowns: already over
             return np.zeros(0, np.int64)
     return counts
+
+
+def expanded_flops(counts: np.ndarray, weight: np.ndarray) -> float:
+    """``sum c^2`` over the unknowns' column counts, from the nodes' :func:`column_counts` and weights."""
+    W = counts.astype(np.float64)
+    s = weight.astype(np.float64)
+    return float(np.sum(s * W * W - W * s * (s - 1.0) + (s - 1.0) * s * (2.0 * s - 1.0) / 6.0))
 
 
 @jit
@@ -704,6 +722,12 @@ def _solve(super_ptr, rows_ptr, rows, x_ptr, X, y, work):
                L.ctypes.data, ints[1:].ctypes.data, y[lo:].ctypes.data, ints[3:].ctypes.data)
 
 
+@jit
+def _take(Sx, source, values, lo, hi):
+    for k in range(lo, hi):
+        values[k] = Sx[source[k]]
+
+
 def _runs(cost: np.ndarray, lo: int, hi: int, parts: int) -> list[tuple[int, int]]:
     """``[lo, hi)`` cut into consecutive runs of about equal cost, ``parts`` at most."""
     total = float(np.sum(cost[lo:hi]))
@@ -741,7 +765,7 @@ class SupernodalCholesky:
         # entry k of the permuted lower triangle (Lp, Li) is Sx[source[k]]
         Up, Ui, self.Lp, self.Li, self.source = permuted_pattern(n, Sp, Si, inv)
         parent, post = _etree_postorder(n, Up, Ui)
-        self.counts = column_counts(n, parent, Up, Ui, np.inf)
+        self.counts = column_counts(n, parent, Up, Ui, np.inf, np.ones(n, np.int64))
         self.super_ptr = _supernodes(n, parent, self.counts, *_NRELAX, *_ZRELAX)
         self.rows_ptr, self.rows, self.sparent = _structure(n, self.super_ptr, self.Lp, self.Li)
         ns = np.diff(self.super_ptr)
@@ -771,6 +795,9 @@ class SupernodalCholesky:
         self._failed = np.zeros(len(self.sparent), np.int64)
         self.flops = float(np.sum(ns * m.astype(np.float64) ** 2))
         self.values = np.empty(nnz)
+        # the values gathered into the permuted order in equal ranges (a random read each: memory-bound)
+        cuts = np.linspace(0, nnz, parts + 1).astype(np.int64)
+        self._take_runs = [(int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
         self._work = np.empty(max(1, widest))
 
     def _scratch(self):
@@ -789,7 +816,7 @@ class SupernodalCholesky:
     def factor(self, Sx: np.ndarray) -> None:
         """Factor the matrix with lower-triangle values ``Sx`` (in the pattern given at construction);
         raises ArithmeticError at a non-positive pivot."""
-        np.take(Sx, self.source, out=self.values)
+        run_ranges(lambda lo, hi: _take(Sx, self.source, self.values, lo, hi), self._take_runs)
         self.factor_values()
 
     def factor_values(self) -> None:
