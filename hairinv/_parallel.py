@@ -14,6 +14,7 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
+import numpy as np
 from threadpoolctl import ThreadpoolController
 
 _lock = threading.Lock()
@@ -113,6 +114,18 @@ def run_ranges(work: Callable[[int, int], None], ranges: list[tuple[int, int]]) 
         for future in futures:
             if not future.cancelled():
                 future.exception()
+
+
+def cost_ranges(cost: np.ndarray, lo: int, hi: int, parts: int) -> list[tuple[int, int]]:
+    """``[lo, hi)`` cut into consecutive runs of about equal cost, ``parts`` at most (for :func:`run_ranges`)."""
+    total = float(np.sum(cost[lo:hi]))
+    runs, start, acc = [], lo, 0.0
+    for k in range(lo, hi):
+        acc += cost[k]
+        if acc >= total / parts or k == hi - 1:
+            runs.append((start, k + 1))
+            start, acc = k + 1, 0.0
+    return runs
 
 
 def _run(work, count, chunk, progress) -> None:

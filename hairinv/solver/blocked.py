@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit
-from .._parallel import run_ranges, worker_count
+from .._parallel import cost_ranges, run_ranges, worker_count
 
 __all__ = ["BlockedSystem"]
 
@@ -257,7 +257,7 @@ class BlockedSystem:
         if len(key):
             per_term = self._piece_width[self._row] * self._piece_width[self._col]
             work = np.add.reduceat(per_term.astype(np.float64), heads)
-        self._ranges = _balanced(work, 4 * worker_count())
+        self._ranges = cost_ranges(work, 0, len(work), 4 * worker_count())
 
     def assemble(self, g: np.ndarray, Binv: np.ndarray, Sx: np.ndarray) -> None:
         """``Sx`` (``entries``): the lower triangle of ``I + G Binv G'``, ``G`` by contact (``g``, as the
@@ -270,12 +270,3 @@ class BlockedSystem:
 
         run_ranges(work, self._ranges)
 
-
-def _balanced(work: np.ndarray, parts: int) -> list[tuple[int, int]]:
-    """Consecutive ranges of ``work``'s items, ``parts`` at most, of about equal sums."""
-    if len(work) == 0:
-        return []
-    total = np.cumsum(work)
-    cuts = np.searchsorted(total, total[-1] * np.arange(1, parts) / parts, side="right")
-    bounds = np.unique(np.r_[0, cuts, len(work)])
-    return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]

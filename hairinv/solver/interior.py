@@ -23,8 +23,9 @@ one system in the rod coordinates,
 
 ``n x n`` with ``n`` the number of coordinates of ``q``, sparse as the
 contacts couple the elements (a contact at element ``e`` touches elements
-``0..e`` of its strands). It is assembled from per-contact dense blocks in
-a pattern fixed once, ordered (AMD or METIS's nested dissection, the one
+``0..e`` of its strands). Its pattern is fixed once and laid out by blocks
+of coordinates, into which each contact's product is added in contiguous
+runs (:mod:`.blocked`); it is ordered (AMD or METIS's nested dissection, the one
 whose factor costs fewer flops) and analysed once, factored by a supernodal
 Cholesky on every core (:mod:`.supernodal`; cvxopt's CHOLMOD and scipy's
 SuperLU can be asked for), and solved with one step of iterative refinement

@@ -35,7 +35,7 @@ from numba.core import types
 from numba.extending import get_cython_function_address
 
 from .._jit import jit
-from .._parallel import blas_pinned, run_ranges, worker_count
+from .._parallel import blas_pinned, cost_ranges, run_ranges, worker_count
 
 __all__ = ["SupernodalCholesky", "column_counts", "etree", "expanded_flops", "permuted_pattern"]
 
@@ -728,18 +728,6 @@ def _take(Sx, source, values, lo, hi):
         values[k] = Sx[source[k]]
 
 
-def _runs(cost: np.ndarray, lo: int, hi: int, parts: int) -> list[tuple[int, int]]:
-    """``[lo, hi)`` cut into consecutive runs of about equal cost, ``parts`` at most."""
-    total = float(np.sum(cost[lo:hi]))
-    runs, start, acc = [], lo, 0.0
-    for k in range(lo, hi):
-        acc += cost[k]
-        if acc >= total / parts or k == hi - 1:
-            runs.append((start, k + 1))
-            start, acc = k + 1, 0.0
-    return runs
-
-
 class SupernodalCholesky:
     """Cholesky factorisation ``P A P' = L L'`` of symmetric positive definite matrices sharing one pattern.
 
@@ -779,14 +767,14 @@ class SupernodalCholesky:
         self.jobs, job_cost, self.level_ptr, self.nodes = _schedule(self.sparent, node_cost,
                                                                     float(np.sum(cost)) * _SUBTREE_SHARE)
         parts = 4 * max(1, worker_count())  # how the pieces are handed out (not what they compute)
-        self._job_runs = _runs(job_cost, 0, len(job_cost), parts)
+        self._job_runs = cost_ranges(job_cost, 0, len(job_cost), parts)
         # the pieces of the supernodes above the jobs, level by level
         self._index = np.concatenate([np.arange(self.node_ptr[t], self.node_ptr[t + 1]) for t in self.nodes]
                                      ).astype(np.int64) if len(self.nodes) else np.zeros(0, np.int64)
         level_tasks = np.cumsum(np.concatenate([[0], np.diff(self.node_ptr)[self.nodes]]))[self.level_ptr]
-        self._level_runs = [_runs(cost[self._index], int(level_tasks[h]), int(level_tasks[h + 1]), parts)
+        self._level_runs = [cost_ranges(cost[self._index], int(level_tasks[h]), int(level_tasks[h + 1]), parts)
                             for h in range(len(self.level_ptr) - 1)]
-        self._pivot_runs = [_runs(np.ones(len(self.nodes)), int(self.level_ptr[h]), int(self.level_ptr[h + 1]),
+        self._pivot_runs = [cost_ranges(np.ones(len(self.nodes)), int(self.level_ptr[h]), int(self.level_ptr[h + 1]),
                                   parts) for h in range(len(self.level_ptr) - 1)]
         widest = int(np.max(np.diff(self.rows_ptr), initial=0))
         self._c_size = max(1, min(int(most), _COLUMNS_PER_TASK * (widest + _COLUMNS_PER_TASK)))
