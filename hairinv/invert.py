@@ -47,8 +47,10 @@ TARGETS = ("actual", "zero", "uniform", "tip", "gravity-only")
 STABILIZE = ("stiffen", "off")
 METHODS = ("auto", "sweeps", "interior-point")
 #: GFlop a step up to which ``solver.method = auto`` takes the interior-point method: ruby short whole (1,867
-#: strands, 25,468 contacts) needs 19, 0.4 s a factorisation on 2 cores; above it the sweeps solve the groom
-AUTO_GFLOP = 30.0
+#: strands, 25,468 contacts) needs 19, 0.4 s a factorisation on 2 cores. Measured on heads of 3,000 to 4,867
+#: ruby guides (23 to 128 GFlop) it converged in 17 to 73 s where the sweeps' 2,000 took 47 to 111 s and stopped
+#: 0.19 to 0.28 1/m from the optimum (docs/inverse.md); above it the sweeps solve the groom
+AUTO_GFLOP = 150.0
 #: what the stability check holds: the contact forces fixed (every motion), or the loaded contact points
 STABLE_UNDER = ("forces", "supports")
 #: inversions with stiffened strands tried before the remaining unstable strands are reported: a

@@ -79,9 +79,11 @@ _ROUND_OFF = 1e-12
 # steps without a new smallest bound before the method stops at its best iterate
 _PATIENCE = 12
 # The most one factorisation may cost, in GFlop (sum of the factor's squared column counts). ruby short's
-# 25,468 contacts need 19 (0.4 s a step on 2 cores); a groom whose strands all touch each other along their
-# length (a bun) makes the system nearly dense, and its factorisation would take minutes a step.
-MAX_GFLOP = 60.0
+# 25,468 contacts need 19 (0.4 s a step on 2 cores); the 4,867 guides of ruby short and long (85,961 contacts)
+# 128, 3.2 s a step, 73 s in all, where the sweeps' 2,000 took 111 s to a bound of 0.26 1/m (docs/inverse.md).
+# A groom whose strands all touch each other along their length (a bun) makes the system nearly dense: its
+# factorisation would take minutes a step.
+MAX_GFLOP = 150.0
 # The most entries the system's lower triangle may have (its pattern, values and the factorisation's copy
 # of them: about 32 bytes an entry before the factor's own fill). ruby short has 2.9 million; a full head of
 # 100,000 strands far more, whose factorisation would be far over MAX_GFLOP anyway.
