@@ -43,6 +43,8 @@ def _cases():
     yield "consecutive strands", (np.array([0, 9, 15]), np.array([3, 4, 5, 6, 7, 8, 0, 1, 2, 6, 7, 8, 9, 10, 11]), 15)
     yield "any columns", _any_columns(rng, 300, 200)
     yield "every column", (np.arange(5) * 30, np.tile(np.arange(30), 4), 30)
+    wide = np.r_[np.arange(120), np.arange(150, 240), np.arange(0, 90)]  # pieces over the kernel's 64 columns
+    yield "wide pieces", (np.array([0, len(wide), len(wide) + 30]), np.r_[wide, np.arange(150, 180)], 260)
 
 
 @pytest.mark.parametrize("name,case", list(_cases()), ids=[c[0] for c in _cases()])
@@ -68,3 +70,23 @@ def test_the_blocked_system_is_the_product(name, case):
         system.assemble(g, Binv, Sx)
         lower = scipy.sparse.csc_matrix((Sx, system.Si, system.Sp), shape=(n, n)).toarray()
         assert np.allclose(lower, np.tril(expected), rtol=1e-13, atol=1e-12 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_orderings_are_counted_exactly_where_coordinates_go_untouched(seed):
+    """Strands whose tails no contact reaches (and whole coordinates none touches): each candidate ordering's
+    count, made on groups of coordinates, equals the fill of a dense Cholesky of a matrix of the same pattern
+    under that ordering."""
+    from hairinv.solver import interior
+
+    ptr, cols, n = _strand_contacts(np.random.default_rng(seed), 25, 60, seed == 2)
+    factor = interior._Factor(ptr, cols, n, "supernodal")
+    lower = scipy.sparse.csc_matrix((np.ones(len(factor.Si)), factor.Si, factor.Sp), shape=(n, n))
+    full = (lower + lower.T).toarray() * np.random.default_rng(seed).uniform(0.1, 1.0, (n, n))
+    full = full + full.T
+    full += np.diag(np.abs(full).sum(axis=1) + 1.0)
+    assert np.any(np.asarray(lower.sum(axis=0)).ravel() == 1)  # some coordinates have the diagonal only
+    for name, (order, flops) in factor.candidates.items():
+        L = np.linalg.cholesky(full[np.ix_(order, order)])
+        dense = float(np.sum(np.count_nonzero(L, axis=0).astype(float) ** 2))
+        assert flops == dense or (flops == np.inf and dense > factor.flops), name

@@ -234,7 +234,7 @@ def test_each_ordering_is_counted_exactly_and_the_cheapest_is_kept():
     assert factor.flops == min(counted.values()) and counted[factor.ordering] == factor.flops
 
 
-def test_a_groom_too_large_to_lay_out_is_declined_before_it_is_ordered(monkeypatch):
+def test_a_system_with_too_many_entries_is_declined_before_it_is_ordered(monkeypatch):
     """The cap is on the entries of the system's lower triangle: those of ``I + H'H`` (counted here from the
     contacts' incidence), one entry over it declines the method before any ordering or factorisation."""
     from hairinv.solver import interior
@@ -254,6 +254,20 @@ def test_a_groom_too_large_to_lay_out_is_declined_before_it_is_ordered(monkeypat
     monkeypatch.setattr(interior, "_MAX_ENTRIES", entries - 1)
     res = solve_interior(rows, np.ones(rows.n_dofs), 1e-3, np.ones((contacts.n_contacts, 3)), contacts.mu)
     assert res.status == "TOO_LARGE" and np.all(res.r == 0.0) and not ordered
+
+
+def test_the_flop_cap_is_the_counted_cost_itself():
+    """A groom costing exactly the cap is solved and one flop over it is declined: the count decides there,
+    not the entries' lower bound (which lies below it on this pile)."""
+    from hairinv.solver import interior
+
+    helices, contacts = four_strands_in_a_pile()
+    rows = contact_rows(helices, contacts)
+    factor = interior._Factor(rows.ptr, rows.cols, rows.n_dofs, "supernodal")
+    assert factor.system.entries ** 2 / rows.n_dofs < factor.flops - 1
+    args = (rows, np.ones(rows.n_dofs), 1e-3, np.ones((contacts.n_contacts, 3)), contacts.mu)
+    assert solve_interior(*args, max_gflop=factor.flops / 1e9).status != "TOO_LARGE"
+    assert solve_interior(*args, max_gflop=(factor.flops - 1) / 1e9).status == "TOO_LARGE"
 
 
 def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_elsewhere(monkeypatch):

@@ -3,8 +3,9 @@
 A contact's columns are, on each strand it touches, that strand's leading
 coordinates (elements ``0..e`` of it: the rigid-downstream property, see
 :mod:`.rows`). The coordinates are cut where any contact's run of
-consecutive columns starts; between two cuts lies a *segment* (a strand,
-or the part of one past a cut). Each contact is then a few *pieces*, each
+consecutive columns starts; between two cuts lies a *segment* (for the
+rows' contacts, one strand or several consecutive ones: a run starts at
+a strand's start). Each contact is then a few *pieces*, each
 the leading columns of one segment, and its share of the system is
 ``g_p B_c g_q'`` for every ordered pair of its pieces ``(p, q)``, in the
 *block* (segment of ``p``, segment of ``q``).
@@ -17,7 +18,7 @@ segments' starts). These rows are one run of the lower-triangular CSC
 pattern, so a contact's product is added into contiguous runs of the
 values, with no map entry per coordinate pair (a contact of ``m`` columns
 has ``m (m + 1) / 2``: 205 million on a 16,778-contact draped groom, whose
-pattern holds a few million entries), and the blocks own disjoint entries,
+pattern holds 10.8 million entries), and the blocks own disjoint entries,
 so they are assembled in parallel.
 """
 
@@ -123,10 +124,9 @@ def _heights(term_ptr, row, col, piece_width):
 
 
 @jit
-def _pattern(seg_start, block_ptr, block_row, h_ptr, h):
-    """The lower-triangular CSC pattern (Sp, Si), each block column's first position (for a diagonal block,
-    that of its diagonal entry) and the diagonal entries no block covers. ``block_ptr``: the blocks of each
-    column segment, in order of row segment."""
+def _column_sizes(seg_start, block_ptr, block_row, h_ptr, h):
+    """The lower-triangular CSC pattern's column pointers ``Sp``. ``block_ptr``: the blocks of each column
+    segment, in order of row segment."""
     n = seg_start[-1]
     n_seg = seg_start.shape[0] - 1
     Sp = np.zeros(n + 1, np.int64)
@@ -149,6 +149,15 @@ def _pattern(seg_start, block_ptr, block_row, h_ptr, h):
                 count += 1
             c = seg_start[s] + j
             Sp[c + 1] = Sp[c] + count
+    return Sp
+
+
+@jit
+def _pattern(seg_start, block_ptr, block_row, h_ptr, h, Sp):
+    """The pattern's rows ``Si``, each block column's first position (for a diagonal block, that of its
+    diagonal entry) and the diagonal entries no block covers."""
+    n = seg_start[-1]
+    n_seg = seg_start.shape[0] - 1
     Si = np.empty(Sp[n], np.int64)
     first = np.full(h_ptr[-1], -1, np.int64)
     lonely = np.empty(n, np.int64)
@@ -179,7 +188,7 @@ def _pattern(seg_start, block_ptr, block_row, h_ptr, h):
                 for i in range(lo, rows):
                     Si[at] = r0 + i
                     at += 1
-    return Sp, Si, first, lonely[:n_lonely].copy()
+    return Si, first, lonely[:n_lonely].copy()
 
 
 @jit
@@ -223,15 +232,20 @@ def _assemble(lo, hi, block_ptr_t, block_row, block_col, term_contact, term_row,
                     Sx[at + i] += F[0, i] * g0 + F[1, i] * g1 + F[2, i] * g2
 
 
+class EntriesOver(Exception):
+    """The system's lower triangle would hold more entries than allowed (``args[0]``: how many)."""
+
+
 class BlockedSystem:
-    """The pattern of ``I + G B^-1 G'`` for contacts with columns ``cols[ptr[i]:ptr[i + 1]]`` (sorted within
-    each run) among ``n`` coordinates, and its assembly.
+    """The pattern of ``I + G B^-1 G'`` for contacts with columns ``cols[ptr[i]:ptr[i + 1]]`` among ``n``
+    coordinates (in any order; a column repeated within a contact adds, as in ``G``), and its assembly.
+    Raises :class:`EntriesOver` once the entries are counted, before they are laid out, if over ``max_entries``.
 
     Attributes: ``Sp``, ``Si`` (the lower triangle, CSC, rows sorted, the diagonal first in each column),
-    ``entries`` (its length), ``segments`` and ``blocks`` (counts).
+    ``entries`` (its length), ``blocks`` (their count).
     """
 
-    def __init__(self, ptr: np.ndarray, cols: np.ndarray, n: int):
+    def __init__(self, ptr: np.ndarray, cols: np.ndarray, n: int, max_entries: float = np.inf):
         ptr = np.ascontiguousarray(ptr, dtype=np.int64)
         cols = np.ascontiguousarray(cols, dtype=np.int64)
         seg_start, piece_ptr, piece_seg, self._piece_at, self._piece_width = _cut(ptr, cols, n)
@@ -246,11 +260,12 @@ class BlockedSystem:
         self._block_row = (block_key % max(n_seg, 1)).astype(np.int64)
         self._h_ptr, self._h = _heights(self._term_ptr, self._row, self._col, self._piece_width)
         column_blocks = np.searchsorted(self._block_col, np.arange(n_seg + 1)).astype(np.int64)
-        self.Sp, self.Si, self._first, self._lonely = _pattern(seg_start, column_blocks, self._block_row,
-                                                               self._h_ptr, self._h)
-        self.n = n
-        self.entries = len(self.Si)
-        self.segments = n_seg
+        self.Sp = _column_sizes(seg_start, column_blocks, self._block_row, self._h_ptr, self._h)
+        self.entries = int(self.Sp[-1])
+        if self.entries > max_entries:  # counted before the rows are laid out
+            raise EntriesOver(self.entries)
+        self.Si, self._first, self._lonely = _pattern(seg_start, column_blocks, self._block_row, self._h_ptr,
+                                                      self._h, self.Sp)
         self.blocks = len(self._block_row)
         # the blocks in ranges of about equal work (multiply-adds), a few per worker
         work = np.zeros(self.blocks)

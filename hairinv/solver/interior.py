@@ -62,7 +62,7 @@ import scipy.sparse.linalg
 
 from .._jit import jit
 from .._parallel import blas_pinned
-from .blocked import BlockedSystem
+from .blocked import BlockedSystem, EntriesOver
 from .rows import ContactRows, _rows_matvec, _rows_rmatvec
 from .supernodal import SupernodalCholesky, etree, expanded_flops, permuted_pattern
 from .supernodal import column_counts as supernodal_counts
@@ -85,7 +85,7 @@ _PATIENCE = 12
 # factorisation would take minutes a step.
 MAX_GFLOP = 150.0
 # The most entries the system's lower triangle may have (its pattern, values and the factorisation's copy
-# of them: about 32 bytes an entry before the factor's own fill). ruby short has 2.9 million; a full head of
+# of them: about 40 bytes an entry before the factor's own fill). ruby short has 2.9 million; a full head of
 # 100,000 strands far more, whose factorisation would be far over MAX_GFLOP anyway.
 _MAX_ENTRIES = 100_000_000
 _J = np.diag([1.0, -1.0, -1.0])
@@ -234,18 +234,19 @@ def nested_dissection(pattern) -> np.ndarray | None:
     return np.array(order, dtype=np.int64)
 
 
-def _grouped_flops(gSp: np.ndarray, gSi: np.ndarray, group_order: np.ndarray, sizes: np.ndarray,
+def _grouped_flops(gSp: np.ndarray, gSi: np.ndarray, node_order: np.ndarray, sizes: np.ndarray,
                    limit: float) -> float:
     """``sum c_j^2`` over the column counts of the system's Cholesky factor (its flops up to a constant) in
-    the coordinates' order that ``group_order`` expands to, or inf once it must pass ``limit``. Counted on
-    the groups' pattern (lower triangle ``gSp``, ``gSi``): a group's coordinates have the same neighbours,
-    each other included, and are eliminated one after the other, so the factor's structure is the groups'
-    expanded (:func:`.supernodal.column_counts` with the groups' sizes as weights)."""
+    the coordinates' order that ``node_order`` expands to, or inf once it must pass ``limit``. Counted on a
+    pattern of nodes (lower triangle ``gSp``, ``gSi``), node ``k`` standing for ``sizes[k]`` consecutive
+    coordinates that must have the same neighbours, each other included (a group some contact touches; a
+    coordinate no contact touches is a node of its own), eliminated one after the other, so that the
+    factor's structure is the nodes' expanded (:func:`.supernodal.column_counts` with the sizes as weights)."""
     m = len(gSp) - 1
     inv = np.empty(m, np.int64)
-    inv[group_order] = np.arange(m)
+    inv[node_order] = np.arange(m)
     Up, Ui, _, _, _ = permuted_pattern(m, gSp, gSi, inv)
-    weight = np.ascontiguousarray(sizes[group_order], dtype=np.int64)
+    weight = np.ascontiguousarray(sizes[node_order], dtype=np.int64)
     counts = supernodal_counts(m, etree(m, Up, Ui), Up, Ui, min(limit, 1e300), weight)
     if len(counts) == 0:
         return np.inf
@@ -297,13 +298,13 @@ class _Factor:
         self.backend = backend
         C = len(ptr) - 1
         counts = np.diff(ptr)
-        self.system = BlockedSystem(ptr, cols, n)
-        if self.system.entries > _MAX_ENTRIES:
-            raise TooLarge(f"{self.system.entries} entries in the system's lower triangle")
         limit = float(max_flops) if np.isfinite(max_flops) else 1e300
-        # the factor holds the system's entries, so under any ordering sum c^2 >= (sum c)^2 / n >= entries^2 / n
-        if float(self.system.entries) ** 2 / max(n, 1) > limit:
-            raise TooLarge(f"over {max_flops / 1e9:.3g} GFlop under any ordering")
+        # the factor holds the system's entries, so under any ordering sum c^2 >= (sum c)^2 / n >= entries^2 / n:
+        # a system with more entries than sqrt(limit n) is declined as soon as they are counted
+        try:
+            self.system = BlockedSystem(ptr, cols, n, min(_MAX_ENTRIES, np.sqrt(limit * max(n, 1))))
+        except EntriesOver as over:
+            raise TooLarge(f"{over.args[0]} entries in the system's lower triangle") from None
         self.Sp, self.Si = self.system.Sp, self.system.Si
         self.Sx = np.zeros(len(self.Si))
         self.n = n

@@ -809,7 +809,8 @@ class SupernodalCholesky:
 
     def factor_values(self) -> None:
         """Factor the matrix whose permuted lower triangle (``Lp``, ``Li``) has the values ``self.values``
-        (entry ``k`` is ``Sx[source[k]]``), for callers that assemble them there directly."""
+        (entry ``k`` is ``Sx[source[k]]``): :meth:`factor` after its gather, and a retry with those values
+        changed."""
         with blas_pinned():
             self._factor_values()
 
