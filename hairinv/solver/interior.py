@@ -322,21 +322,22 @@ class _Factor:
         # neighbours of each other): those are counted coordinate by coordinate
         touched = np.diff(by_coordinate.indptr)[starts[:-1]] > 0
         nodes = np.where(touched, 1, np.diff(starts))
+        sizes = np.ones(int(np.sum(nodes)), np.int64)  # each node's coordinates
+        sizes[np.cumsum(nodes)[touched] - 1] = np.diff(starts)[touched]
         node_starts = np.r_[0, np.cumsum(nodes)].astype(np.int64)
-        first = np.zeros(n, np.bool_)
-        first[starts[:-1]] = True
-        first[~np.repeat(touched, np.diff(starts))] = True
-        node_first = np.r_[np.flatnonzero(first), n].astype(np.int64)
-        counted = scipy.sparse.csr_matrix(by_coordinate[:, node_first[:-1]])
-        counted = scipy.sparse.tril(counted.T @ counted + scipy.sparse.eye(len(node_first) - 1), format="csc")
+        # (the groups' pattern with each group renumbered as its first node; the split ones' nodes are alone)
+        m = int(node_starts[-1])
+        lower = scipy.sparse.tril(grouped, format="coo")
+        counted = scipy.sparse.csc_matrix((np.ones(lower.nnz + m), (np.r_[node_starts[lower.row], np.arange(m)],
+                                                                     np.r_[node_starts[lower.col], np.arange(m)])),
+                                          shape=(m, m))
         counted.sort_indices()
         cSp, cSi = counted.indptr.astype(np.int64), counted.indices.astype(np.int64)
         self.order, self.flops, self.ordering = None, np.inf, ""
         self.candidates = {}
         for name, group_order in self._orderings(grouped, backend):
             order = _expand(group_order, starts)
-            flops = _grouped_flops(cSp, cSi, _expand(group_order, node_starts), np.diff(node_first),
-                                   min(limit, self.flops))
+            flops = _grouped_flops(cSp, cSi, _expand(group_order, node_starts), sizes, min(limit, self.flops))
             self.candidates[name] = (order, flops)
             if flops < self.flops:
                 self.order, self.flops, self.ordering = order, flops, name
