@@ -165,7 +165,8 @@ def stability(helices: Helices, material: Material, stiff: np.ndarray, rows: Con
 def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, rows: ContactRows | None = None,
                       contacts: Contacts | None = None, carrying: np.ndarray | None = None,
                       force: np.ndarray | None = None, strands: np.ndarray | None = None,
-                      previous: tuple | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                      previous: tuple | None = None, supported: bool = True
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The smallest eigenvalue ``lambda`` of each strand's scaled Hessian ``I + K^-1/2 V'' K^-1/2`` on
     the motions :func:`stability` allows (with the supports, without, with every declared contact held,
     with the forces held fixed), each (S,) float64; ``inf`` where the held points leave no motion. A strand is unstable where
@@ -178,6 +179,10 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
     ``strands`` (indices) checks only those strands; the others keep the values of ``previous`` (an
     earlier result of this function, for the same contacts and forces), as they are where only the
     stiffness of ``strands`` changed since.
+
+    ``supported`` False leaves the first margin out (NaN on strands with contacts): the default
+    stabilisation works on the forces held fixed, and the supports' margin costs a null space and an
+    eigenvalue problem per strand.
     """
     S = helices.n_strands
     # each strand's contact sides (a hair-hair contact counts on both its strands), strand by strand
@@ -222,8 +227,8 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
     def check(lo: int, hi: int) -> None:
         _stability_chunk(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
                          material.linear_density, material.gravity, stiff, incident_ptr, incident, loaded, ptr,
-                         cols, vals, load_s, load_f, force is not None, slip_kind, slip_dir, which, lo, hi,
-                         unstable, free, always, fixed)
+                         cols, vals, load_s, load_f, force is not None, slip_kind, slip_dir, supported, which, lo,
+                         hi, unstable, free, always, fixed)
 
     run_chunks(check, len(which), 64)
     return unstable, free, always, fixed
@@ -246,8 +251,8 @@ def _on_cone_edge(tangential: np.ndarray, mu: np.ndarray, normal: np.ndarray) ->
 
 @jit
 def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, incident_ptr, incident, loaded,
-                     ptr, cols, vals, load_s, load_f, with_loads, slip_kind, slip_dir, which, lo, hi, unstable,
-                     free, always, fixed):
+                     ptr, cols, vals, load_s, load_f, with_loads, slip_kind, slip_dir, supported, which, lo, hi,
+                     unstable, free, always, fixed):
     """:func:`stability` for strands ``which[lo:hi]``."""
     for w in range(lo, hi):
         s = which[w]
@@ -316,7 +321,10 @@ def _stability_chunk(root, frame0, offsets, omega, length, lam, gravity, stiff, 
                     A[i, j] += hess[i, j] * scale[i] * scale[j]
         # the forces held fixed: every motion, the loads' share in A (without loads, the gravity-only margin)
         fixed[s] = free[s] if not (with_loads and n_loaded > 0) else np.linalg.eigvalsh(A)[0]
-        unstable[s] = free[s] if n_loaded == 0 else _lowest_held(A, C[:rows_loaded])
+        if not supported:
+            unstable[s] = np.nan
+        else:
+            unstable[s] = free[s] if n_loaded == 0 else _lowest_held(A, C[:rows_loaded])
         always[s] = _lowest_held(A, C)
 
 
@@ -427,7 +435,9 @@ def _lowest_held(A, C):
             k += 1
     if k == 0:
         return np.linalg.eigvalsh(A)[0]
-    _, sv, vt = np.linalg.svd(U[:k])
+    # only the right singular vectors are used: with more rows than columns the thin decomposition has
+    # them all (and skips the k x k left ones), with fewer the full one is needed for the null space
+    _, sv, vt = np.linalg.svd(U[:k], k < m)
     rank = 0
     for x in sv:
         rank += x > 1e-12 * sv[0]
@@ -777,7 +787,8 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         """(the margin stabilisation works on, free, always, groups, their margins, strands unchecked);
         ``changed``: only these strands' stiffness changed since the last call, with the same forces"""
         checked = stability_margins(helices, material, stiff, rows, contacts, carrying, force,
-                                    strands=changed, previous=last.get("margins") if changed is not None else None)
+                                    strands=changed, previous=last.get("margins") if changed is not None else None,
+                                    supported=not by_forces)
         last["margins"] = checked
         supported, free, always, fixed = checked
         if by_forces:  # stable on every motion is stable together too: no joint check of the groups

@@ -191,3 +191,51 @@ def test_the_stored_margin_is_greenhills_and_says_which_strands_rest_stably(tmp_
     assert 1.0 - off[0] == pytest.approx(critical, rel=DISCRETIZATION) and off[0] < 0
     assert on[0] == pytest.approx(1.0 - 1.0 / m, abs=1e-9)
     assert off[1] > 0 and on[1] == off[1]  # the hanging column is stable and left alone
+
+
+@pytest.mark.parametrize("rows", [5, 21, 60])
+def test_the_held_margin_is_the_smallest_eigenvalue_on_the_null_space_of_the_held_rows(rows):
+    """``_lowest_held`` against its definition: the smallest eigenvalue of ``Z^T A Z`` with ``Z`` an
+    orthonormal basis of the null space of the rows (scipy's, by its own SVD), with fewer rows than
+    columns, as many, and more (a dense head's strand: more rows than coordinates, with dependent ones:
+    two contacts on one spot, or rows that repeat a combination of others); ``inf`` where no motion is left."""
+    from scipy.linalg import null_space
+
+    from hairinv.invert import _lowest_held
+
+    rng = np.random.default_rng(rows)
+    m = 21
+    B = rng.normal(size=(m, m))
+    A = np.eye(m) + 0.3 * (B + B.T)
+    C = rng.normal(size=(rows, m)) * rng.uniform(1e-3, 1e2, size=(rows, 1))  # rows of any length
+    for dependent in (False, True):
+        H = C.copy()
+        if dependent:  # rank 8 whatever the row count: every row a combination of eight
+            H = rng.normal(size=(rows, 8)) @ rng.normal(size=(8, m))
+        Z = null_space(H / np.linalg.norm(H, axis=1, keepdims=True), rcond=1e-12)
+        expected = np.linalg.eigvalsh(Z.T @ A @ Z)[0] if Z.shape[1] else np.inf
+        got = _lowest_held(A, np.ascontiguousarray(H))
+        if np.isinf(expected):
+            assert np.isinf(got)
+        else:
+            assert got == pytest.approx(expected, rel=1e-10, abs=1e-10)
+
+
+def test_leaving_the_supports_margin_out_changes_no_other_margin():
+    """``supported=False`` (what the default stabilisation on the forces held fixed asks for) leaves the
+    first margin out, NaN on strands with contacts, and the other three exactly as computed with it."""
+    mat = material(density=1.0)
+    L = 0.1
+    helices = strands([(np.zeros(3), -UP, np.zeros((ELEMENTS, 3)), np.full(ELEMENTS, L / ELEMENTS)),
+                       (np.array([0.05, 0.0, 0.0]), UP, np.zeros((6, 3)), np.full(6, 0.02))])
+    contacts = make_contacts(helices, [(0, L, -1, 0.0, UP, 0.3), (0, 0.5 * L, -1, 0.0, UP, 0.3)])
+    rows = contact_rows(helices, contacts)
+    force = np.array([[0.5 * mat.bending / L ** 2, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    carrying = np.array([True, False])
+    stiff = stiffness(helices, mat)
+    full = stability_margins(helices, mat, stiff, rows, contacts, carrying, force)
+    lean = stability_margins(helices, mat, stiff, rows, contacts, carrying, force, supported=False)
+    assert np.isfinite(full[0][0]) and np.isnan(lean[0][0])
+    assert lean[0][1] == full[0][1]  # no contact: the free margin, as before
+    for a, b in zip(full[1:], lean[1:]):
+        np.testing.assert_array_equal(a, b)
