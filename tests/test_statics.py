@@ -145,6 +145,10 @@ def test_assembled_contact_rows_match_finite_differences_of_contact_gaps(rng):
     contacts = Contacts(strand, s, np.zeros((len(pairs), 3)), frame, np.full(len(pairs), 0.3),
                         np.zeros(len(pairs)), None)
     H = contact_rows(helices, contacts).to_sparse().toarray()
+    # in chunks of two contact sides (a strand's sides split between chunks, each starting its chain
+    # afresh): the same entries
+    chunked = contact_rows(helices, contacts, run=lambda work, n: [work(lo, min(n, lo + 2)) for lo in range(0, n, 2)])
+    np.testing.assert_array_equal(chunked.to_sparse().toarray(), H)
 
     def relative(omega):
         out = np.empty((len(pairs), 3))

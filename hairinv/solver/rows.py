@@ -23,7 +23,7 @@ import scipy.sparse
 
 from .._jit import jit
 from ..rod.helix import chain
-from ..rod.statics import chained_point_jacobian, point_jacobian
+from ..rod.statics import chained_point_jacobian
 
 __all__ = ["ContactRows", "contact_rows"]
 
@@ -100,9 +100,10 @@ def _side_width(offsets, length, strand, s):
 
 
 @jit
-def _count(offsets, length, strand, s, counts):
+def _count(offsets, length, strand, s, counts, first_width):
     for i in range(strand.shape[0]):
         c = _side_width(offsets, length, strand[i, 0], s[i, 0])
+        first_width[i] = c
         if strand[i, 1] >= 0:
             c += _side_width(offsets, length, strand[i, 1], s[i, 1])
         counts[i] = c
@@ -122,9 +123,11 @@ def _write_side(J, e_s, lo, frame, sign, ptr_at, cols, vals):
 
 
 @jit
-def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, vals, order, lo, hi):
-    """Rows of contacts ``order[lo:hi]``; consecutive contacts on one strand A share its element
-    chain and element derivatives."""
+def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, vals, first_width, side_contact,
+          side_which, order, lo, hi):
+    """The entries of the contact sides ``order[lo:hi]`` (side ``t`` is contact ``side_contact[t]``'s strand
+    A where ``side_which[t]`` is 0, its strand B where 1); consecutive sides on one strand share its
+    element chain and element derivatives (the sides are ordered by strand)."""
     last = -1
     xs = np.empty((1, 3))
     Fs = np.empty((1, 3, 3))
@@ -132,8 +135,10 @@ def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, val
     dTh = np.empty((1, 3, 3))
     done = 0
     for t in range(lo, hi):
-        i = order[t]
-        a = strand[i, 0]
+        side = order[t]
+        i = side_contact[side]
+        which = side_which[side]
+        a = strand[i, which]
         first = offsets[a]
         n = offsets[a + 1] - first
         if a != last:
@@ -146,40 +151,44 @@ def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, val
             last = a
         J = np.empty((n, 3, 3))
         e_s = chained_point_jacobian(xs, Fs, omega[first:first + n], length[first:first + n], dX, dTh, done,
-                                     s[i, 0], J)
+                                     s[i, which], J)
         done = max(done, e_s)
-        j = _write_side(J, e_s, first, frame[i], 1.0, ptr[i], cols, vals)
-        b = strand[i, 1]
-        if b >= 0:
-            first_b = offsets[b]
-            hi_b = offsets[b + 1]
-            J = np.empty((hi_b - first_b, 3, 3))
-            e_b = point_jacobian(root[b], frame0[b], omega[first_b:hi_b], length[first_b:hi_b], s[i, 1], J)
-            _write_side(J, e_b, first_b, frame[i], -1.0, j, cols, vals)
+        if which == 0:
+            _write_side(J, e_s, first, frame[i], 1.0, ptr[i], cols, vals)
+        else:  # B's columns follow A's, with the opposite force
+            _write_side(J, e_s, first, frame[i], -1.0, ptr[i] + first_width[i], cols, vals)
 
 
 def contact_rows(helices, contacts, run=None) -> ContactRows:
     """Assemble ``H`` for ``contacts`` on ``helices`` (see the module docstring).
 
     ``run(work, count)`` optionally runs ``work(lo, hi)`` over chunks of
-    contacts (on threads); each chunk writes only its own entries.
+    contact sides (on threads); each chunk writes only its own entries.
     """
     n_contacts = len(contacts.mu)
     counts = np.zeros(n_contacts, dtype=np.int64)
-    _count(helices.offsets, helices.length, contacts.strand, contacts.s, counts)
+    first_width = np.zeros(n_contacts, dtype=np.int64)
+    _count(helices.offsets, helices.length, contacts.strand, contacts.s, counts, first_width)
     ptr = np.zeros(n_contacts + 1, dtype=np.int64)
     np.cumsum(counts, out=ptr[1:])
     cols = np.empty(ptr[-1], dtype=np.int64)
     vals = np.empty((ptr[-1], 3))
 
-    order = np.argsort(contacts.strand[:, 0], kind="stable")  # a strand's contacts share its chain
+    # every contact side (A, and B of a hair-hair contact), grouped by strand: a strand's sides share its
+    # chain, whichever side of their contacts they are (a hair-hair contact's B once took a chain of its own)
+    hair = np.flatnonzero(contacts.strand[:, 1] >= 0) if n_contacts else np.zeros(0, np.int64)
+    side_contact = np.concatenate([np.arange(n_contacts, dtype=np.int64), hair.astype(np.int64)])
+    side_which = np.concatenate([np.zeros(n_contacts, np.int64), np.ones(len(hair), np.int64)])
+    side_strand = contacts.strand[side_contact, side_which] if len(side_contact) else np.zeros(0, np.int64)
+    order = np.argsort(side_strand, kind="stable")
 
     def work(lo: int, hi: int) -> None:
         _fill(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
-              contacts.strand, contacts.s, contacts.frame, ptr, cols, vals, order, lo, hi)
+              contacts.strand, contacts.s, contacts.frame, ptr, cols, vals, first_width, side_contact, side_which,
+              order, lo, hi)
 
     if run is None or n_contacts == 0:
-        work(0, n_contacts)
+        work(0, len(order))
     else:
-        run(work, n_contacts)
+        run(work, len(order))
     return ContactRows(ptr, cols, vals, 3 * helices.n_elements)
