@@ -232,3 +232,25 @@ def test_point_load_hessian_is_the_second_derivative_of_the_load_potential(rng, 
             fd[i, j] = (v(h, h) - v(h, -h) - v(-h, h) + v(-h, -h)) / (4 * h * h)
     scale_of = np.abs(fd).max() + 1e-12
     assert np.abs(out - fd).max() <= 1e-5 * scale_of  # the kernel's own differences: ~1e-10 relative
+
+
+def test_the_groom_sample_points_are_each_strands_points_evenly_spaced_in_arc_length(rng):
+    """``hairinv.dynamics.run._sample_points`` (all strands in one pass) against each strand's own
+    ``points_at`` at ``per_element`` points per element and the tip, evenly spaced from root to tip."""
+    from hairinv.dynamics.run import _sample_points, _samples
+    from hairinv.fit import Helices
+
+    specs = [random_strand(rng, n, 8.0) for n in (4, 1, 7, 3)]
+    offsets = np.cumsum([0] + [len(sp[2]) for sp in specs])
+    helices = Helices(np.array([sp[0] for sp in specs]), np.array([sp[1] for sp in specs]), offsets,
+                      np.concatenate([sp[3] for sp in specs]), np.concatenate([sp[2] for sp in specs]),
+                      np.zeros(len(specs)))
+    for per_element in (1, 2, 4):
+        points, ptr = _sample_points(helices, helices.omega, per_element)
+        split = _samples(helices, helices.omega, per_element)
+        for k, sp in enumerate(specs):
+            s = np.linspace(0.0, sp[3].sum(), per_element * len(sp[3]) + 1)
+            expected = np.empty((len(s), 3))
+            points_at(sp[0], sp[1], sp[2], sp[3], s, expected)
+            np.testing.assert_allclose(points[ptr[k]:ptr[k + 1]], expected, rtol=0, atol=1e-15)
+            np.testing.assert_array_equal(split[k], points[ptr[k]:ptr[k + 1]])

@@ -23,9 +23,8 @@ from ..errors import InputError
 from ..invert import generalized_gravity
 from ..model import (Contacts, Helices, Material, material_from_group, rest_from_group, stiffening_from_group,
                      stiffness)
-from ..rod.helix import points_at
 from .scene import Scene, trim_helices
-from .simulate import Motion, Simulation, StepReport
+from .simulate import Motion, Simulation, StepReport, points_on
 
 __all__ = ["INITS", "Frames", "FrameLog", "initial_rest", "run_scene"]
 
@@ -113,17 +112,28 @@ def initial_rest(init: str, helices: Helices, material: Material, model: stages.
     raise InputError(f"unknown initialisation {init!r}; choose one of {', '.join(INITS)}")
 
 
-def _samples(helices: Helices, q: np.ndarray, per_element: int = 2) -> np.ndarray:
-    """Points at the ends and inside every element, (S, k, 3), body frame."""
-    out = []
-    for k in range(helices.n_strands):
-        a, z = helices.offsets[k], helices.offsets[k + 1]
-        total = helices.length[a:z].sum()
-        s = np.linspace(0.0, total, per_element * (z - a) + 1)
-        pts = np.empty((len(s), 3))
-        points_at(helices.root[k], helices.frame0[k], q[a:z], helices.length[a:z], s, pts)
-        out.append(pts)
-    return out
+def _sample_points(helices: Helices, q: np.ndarray, per_element: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Points at the ends and inside every element, all strands at once: (P, 3) in the body frame, and
+    ``ptr`` (S + 1,), strand ``k``'s points being ``[ptr[k], ptr[k + 1])`` (``per_element`` per element and
+    the tip, evenly spaced in arc length)."""
+    S = helices.n_strands
+    counts = np.diff(helices.offsets)
+    per_strand = per_element * counts + 1
+    ptr = np.zeros(S + 1, dtype=np.int64)
+    np.cumsum(per_strand, out=ptr[1:])
+    strand = np.repeat(np.arange(S, dtype=np.int64), per_strand)
+    total = np.bincount(np.repeat(np.arange(S), counts), weights=helices.length, minlength=S)
+    # as np.linspace spaces them: index times (total / intervals), the last one exactly the total
+    index = np.arange(ptr[-1]) - ptr[strand]
+    s = index * (total / np.maximum(per_strand - 1, 1))[strand]
+    s[ptr[1:] - 1] = total
+    return points_on(helices, np.ascontiguousarray(q, dtype=np.float64), strand, s), ptr
+
+
+def _samples(helices: Helices, q: np.ndarray, per_element: int = 2) -> list[np.ndarray]:
+    """:func:`_sample_points` strand by strand: a list of (k, 3) arrays."""
+    points, ptr = _sample_points(helices, q, per_element)
+    return np.split(points, ptr[1:-1])
 
 
 def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts | None, body_mesh,
@@ -184,7 +194,7 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
     world_gravity = material.gravity
     # without gravity there is no up axis (zero): a moving scene, which needs one, says so
     up = -world_gravity / max(np.linalg.norm(world_gravity), 1e-300)
-    start_points = _samples(helices, sim.q)
+    start_points, sample_ptr = _sample_points(helices, sim.q)
 
     def state(t: float):
         if not scene.moving:
@@ -209,9 +219,9 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
         out.body_transform[index] = np.eye(4)
         out.body_transform[index, :3, :3] = R
         out.body_transform[index, :3, 3] = c
-        now = _samples(helices, sim.q)
-        per_strand = np.array([np.max(np.linalg.norm(a - b, axis=1)) for a, b in zip(now, start_points)],
-                              dtype=np.float64)
+        now, _ = _sample_points(helices, sim.q)
+        distance = np.linalg.norm(now - start_points, axis=1)
+        per_strand = np.maximum.reduceat(distance, sample_ptr[:-1]) if len(distance) else np.zeros(0)
         moved = float(per_strand.max()) if len(per_strand) else 0.0
         log = FrameLog(index, t, reports[-1].contacts if reports else sim.contacts.n_contacts,
                        reports[-1].n_body if reports else sim.contacts.n_body,
