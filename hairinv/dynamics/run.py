@@ -133,7 +133,7 @@ def _sample_points(helices: Helices, q: np.ndarray, per_element: int = 2) -> tup
 def _samples(helices: Helices, q: np.ndarray, per_element: int = 2) -> list[np.ndarray]:
     """:func:`_sample_points` strand by strand: a list of (k, 3) arrays."""
     points, ptr = _sample_points(helices, q, per_element)
-    return np.split(points, ptr[1:-1])
+    return np.split(points, ptr[1:-1]) if helices.n_strands else []
 
 
 def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts | None, body_mesh,
