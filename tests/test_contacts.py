@@ -997,3 +997,19 @@ def test_the_layer_rule_kernel_declares_what_the_rule_says(monkeypatch, name):
     assert out.sum() > 10 and len(gaps) > 10
     np.testing.assert_array_equal(out, expected)
     np.testing.assert_array_equal(gaps, expected_gaps)
+
+
+def test_body_distances_of_many_points_are_the_boxs_signed_distance():
+    """``BodyMesh.closest`` on thousands of points (queried in chunks on the worker threads) against the
+    closed form of a box: outside, the distance to the box; inside, minus the distance to the nearest face;
+    the closest point on the surface at that distance."""
+    half = np.array([0.1, 0.05, 0.15])
+    body = BodyMesh.from_mesh(trimesh.creation.box(extents=2 * half))
+    points = np.random.default_rng(3).uniform(-0.3, 0.3, size=(5003, 3))  # not a whole number of chunks
+    q = np.abs(points) - half
+    expected = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+    sd, closest, normal, face = body.closest(points)
+    np.testing.assert_allclose(sd, expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(points - closest, axis=1), np.abs(expected), rtol=0, atol=1e-12)
+    assert np.all(np.abs(closest) <= half + 1e-12) and np.all(face >= 0)
+    np.testing.assert_allclose(np.linalg.norm(normal, axis=1), 1.0, rtol=0, atol=1e-12)

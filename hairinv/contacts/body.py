@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._jit import jit
+from .._parallel import run_chunks
 from ..errors import InputError
 from ._curve import point_tangent, sample_sigma
 
@@ -41,6 +42,8 @@ FACE, VERTEX_A, VERTEX_B, VERTEX_C, EDGE_AB, EDGE_BC, EDGE_CA = range(7)
 LEAF_SIZE = 4
 # Depth of the traversal stack; a median-split tree over 2^40 triangles is 40 deep.
 STACK = 128
+# points per chunk of BodyMesh.closest on the worker threads (a query takes about a microsecond)
+_QUERY_CHUNK = 1024
 # A triangle is dropped when its area is below this fraction of its longest edge squared (a sliver whose
 # normal is round-off); its edges are shared with its neighbours, which carry the surface.
 DEGENERATE = 1e-10
@@ -161,7 +164,9 @@ class BodyMesh:
         c = np.empty((n, 3))
         nrm = np.empty((n, 3))
         tri = np.empty(n, np.int64)
-        _query_many(points, *self.tree, sd, c, nrm, tri)
+        tree = self.tree
+        run_chunks(lambda lo, hi: _query_many(points[lo:hi], *tree, sd[lo:hi], c[lo:hi], nrm[lo:hi], tri[lo:hi]),
+                   n, _QUERY_CHUNK)
         return sd, c, nrm, self.face_index[tri]
 
 
