@@ -834,12 +834,16 @@ def test_pairs_refined_only_where_needed_give_the_same_contacts(monkeypatch, see
             assert some < 0.6 * total, (some, total)
 
 
-@pytest.mark.parametrize("seed, cap", [(0, 1), (1, 2), (2, 4)])
-def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed, cap):
+@pytest.mark.parametrize("seed, cap, window", [(0, 1, None), (1, 2, None), (2, 4, None), (0, 1, 7), (2, 4, 64)])
+def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed, cap, window, monkeypatch):
     """The greedy of the cap against its definition (pairs by distance, ties to the lower index, kept while both
     elements hold fewer than the cap), with a random part of the pairs refined beforehand and random lower bounds
-    (anything at most the distance) for the others: the order of refinement must not matter."""
+    (anything at most the distance) for the others: the order of refinement must not matter. With a small window
+    of pending pairs refined ahead, the greedy stops and resumes many times: the same answer."""
     from hairinv.contacts import detect as detect_module
+
+    if window is not None:
+        monkeypatch.setattr(detect_module, "_CAP_WINDOW", window)
     from hairinv.contacts._curve import element_starts, sample_elements
 
     h = dense_head(seed)

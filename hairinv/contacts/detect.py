@@ -219,31 +219,21 @@ def _heap_pop(key, item, n):
     return n
 
 
+# pending pairs refined ahead of the greedy at once, on the worker threads (those it then measures are
+# the same pairs, refined from the same start, so the same values; the others are dropped unused)
+_CAP_WINDOW = 16384
+
+
 @jit
-def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements, within, s0, length, is_last,
-               root_clearance, xs, Fs, omega, out):
-    """Greedy, closest first (ties to the lower index): keep a pair while both of its elements hold fewer
-    than ``cap`` contacts; marks ``out``.
-
-    The candidates are the refined pairs ``known``, in the order of their distances (ties to the lower
-    index), and the pairs not refined yet, ``pending``, in the order of their lower bounds ``low`` (ties in
-    any order). These are taken always before any refined candidate farther than their bound, so
-    the order is that of the distances. When its turn comes, a pair one of whose elements already holds
-    ``cap`` contacts cannot be kept whatever its distance (counts only grow) and is left unmeasured; the
-    others are refined (``sa``, ``sb``, ``dist``, ``refined`` updated in place) and are candidates as
-    ``keep`` would have marked them: closer than ``within``, neither point an element's end that starts
-    the next, not both within ``root_clearance`` of the roots.
-
-    Returns ``(dropped, unmeasured)``: candidates not kept, and pairs left unmeasured.
-    """
-    count = np.zeros(elements, dtype=np.int64)
-    key = np.empty(1024)
-    item = np.empty(1024, dtype=np.int64)
-    n = 0
-    i = 0
-    j = 0
-    dropped = 0
-    unmeasured = 0
+def _cap_greedy(ea, eb, sa, sb, dist, refined, known, pending, low, cap, within, s0, length, is_last,
+                root_clearance, out, count, key, item, state, window_end, ahead_sa, ahead_sb, ahead_dist, ahead_done):
+    """The greedy of :func:`_cap_pairs`, resumable: it stops (and returns the heap, which may have grown) when
+    its next candidate is the pending pair ``pending[window_end]``, whose refinement has not been done ahead.
+    ``state`` = (heap size, next pending, next known, dropped, unmeasured), updated in place. A pending pair
+    ``pending[i]`` within the window takes its refinement from ``ahead_*[i - (window_end - len(ahead))]``
+    where ``ahead_done`` says one was made (none where an element was already full: it still is)."""
+    n, i, j, dropped, unmeasured = state[0], state[1], state[2], state[3], state[4]
+    window_start = window_end - ahead_done.shape[0]
     while True:
         k = -1
         from_heap = False
@@ -253,12 +243,20 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
             k = item[0]
             from_heap = True
         if i < pending.shape[0] and (k < 0 or not dist[k] < low[pending[i]]):
+            if i >= window_end:
+                break  # its refinement is the next window's
             p = pending[i]
+            w = i - window_start
             i += 1
             if count[ea[p]] >= cap or count[eb[p]] >= cap:
                 unmeasured += 1
                 continue
-            refine_pairs(p, p + 1, ea, eb, sa, sb, xs, Fs, omega, length, dist)
+            if not ahead_done[w]:  # (an element was full when the window was refined: it is now too)
+                unmeasured += 1
+                continue
+            sa[p] = ahead_sa[w]
+            sb[p] = ahead_sb[w]
+            dist[p] = ahead_dist[w]
             refined[p] = True
             a = ea[p]
             b = eb[p]
@@ -282,7 +280,51 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
             out[k] = True
         else:
             dropped += 1
-    return dropped, unmeasured
+    state[0], state[1], state[2], state[3], state[4] = n, i, j, dropped, unmeasured
+    return key, item
+
+
+def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements, within, s0, length, is_last,
+               root_clearance, xs, Fs, omega, out):
+    """Greedy, closest first (ties to the lower index): keep a pair while both of its elements hold fewer
+    than ``cap`` contacts; marks ``out``.
+
+    The candidates are the refined pairs ``known``, in the order of their distances (ties to the lower
+    index), and the pairs not refined yet, ``pending``, in the order of their lower bounds ``low`` (ties in
+    any order). These are taken always before any refined candidate farther than their bound, so
+    the order is that of the distances. When its turn comes, a pair one of whose elements already holds
+    ``cap`` contacts cannot be kept whatever its distance (counts only grow) and is left unmeasured; the
+    others are refined (``sa``, ``sb``, ``dist``, ``refined`` updated in place) and are candidates as
+    ``keep`` would have marked them: closer than ``within``, neither point an element's end that starts
+    the next, not both within ``root_clearance`` of the roots. The refinements are made ahead, a window of
+    ``_CAP_WINDOW`` pending pairs at a time on the worker threads, for the pairs whose elements are not full
+    yet; the greedy itself is sequential.
+
+    Returns ``(dropped, unmeasured)``: candidates not kept, and pairs left unmeasured.
+    """
+    count = np.zeros(elements, dtype=np.int64)
+    key = np.empty(1024)
+    item = np.empty(1024, dtype=np.int64)
+    state = np.zeros(5, dtype=np.int64)
+    window_end = 0
+    empty = np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.bool_)
+    while True:
+        key, item = _cap_greedy(ea, eb, sa, sb, dist, refined, known, pending, low, cap, within, s0, length,
+                                is_last, root_clearance, out, count, key, item, state, window_end, *empty)
+        if state[1] >= len(pending) or state[1] < window_end:
+            break  # done (the greedy stops early only at the window's end)
+        window = pending[window_end:window_end + _CAP_WINDOW]
+        window_end += len(window)
+        todo = np.flatnonzero((count[ea[window]] < cap) & (count[eb[window]] < cap))
+        pairs = window[todo]
+        a, b = ea[pairs], eb[pairs]
+        ahead_sa, ahead_sb, ahead_dist = sa[pairs], sb[pairs], np.empty(len(pairs))
+        run_chunks(lambda lo, hi: refine_pairs(lo, hi, a, b, ahead_sa, ahead_sb, xs, Fs, omega, length, ahead_dist),
+                   len(pairs), 512)
+        empty = (np.zeros(len(window)), np.zeros(len(window)), np.zeros(len(window)),
+                 np.zeros(len(window), dtype=np.bool_))
+        empty[0][todo], empty[1][todo], empty[2][todo], empty[3][todo] = ahead_sa, ahead_sb, ahead_dist, True
+    return int(state[3]), int(state[4])
 
 
 def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=None,
