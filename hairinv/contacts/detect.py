@@ -307,13 +307,14 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
     item = np.empty(1024, dtype=np.int64)
     state = np.zeros(5, dtype=np.int64)
     window_end = 0
-    empty = np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.bool_)
+    size = max(1, int(_CAP_WINDOW))
+    ahead = np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.bool_)  # the window's refinements
     while True:
         key, item = _cap_greedy(ea, eb, sa, sb, dist, refined, known, pending, low, cap, within, s0, length,
-                                is_last, root_clearance, out, count, key, item, state, window_end, *empty)
-        if state[1] >= len(pending) or state[1] < window_end:
-            break  # done (the greedy stops early only at the window's end)
-        window = pending[window_end:window_end + _CAP_WINDOW]
+                                is_last, root_clearance, out, count, key, item, state, window_end, *ahead)
+        if state[1] >= len(pending):
+            break  # done: otherwise the greedy stopped at the window's end, before pending[window_end]
+        window = pending[window_end:window_end + size]
         window_end += len(window)
         todo = np.flatnonzero((count[ea[window]] < cap) & (count[eb[window]] < cap))
         pairs = window[todo]
@@ -321,9 +322,9 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
         ahead_sa, ahead_sb, ahead_dist = sa[pairs], sb[pairs], np.empty(len(pairs))
         run_chunks(lambda lo, hi: refine_pairs(lo, hi, a, b, ahead_sa, ahead_sb, xs, Fs, omega, length, ahead_dist),
                    len(pairs), 512)
-        empty = (np.zeros(len(window)), np.zeros(len(window)), np.zeros(len(window)),
+        ahead = (np.zeros(len(window)), np.zeros(len(window)), np.zeros(len(window)),
                  np.zeros(len(window), dtype=np.bool_))
-        empty[0][todo], empty[1][todo], empty[2][todo], empty[3][todo] = ahead_sa, ahead_sb, ahead_dist, True
+        ahead[0][todo], ahead[1][todo], ahead[2][todo], ahead[3][todo] = ahead_sa, ahead_sb, ahead_dist, True
     return int(state[3]), int(state[4])
 
 
