@@ -38,7 +38,7 @@ from .solver.gauss_seidel import (CONVERGED, MAX_ITERS, SolverResult, diagonal_b
                                   split_strands)
 from .solver import interior as interior_module
 from .solver.interior import mu_in_range, solve_interior
-from .solver.rows import ContactRows, contact_rows
+from .solver.rows import ContactRows, contact_rows, sides_by_strand
 
 __all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness", "generalized_gravity",
            "target_shape", "stability"]
@@ -187,17 +187,12 @@ def stability_margins(helices: Helices, material: Material, stiff: np.ndarray, r
     S = helices.n_strands
     # each strand's contact sides (a hair-hair contact counts on both its strands), strand by strand
     if rows is not None and contacts is not None and rows.n_contacts:
-        side_strand = contacts.strand.ravel()
-        side_contact = np.repeat(np.arange(rows.n_contacts, dtype=np.int64), 2)
-        keep = side_strand >= 0
-        side_strand, side_contact = side_strand[keep], side_contact[keep]
-        order = np.argsort(side_strand, kind="stable")
-        incident = side_contact[order]
-        incident_ptr = np.searchsorted(side_strand[order], np.arange(S + 1)).astype(np.int64)
+        side_index = sides_by_strand(contacts.strand)
+        incident = side_index // 2
+        incident_ptr = np.searchsorted(contacts.strand.ravel()[side_index], np.arange(S + 1)).astype(np.int64)
         loaded = np.zeros(rows.n_contacts, bool) if carrying is None else np.asarray(carrying, bool)
         ptr, cols, vals = rows.ptr, rows.cols, rows.vals
         # the load each side takes: the world force on A at s_A, its opposite on B at s_B
-        side_index = np.flatnonzero(keep)[order]
         load_s = np.ascontiguousarray(contacts.s.ravel()[side_index])
         slip_kind = np.zeros(rows.n_contacts, np.int64)
         slip_dir = np.zeros((rows.n_contacts, 2))

@@ -25,7 +25,7 @@ from .._jit import jit
 from ..rod.helix import chain
 from ..rod.statics import chained_point_jacobian
 
-__all__ = ["ContactRows", "contact_rows"]
+__all__ = ["ContactRows", "contact_rows", "sides_by_strand"]
 
 
 class ContactRows:
@@ -123,11 +123,10 @@ def _write_side(J, e_s, lo, frame, sign, ptr_at, cols, vals):
 
 
 @jit
-def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, vals, first_width, side_contact,
-          side_which, order, lo, hi):
-    """The entries of the contact sides ``order[lo:hi]`` (side ``t`` is contact ``side_contact[t]``'s strand
-    A where ``side_which[t]`` is 0, its strand B where 1); consecutive sides on one strand share its
-    element chain and element derivatives (the sides are ordered by strand)."""
+def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, vals, first_width, order, lo, hi):
+    """The entries of the contact sides ``order[lo:hi]`` (:func:`sides_by_strand`: side ``2 i + w`` is contact
+    ``i``'s strand A, ``w`` 0, or B, ``w`` 1); consecutive sides on one strand share its element chain and
+    element derivatives."""
     last = -1
     xs = np.empty((1, 3))
     Fs = np.empty((1, 3, 3))
@@ -135,9 +134,8 @@ def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, val
     dTh = np.empty((1, 3, 3))
     done = 0
     for t in range(lo, hi):
-        side = order[t]
-        i = side_contact[side]
-        which = side_which[side]
+        i = order[t] // 2
+        which = order[t] % 2
         a = strand[i, which]
         first = offsets[a]
         n = offsets[a + 1] - first
@@ -159,6 +157,14 @@ def _fill(root, frame0, offsets, omega, length, strand, s, frame, ptr, cols, val
             _write_side(J, e_s, first, frame[i], -1.0, ptr[i] + first_width[i], cols, vals)
 
 
+def sides_by_strand(strand: np.ndarray) -> np.ndarray:
+    """Every contact side, ordered by its strand (stably: by contact within a strand). Side ``2 i + w`` is
+    contact ``i``'s strand A where ``w`` is 0, its strand B where 1 (a body contact has no side B)."""
+    flat = np.asarray(strand, dtype=np.int64).ravel()
+    sides = np.flatnonzero(flat >= 0)
+    return sides[np.argsort(flat[sides], kind="stable")]
+
+
 def contact_rows(helices, contacts, run=None) -> ContactRows:
     """Assemble ``H`` for ``contacts`` on ``helices`` (see the module docstring).
 
@@ -174,18 +180,13 @@ def contact_rows(helices, contacts, run=None) -> ContactRows:
     cols = np.empty(ptr[-1], dtype=np.int64)
     vals = np.empty((ptr[-1], 3))
 
-    # every contact side (A, and B of a hair-hair contact), grouped by strand: a strand's sides share its
-    # chain, whichever side of their contacts they are (a hair-hair contact's B once took a chain of its own)
-    hair = np.flatnonzero(contacts.strand[:, 1] >= 0) if n_contacts else np.zeros(0, np.int64)
-    side_contact = np.concatenate([np.arange(n_contacts, dtype=np.int64), hair.astype(np.int64)])
-    side_which = np.concatenate([np.zeros(n_contacts, np.int64), np.ones(len(hair), np.int64)])
-    side_strand = contacts.strand[side_contact, side_which] if len(side_contact) else np.zeros(0, np.int64)
-    order = np.argsort(side_strand, kind="stable")
+    # every contact side grouped by strand: a strand's sides share its chain, whichever side of their
+    # contacts they are (a hair-hair contact's B once took a chain of its own)
+    order = sides_by_strand(contacts.strand)
 
     def work(lo: int, hi: int) -> None:
         _fill(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
-              contacts.strand, contacts.s, contacts.frame, ptr, cols, vals, first_width, side_contact, side_which,
-              order, lo, hi)
+              contacts.strand, contacts.s, contacts.frame, ptr, cols, vals, first_width, order, lo, hi)
 
     if run is None or n_contacts == 0:
         work(0, len(order))
