@@ -24,6 +24,7 @@ import numpy as np
 
 from .._jit import jit
 from .._parallel import run_chunks
+from .._sorting import float_order, stable_order
 from ..config import ContactSettings
 from ..errors import InputError
 from ..model import BODY, Contacts, Helices
@@ -463,9 +464,9 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         if cap > 0:
             capped = np.zeros(len(ea), dtype=bool)
             known = np.flatnonzero(keep)
-            known = known[np.argsort(dist[known], kind="stable")]
+            known = known[float_order(dist[known])]
             pending = np.flatnonzero(~pairs.refined)
-            pending = pending[np.argsort(pairs.low[pending])]
+            pending = pending[float_order(pairs.low[pending])]
             dropped, unmeasured = _cap_pairs(ea, eb, sa, sb, dist, pairs.refined, known, pending, pairs.low, cap,
                                              elements, float(settings.hair_distance), s0, length, is_last,
                                              float(settings.root_clearance), xs, Fs, omega, capped)
@@ -772,7 +773,7 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     key = np.concatenate([first.ea[both_dense], second.ea]) * len(strand_of) + np.concatenate(
         [first.eb[both_dense], second.eb])
     where = np.empty(len(key), dtype=np.int64)  # the merged position of each row, first's rows then second's
-    where[np.argsort(key, kind="stable")] = np.arange(len(key))
+    where[stable_order(key)] = np.arange(len(key))
     del key
     fields = {}
     for f in dataclasses.fields(_Pairs):

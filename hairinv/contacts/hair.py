@@ -24,6 +24,7 @@ import numpy as np
 
 from .._jit import jit
 from .._parallel import run_chunks, worker_count
+from .._sorting import stable_order
 from ._curve import point_tangent
 
 __all__ = ["segment_closest", "hair_pairs", "refine_pairs", "pair_points", "element_sag"]
@@ -387,21 +388,6 @@ def element_sag(omega: np.ndarray, length: np.ndarray, n: int) -> np.ndarray:
     return np.minimum(np.hypot(omega[:, 0], omega[:, 1]) * spacing**2 / 8.0, 0.5 * spacing)
 
 
-def key_order(keys: np.ndarray) -> np.ndarray:
-    """Indices that sort int64 keys >= 0 (equal keys in any order).
-
-    Keys and indices packed into one int64 and sorted as plain integers where
-    they fit (1.5x faster than an argsort on 4 million keys), else a stable
-    argsort (a merge sort, fast on keys that come in sorted runs).
-    """
-    bits = max(1, int(len(keys) - 1).bit_length())
-    if len(keys) == 0 or int(keys.max()).bit_length() + bits > 63:
-        return np.argsort(keys, kind="stable")
-    packed = (keys << bits) | np.arange(len(keys), dtype=np.int64)
-    packed.sort()
-    return packed & ((np.int64(1) << bits) - 1)
-
-
 def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, strand_of: np.ndarray,
                hair_distance, wide: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                                        np.ndarray, np.ndarray, int]:
@@ -476,7 +462,7 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
         """The closest segment pair of each element pair (ties to the lowest segments), sorted by element pair."""
         pair_key = (first // n1) * count + second // n1
         # _best_per_pair breaks ties itself, so any order of equal keys will do
-        keep = _best_per_pair(key_order(pair_key), pair_key, dist2, first, second)
+        keep = _best_per_pair(stable_order(pair_key), pair_key, dist2, first, second)
         return first[keep], second[keep], dist2[keep], pu[keep], pv[keep]
 
     def pairs_chunk(lo_c: int, hi_c: int) -> None:
