@@ -5,10 +5,15 @@ glibc's malloc gives each array that large a mapping of its own and unmaps it wh
 next array's pages are faulted in afresh. On a bare machine that costs a few hundredths of a second a
 gigabyte; on a virtual machine whose guest hands freed memory back to its host it costs seconds a gigabyte
 (this machine: 5-6 s a gigabyte once the memory the guest used recently is spent). So the command asks
-glibc (``mallopt``) to serve every allocation from one heap (one arena for all threads, no separate
-mappings) and to keep what is freed there for reuse. Detecting the contacts of
-100,000 strands then took 146 and 156 s instead of 189 to 203 s (peak 7.7-7.8 GiB instead of 7.3-7.4), and
-of 30,000 strands 19.2 and 20.2 s instead of 21.8 and 23.1 s (peak 1.1-1.2 GiB instead of 1.3-1.5).
+glibc (``mallopt``) to serve even the largest allocations from its heap, with no mapping of their own, and
+to keep what is freed there for reuse (it hands back only what exceeds 2 GiB at the heap's top).
+
+Measured on this machine (two-core virtual machine), detecting the contacts of 100,000 strands
+(docs/benchmarks.md, "A full head"): 184 s with glibc's defaults, 153 and 161 s with these settings
+(peak 8.1-8.3 GiB instead of 7.3). The worker threads allocate from arenas of their own, where glibc still maps
+anything over 64 MiB; one arena for every thread (``M_ARENA_MAX`` 1) would keep those too (142 s), but
+the threads then wait on each other's small allocations: fitting 30,000 strands took 8.2-8.5 s instead
+of 6.6-6.8 s, so it is not set.
 
 A library user's process is left as it is: this runs only where the ``hairinv`` command starts. The
 command leaves malloc alone where it is not glibc's, where the user tuned it already (any of the
@@ -25,17 +30,13 @@ import sys
 # glibc's mallopt parameters (malloc.h)
 M_TRIM_THRESHOLD = -1
 M_MMAP_MAX = -4
-M_ARENA_MAX = -8
 # the free memory at the heap's top that is handed back (mallopt takes an int): 2 GiB
 TRIM_THRESHOLD = 2**31 - 1
 USER_SETTINGS = ("MALLOC_ARENA_MAX", "MALLOC_MMAP_MAX_", "MALLOC_TRIM_THRESHOLD_", "HAIRINV_SYSTEM_MALLOC")
 
 
 def keep_freed_memory() -> bool:
-    """Ask glibc's malloc to keep freed memory for reuse (module docstring); True if it took every setting.
-
-    Call it before any thread is started: the arena limit holds for threads that allocate afterwards.
-    """
+    """Ask glibc's malloc to keep freed memory for reuse (module docstring); True if it took every setting."""
     if not sys.platform.startswith("linux") or any(name in os.environ for name in USER_SETTINGS):
         return False
     try:
@@ -46,5 +47,5 @@ def keep_freed_memory() -> bool:
         return False
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
     mallopt.restype = ctypes.c_int
-    settings = ((M_ARENA_MAX, 1), (M_MMAP_MAX, 0), (M_TRIM_THRESHOLD, TRIM_THRESHOLD))
+    settings = ((M_MMAP_MAX, 0), (M_TRIM_THRESHOLD, TRIM_THRESHOLD))
     return all(mallopt(parameter, value) == 1 for parameter, value in settings)
