@@ -15,10 +15,14 @@ anything over 64 MiB; one arena for every thread (``M_ARENA_MAX`` 1) would keep 
 the threads then wait on each other's small allocations: fitting 30,000 strands took 8.2-8.5 s instead
 of 6.6-6.8 s, so it is not set.
 
-A library user's process is left as it is: this runs only where the ``hairinv`` command starts. The
-command leaves malloc alone where it is not glibc's, where the user tuned it already (any of the
-``MALLOC_ARENA_MAX``, ``MALLOC_MMAP_MAX_``, ``MALLOC_TRIM_THRESHOLD_`` variables set), or where
-``HAIRINV_SYSTEM_MALLOC`` is set to anything.
+A library user's process is left as it is: this runs only when the ``hairinv`` command itself runs (its
+group's callback, before any subcommand), not on import. The command leaves malloc alone where it is not
+glibc's, where the user tuned it already (any ``MALLOC_*`` variable set, or ``GLIBC_TUNABLES`` naming a
+``glibc.malloc.`` tunable), or where ``HAIRINV_SYSTEM_MALLOC`` is set, to anything.
+
+Freed memory kept in the heap is reused as is: an array asked for zeroed (``np.zeros``) on reused memory is
+written with zeros, where a fresh mapping would have come zeroed for free, so the peak of resident memory can
+be higher than with glibc's defaults (the figures above).
 """
 
 from __future__ import annotations
@@ -32,12 +36,17 @@ M_TRIM_THRESHOLD = -1
 M_MMAP_MAX = -4
 # the free memory at the heap's top that is handed back (mallopt takes an int): 2 GiB
 TRIM_THRESHOLD = 2**31 - 1
-USER_SETTINGS = ("MALLOC_ARENA_MAX", "MALLOC_MMAP_MAX_", "MALLOC_TRIM_THRESHOLD_", "HAIRINV_SYSTEM_MALLOC")
+
+
+def _user_chose() -> bool:
+    """Whether the environment tunes malloc already, or asks for the system's malloc as it is."""
+    return ("HAIRINV_SYSTEM_MALLOC" in os.environ or any(name.startswith("MALLOC_") for name in os.environ)
+            or "glibc.malloc." in os.environ.get("GLIBC_TUNABLES", ""))
 
 
 def keep_freed_memory() -> bool:
     """Ask glibc's malloc to keep freed memory for reuse (module docstring); True if it took every setting."""
-    if not sys.platform.startswith("linux") or any(name in os.environ for name in USER_SETTINGS):
+    if not sys.platform.startswith("linux") or _user_chose():
         return False
     try:
         libc = ctypes.CDLL(None)

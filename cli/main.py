@@ -18,6 +18,8 @@ import click
 
 from hairinv import __version__
 
+from ._memory import keep_freed_memory
+
 # Exit codes
 OK, FAILED, BAD_INPUT = 0, 1, 2
 
@@ -300,6 +302,7 @@ def main(ctx, quiet, verbose, no_progress, log_json):
     current; `diff` compares two stage files; `batch` runs many grooms on
     a Dask cluster.
     """
+    keep_freed_memory()  # the command's own process only (cli/_memory.py)
     ctx.ensure_object(dict)
     ctx.obj["quiet"] = quiet
     ctx.obj["verbose"] = verbose
