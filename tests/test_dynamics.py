@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from hairinv.config import DynamicsSettings, Settings
-from hairinv.dynamics.contact import back_substitute, contact_keys, factored_rows
+from hairinv.dynamics.contact import (back_substitute, contact_keys, delassus_blocks, factored_blocks, factored_rows,
+                                      forward_substitute)
 from hairinv.dynamics.inertia import gauss_nodes, inertia_terms, strand_nodes
 from hairinv.dynamics.simulate import Motion, Simulation, _free_chunk
 from hairinv.invert import generalized_gravity, stiffness
@@ -161,6 +162,17 @@ def test_factored_delassus_equals_the_dense_operator():
     back_substitute(helices.offsets, sim.chol, sim.chol_ptr, Z.rmatvec(r), out, 0, helices.n_strands)
     expected = np.linalg.solve(Mt, Hd.T @ r.ravel())
     assert np.allclose(out, expected, rtol=1e-6, atol=1e-9 * np.abs(expected).max())
+    # the same solve without the factored rows: L^-1 by forward substitution, then L^-T
+    half = np.zeros(n)
+    forward_substitute(helices.offsets, sim.chol, sim.chol_ptr, Hd.T @ r.ravel(), half, 0, helices.n_strands)
+    again = np.zeros(n)
+    back_substitute(helices.offsets, sim.chol, sim.chol_ptr, half, again, 0, helices.n_strands)
+    assert np.allclose(again, expected, rtol=1e-6, atol=1e-9 * np.abs(expected).max())
+    # the blocks W_ii without the rows: those of the dense operator, and bit for bit those from the rows
+    blocks_only = factored_blocks(rows, contacts.strand, helices.offsets, sim.chol, sim.chol_ptr)
+    dense = np.stack([W[3 * i:3 * i + 3, 3 * i:3 * i + 3] for i in range(contacts.n_contacts)])
+    assert np.allclose(blocks_only, dense, rtol=1e-6, atol=1e-9 * np.abs(W).max())
+    assert np.array_equal(blocks_only, delassus_blocks(Z, np.zeros(contacts.n_contacts)))
 
 
 def test_contact_keys_name_elements():

@@ -491,6 +491,31 @@ def test_a_strand_resting_along_the_body_stays_put():
     assert np.linalg.norm(_tip(helices, sim.q) - start) < 1e-7
 
 
+def test_a_step_whose_warm_start_meets_the_tolerance_skips_the_solve_and_its_factored_rows(monkeypatch):
+    """A still groom at its equilibrium: the last step's impulses meet the tolerance, checked from ``H``
+    and the strands' factors; the step then builds no factored rows, and moves the strand as the full
+    solve does, to round-off. Under twice the gravity the warm start fails the check and the solve runs."""
+    import hairinv.dynamics.simulate as simulate
+
+    real = simulate.factored_rows
+    built = []
+    monkeypatch.setattr(simulate, "factored_rows", lambda *a, **k: built.append(1) or real(*a, **k))
+    helices, _, mat, quick = _inverted_on_a_floor()
+    full = _inverted_on_a_floor()[3]
+    full._warm_start = lambda *args: (None, None)
+    for _ in range(10):
+        a, b = quick.step(Motion.still(mat.gravity)), full.step(Motion.still(mat.gravity))
+        assert a.status == b.status == "CONVERGED" and a.sweeps == b.sweeps == 0
+    assert len(built) == 10  # the full solve's only
+    # round-off of two orders of the same sums: curvatures of a 0.12 m strand within 1e-12 1/m, tips 1e-13 m
+    np.testing.assert_allclose(quick.q, full.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(quick.v, full.v, rtol=0, atol=1e-10)
+    assert np.linalg.norm(_tip(helices, quick.q) - _tip(helices, full.q)) < 1e-13
+    built.clear()
+    report = quick.step(Motion.still(2.0 * mat.gravity))
+    assert len(built) == 1 and report.sweeps > 0
+
+
 def test_a_failed_contact_solve_halves_the_step_and_stops_the_run_only_at_the_last_halving(monkeypatch):
     """The fail-safe of a contact solve that returns NUMERICAL_ERROR: nothing of the attempt is kept,
     the step is taken as two halves; only a failure at ``max_substeps`` halvings ends the run."""
@@ -508,6 +533,8 @@ def test_a_failed_contact_solve_halves_the_step_and_stops_the_run_only_at_the_la
         return solve
 
     start = _tip(helices, helices.omega)
+    # the solve itself (not the warm start's check that lets a still groom skip it)
+    monkeypatch.setattr(simulate.Simulation, "_warm_start", lambda self, *args: (None, None))
     monkeypatch.setattr(simulate, "solve_coulomb", failing(1))
     report = sim.step(Motion.still(mat.gravity))
     assert len(calls) == 3 and report.substeps == 2  # the failed attempt, then two half steps
@@ -542,6 +569,8 @@ def test_a_step_starts_as_halved_as_the_last_one_needed_and_tries_one_fewer_afte
             return dataclasses.replace(result, status="NUMERICAL_ERROR")
         return result
 
+    # every step through the solve (not the warm start's check that lets a still groom skip it)
+    monkeypatch.setattr(simulate.Simulation, "_warm_start", lambda self, *args: (None, None))
     monkeypatch.setattr(simulate, "solve_coulomb", solve)
     lengths = []
     real_step = sim._step

@@ -25,7 +25,7 @@ from ..solver.blocks import _group_fixed_point, _group_newton, strand_blocks
 from ..solver.rows import ContactRows
 
 __all__ = ["REACH", "back_substitute", "contact_keys", "contact_velocities", "delassus_blocks", "desaxce_residual",
-           "factored_rows", "reachable", "solve_coulomb", "strand_groups"]
+           "factored_blocks", "factored_rows", "forward_substitute", "reachable", "solve_coulomb", "strand_groups"]
 
 #: a contact is not asked to move its point along a direction that a unit impulse moves it less than
 #: this fraction as fast as along the easiest one (eigenvalues of ``W_ii``; see :func:`reachable`)
@@ -57,34 +57,85 @@ def _count_z(strand, offsets, counts):
         counts[i] = c
 
 
+@jit(inline="always")
+def _z_side(i, side, ptr, cols, vals, strand, offsets, chol, chol_ptr):
+    """``(a, x)``: the first coordinate ``a`` of the strand on side ``side`` of contact ``i``, and
+    ``x = L^-1 H_i^T`` (n, 3) over that strand's ``n`` coordinates."""
+    k = strand[i, side]
+    a, n = _side_columns(k, offsets)
+    x = np.zeros((n, 3))
+    for t in range(ptr[i], ptr[i + 1]):
+        c = cols[t] - a
+        if 0 <= c < n:
+            for row in range(3):
+                x[c, row] += vals[t, row]
+    base = chol_ptr[k]
+    # forward substitution L x = h, L row-major n x n at chol[base:]
+    for r in range(n):
+        for row in range(3):
+            acc = x[r, row]
+            for m in range(r):
+                acc -= chol[base + r * n + m] * x[m, row]
+            x[r, row] = acc / chol[base + r * n + r]
+    return a, x
+
+
 @jit
 def _fill_z(ptr, cols, vals, strand, offsets, chol, chol_ptr, zptr, zcols, zvals, lo, hi):
     for i in range(lo, hi):
         j = zptr[i]
         for side in range(2):
-            k = strand[i, side]
-            if k < 0:
+            if strand[i, side] < 0:
                 continue
-            a, n = _side_columns(k, offsets)
-            x = np.zeros((n, 3))
-            for t in range(ptr[i], ptr[i + 1]):
-                c = cols[t] - a
-                if 0 <= c < n:
-                    for row in range(3):
-                        x[c, row] += vals[t, row]
-            base = chol_ptr[k]
-            # forward substitution L x = h, L row-major n x n at chol[base:]
-            for r in range(n):
-                for row in range(3):
-                    acc = x[r, row]
-                    for m in range(r):
-                        acc -= chol[base + r * n + m] * x[m, row]
-                    x[r, row] = acc / chol[base + r * n + r]
-            for r in range(n):
+            a, x = _z_side(i, side, ptr, cols, vals, strand, offsets, chol, chol_ptr)
+            for r in range(x.shape[0]):
                 zcols[j] = a + r
                 for row in range(3):
                     zvals[j, row] = x[r, row]
                 j += 1
+
+
+@jit
+def _z_blocks(ptr, cols, vals, strand, offsets, chol, chol_ptr, out, lo, hi):
+    for i in range(lo, hi):
+        for p in range(3):
+            for q in range(3):
+                out[i, p, q] = 0.0
+        for side in range(2):
+            if strand[i, side] < 0:
+                continue
+            _, x = _z_side(i, side, ptr, cols, vals, strand, offsets, chol, chol_ptr)
+            # summed in the order, and rounded as, diagonal_blocks does over the rows of factored_rows
+            for r in range(x.shape[0]):
+                for p in range(3):
+                    for q in range(3):
+                        out[i, p, q] += x[r, p] * x[r, q]
+
+
+@jit
+def _substitute(offsets, chol, chol_ptr, y, out, lo, hi, transposed):
+    """``out = L^-1 y`` (``L^-T y`` if ``transposed``) strand by strand for strands ``lo:hi``, ``L`` each
+    strand's Cholesky factor, row-major at ``chol[chol_ptr[k]:]`` (``y``, ``out`` over all coordinates)."""
+    for k in range(lo, hi):
+        a = 3 * offsets[k]
+        n = 3 * (offsets[k + 1] - offsets[k])
+        base = chol_ptr[k]
+        for t in range(n):
+            r = n - 1 - t if transposed else t
+            acc = y[a + r]
+            if transposed:
+                for m in range(r + 1, n):
+                    acc -= chol[base + m * n + r] * out[a + m]
+            else:
+                for m in range(r):
+                    acc -= chol[base + r * n + m] * out[a + m]
+            out[a + r] = acc / chol[base + r * n + r]
+
+
+@jit
+def forward_substitute(offsets, chol, chol_ptr, y, out, lo, hi):
+    """``out = L^-1 y`` strand by strand for strands ``lo:hi`` (``y``, ``out`` over all coordinates)."""
+    _substitute(offsets, chol, chol_ptr, y, out, lo, hi, False)
 
 
 def factored_rows(rows: ContactRows, strand: np.ndarray, offsets: np.ndarray, chol: np.ndarray,
@@ -117,18 +168,31 @@ def factored_rows(rows: ContactRows, strand: np.ndarray, offsets: np.ndarray, ch
     return ContactRows(zptr, zcols, zvals, rows.n_dofs)
 
 
+def factored_blocks(rows: ContactRows, strand: np.ndarray, offsets: np.ndarray, chol: np.ndarray,
+                    chol_ptr: np.ndarray, run=None) -> np.ndarray:
+    """The blocks ``Z_i^T Z_i`` of ``W = H M^-1 H^T``, (C, 3, 3), without the rows ``Z`` themselves.
+
+    The same, bit for bit, as ``delassus_blocks(factored_rows(...), 0)``, each contact's rows computed,
+    summed and let go: a dense groom's factored rows are the largest arrays of a step (on a 30,000-strand
+    head about 1 GB), and a step whose forces need no sweeps needs only these blocks (``Simulation``).
+    Arguments as :func:`factored_rows`.
+    """
+    out = np.empty((rows.n_contacts, 3, 3))
+
+    def work(lo: int, hi: int) -> None:
+        _z_blocks(rows.ptr, rows.cols, rows.vals, strand, offsets, chol, chol_ptr, out, lo, hi)
+
+    if run is None or rows.n_contacts == 0:
+        work(0, rows.n_contacts)
+    else:
+        run(work, rows.n_contacts)
+    return out
+
+
 @jit
 def back_substitute(offsets, chol, chol_ptr, z, out, lo, hi):
     """``out = L^-T z`` strand by strand for strands ``lo:hi`` (``z``, ``out`` over all coordinates)."""
-    for k in range(lo, hi):
-        a = 3 * offsets[k]
-        n = 3 * (offsets[k + 1] - offsets[k])
-        base = chol_ptr[k]
-        for r in range(n - 1, -1, -1):
-            acc = z[a + r]
-            for m in range(r + 1, n):
-                acc -= chol[base + m * n + r] * out[a + m]
-            out[a + r] = acc / chol[base + r * n + r]
+    _substitute(offsets, chol, chol_ptr, z, out, lo, hi, True)
 
 
 def contact_keys(strand: np.ndarray, s: np.ndarray, offsets: np.ndarray, length: np.ndarray) -> np.ndarray:

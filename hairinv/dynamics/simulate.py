@@ -40,9 +40,10 @@ from ..errors import InputError
 from ..invert import tolerance_gravity
 from ..model import Contacts, Helices, Material, stiffness
 from ..rod.statics import gravity_forces, gravity_hessian, point_load_hessian
-from ..solver.gauss_seidel import NUMERICAL, split_strands
+from ..solver.gauss_seidel import CONVERGED, NUMERICAL, SolverResult, natural_residuals, split_strands
 from ..solver.rows import contact_rows
-from .contact import back_substitute, contact_keys, delassus_blocks, factored_rows, reachable, solve_coulomb
+from .contact import (back_substitute, contact_keys, factored_blocks, factored_rows, forward_substitute, reachable,
+                      solve_coulomb)
 from .inertia import strand_mass, strand_velocity_forces
 
 __all__ = ["Motion", "Simulation", "StepReport", "strand_dynamics", "validate_settings"]
@@ -881,10 +882,9 @@ class Simulation:
         report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0, depth=depth, last_depth=depth)
         v_new = v_free
         if found.n_contacts:
-            rows = contact_rows(self.current(), found, run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
-            z_rows = factored_rows(rows, found.strand, offsets, self.chol, self.chol_ptr,
-                                   run=lambda work, n: run_chunks(work, n, _CONTACT_CHUNK))
-            Wd = delassus_blocks(z_rows, np.zeros(found.n_contacts))
+            contact_run = lambda work, n: run_chunks(work, n, _CONTACT_CHUNK)  # noqa: E731
+            rows = contact_rows(self.current(), found, run=contact_run)
+            Wd = factored_blocks(rows, found.strand, offsets, self.chol, self.chol_ptr, run=contact_run)
             gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
             push = np.zeros((found.n_contacts, 3))
             push[:, 0] = np.maximum((gap - thickness) / h, -self.settings.push_speed)
@@ -893,16 +893,19 @@ class Simulation:
             # a compliance of 1e-9 of its own W_ii picks the smallest force along it
             gamma = 1e-9 * np.trace(Wd, axis1=1, axis2=2) / 3.0
             Wd[:, [0, 1, 2], [0, 1, 2]] += gamma[:, None]
-            result = solve_coulomb(z_rows, gamma, b, found.mu, found.strand, helices.n_strands,
-                                   self.velocity_scale * h, self.settings.tolerance, self.settings.max_sweeps,
-                                   impulse, s=found.s, part_of=split_strands(helices.root, found.strand),
-                                   stall_rounds=self.settings.stall_rounds, Wd=Wd)
+            # the last step's impulses may already meet the tolerance (a groom still at its equilibrium):
+            # then the factored rows, the step's largest arrays, are never built
+            result, correction = self._warm_start(rows, gamma, b, found.mu, Wd, impulse, h)
+            if result is None:
+                z_rows = factored_rows(rows, found.strand, offsets, self.chol, self.chol_ptr, run=contact_run)
+                result = solve_coulomb(z_rows, gamma, b, found.mu, found.strand, helices.n_strands,
+                                       self.velocity_scale * h, self.settings.tolerance, self.settings.max_sweeps,
+                                       impulse, s=found.s, part_of=split_strands(helices.root, found.strand),
+                                       stall_rounds=self.settings.stall_rounds, Wd=Wd)
+                correction = self._mass_solve(z_rows.rmatvec(result.r), factored=True)
+                del z_rows
             failed = result.status == NUMERICAL
             if not failed:
-                z = z_rows.rmatvec(result.r)
-                correction = np.zeros(rows.n_dofs)
-                run_chunks(lambda lo, hi: back_substitute(offsets, self.chol, self.chol_ptr, z, correction, lo, hi),
-                           helices.n_strands, 64)
                 v_new = v_free + correction.reshape(-1, 3)
                 impulse = result.r
                 report = StepReport(found.n_contacts, found.n_body, result.sweeps, result.relative_residual,
@@ -943,6 +946,33 @@ class Simulation:
         self.v = v_new
         self.q = self.q + h * v_new
         return report
+
+    def _mass_solve(self, y: np.ndarray, factored: bool = False) -> np.ndarray:
+        """``M^-1 y`` strand by strand through the strands' Cholesky factors ``M = L L^T`` (``L^-T y``
+        only, for ``y`` given as ``L^-1`` of something: ``factored``)."""
+        helices = self.helices
+        if not factored:
+            x = np.zeros_like(y)
+            run_chunks(lambda lo, hi: forward_substitute(helices.offsets, self.chol, self.chol_ptr, y, x, lo, hi),
+                       helices.n_strands, 64)
+            y = x
+        out = np.zeros_like(y)
+        run_chunks(lambda lo, hi: back_substitute(helices.offsets, self.chol, self.chol_ptr, y, out, lo, hi),
+                   helices.n_strands, 64)
+        return out
+
+    def _warm_start(self, rows, gamma, b, mu, Wd, impulse, h: float):
+        """``(result, M^-1 H^T r)`` for the warm start ``impulse`` if it meets the step's tolerance (the
+        De Saxce residual of ``solve_coulomb``, from ``H`` and the strands' factors instead of the
+        factored rows), else ``(None, None)``."""
+        f = self._mass_solve(rows.rmatvec(impulse))
+        per = np.empty(rows.n_contacts)
+        residual = float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, impulse, True,
+                                           True, per))
+        scale = self.velocity_scale * h
+        if not residual <= self.settings.tolerance * scale:  # (NaN included: solve_coulomb reports it)
+            return None, None
+        return SolverResult(impulse.copy(), CONVERGED, 0, residual, residual / scale, [(0, residual)], 0.0), f
 
     # ------------------------------------------------------------------ measures
     def kinetic_energy(self) -> float:
