@@ -650,12 +650,12 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
     curves = stage[stages.CURVES]
     helices = Helices.from_group(stage[stages.HELICES])
     contacts = Contacts.from_group(stage[stages.CONTACTS]) if stages.CONTACTS in stage else None
-    body, to_groom, notes = simulation_body(settings.body, body, stage, model, curves)
+    body, to_groom, notes, read = simulation_body(settings.body, body, stage, model, curves)
     mesh = None
     if body is not None:
         for line in notes:
             say(line)
-        mesh = load_body(body, to_groom)
+        mesh = load_body(body, to_groom, read)
         say(f"body: {body}")
     elif scene.body != "removed":
         say("no body: only hair-hair contacts")

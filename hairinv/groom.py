@@ -422,7 +422,9 @@ def simulation_body(settings: BodySettings, given, stage, stage_path, curves) ->
 
     Returns
     -------
-    (path or None, (4, 4) transform or None, list of str): the notes say what was done.
+    (path or None, (4, 4) transform or None, list of str, mesh or None): the notes say what was done; the
+    mesh is the body file as read (:func:`formats.read_mesh`) where its size was needed, for
+    :func:`load_body` to take instead of reading it again.
     """
     scale = float(curves.attrs.get("scale_to_m", 1.0))
     flip = str(curves.config.get("import", {}).get("flip", ""))
@@ -433,14 +435,15 @@ def simulation_body(settings: BodySettings, given, stage, stage_path, curves) ->
             raise InputError(f"was inverted against a body that cannot be found ({why}); give the body file as "
                              "the second argument", stage_path)
         if path is None:
-            return None, None, []
+            return None, None, [], None
     else:
         given = Path(given)
         if record is None or stages.sha256_file(given) != record.get("sha256"):
             record = None
         path = given
     if settings != BodySettings():
-        size = float(np.linalg.norm(np.ptp(np.asarray(formats.read_mesh(path).vertices), axis=0)))
+        mesh = formats.read_mesh(path)
+        size = float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))
         transform, notes = body_to_groom(settings, scale, up, flip, path, size)
-        return path, transform, notes
-    return path, recorded_body_transform(record, scale, flip, path), []
+        return path, transform, notes, mesh
+    return path, recorded_body_transform(record, scale, flip, path), [], None

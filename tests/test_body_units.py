@@ -20,7 +20,7 @@ import pytest
 import trimesh
 
 from conftest import ROUNDOFF, SAMPLES
-from hairinv import stages
+from hairinv import formats, stages
 from hairinv.config import BodySettings
 from hairinv.errors import InputError
 from hairinv.groom import body_to_groom, load_body, recorded_body_transform, simulation_body
@@ -119,16 +119,22 @@ def test_the_recorded_transform_reads_the_body_again(detected, bodies):
     gets the same transform (same SHA-256), an option given wins."""
     path = detected["cm_zup"][0]
     stage = stages.read_stage(path)
-    found, transform, _ = simulation_body(BodySettings(), None, stage, path, stage[stages.CURVES])
+    found, transform, _, _ = simulation_body(BodySettings(), None, stage, path, stage[stages.CURVES])
     assert found.name == "body_cm_zup.obj"
     mesh = load_body(found, transform)
     original = np.asarray(trimesh.load(SAMPLES / "body.obj", process=False).vertices)
     np.testing.assert_allclose(mesh.vertices, original, atol=UNIT_ROUNDTRIP * np.ptp(original))
-    _, again, _ = simulation_body(BodySettings(), bodies / "body_cm_zup.obj", stage, path, stage[stages.CURVES])
+    _, again, _, unread = simulation_body(BodySettings(), bodies / "body_cm_zup.obj", stage, path,
+                                          stage[stages.CURVES])
     np.testing.assert_array_equal(again, transform)
-    _, given, _ = simulation_body(BodySettings(units="mm", up="z"), bodies / "body_cm_zup.obj", stage, path,
-                                  stage[stages.CURVES])
+    assert unread is None  # the recorded transform needs no read
+    _, given, _, read = simulation_body(BodySettings(units="mm", up="z"), bodies / "body_cm_zup.obj", stage, path,
+                                        stage[stages.CURVES])
     np.testing.assert_allclose(given[:3, :3], 0.001 * Y_TO_Z.T, atol=ROUNDOFF)
+    # the file read for its size comes back, for load_body to take instead of reading it again
+    np.testing.assert_array_equal(read.vertices, formats.read_mesh(bodies / "body_cm_zup.obj").vertices)
+    np.testing.assert_array_equal(load_body(None, given, read).vertices,
+                                  load_body(bodies / "body_cm_zup.obj", given).vertices)
 
 
 def test_options_that_do_not_match_the_body_are_caught(detected, bodies):
@@ -171,7 +177,7 @@ def test_a_model_written_to_another_folder_finds_its_body(tmp_path):
     cwd = os.getcwd()
     try:
         os.chdir(project / "out")
-        found_here, _, _ = simulation_body(BodySettings(), None, stage, "m.h5", stage[stages.CURVES])
+        found_here, _, _, _ = simulation_body(BodySettings(), None, stage, "m.h5", stage[stages.CURVES])
         assert found_here.resolve() == (project / "samples" / "body.obj").resolve()
         with open(project / "samples" / "body.obj", "a") as fh:
             fh.write("# changed\n")
