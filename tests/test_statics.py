@@ -149,6 +149,13 @@ def test_assembled_contact_rows_match_finite_differences_of_contact_gaps(rng):
     # afresh): the same entries
     chunked = contact_rows(helices, contacts, run=lambda work, n: [work(lo, min(n, lo + 2)) for lo in range(0, n, 2)])
     np.testing.assert_array_equal(chunked.to_sparse().toarray(), H)
+    # the rows taken in another order (as the sweeps store them) are the rows of the contacts so ordered
+    order = rng.permutation(len(pairs))
+    rows = order[:, None] * 3 + np.arange(3)
+    np.testing.assert_array_equal(contact_rows(helices, contacts).take(order).to_sparse().toarray(),
+                                  H[rows.ravel()])
+    with pytest.raises(IndexError):
+        contact_rows(helices, contacts).take(np.array([len(pairs)]))
 
     def relative(omega):
         out = np.empty((len(pairs), 3))

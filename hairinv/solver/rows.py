@@ -62,6 +62,19 @@ class ContactRows:
         _rows_rmatvec(self.ptr, self.cols, self.vals, r, out)
         return out
 
+    def take(self, order: np.ndarray) -> "ContactRows":
+        """The rows of the contacts ``order`` (a permutation, or any selection), stored in that order: contact
+        ``t`` of the result is contact ``order[t]`` of this one."""
+        order = np.ascontiguousarray(order, dtype=np.int64)
+        if len(order) and (order.min() < 0 or order.max() >= self.n_contacts):
+            raise IndexError(f"contact indices must lie in [0, {self.n_contacts}), got {order.min()} to {order.max()}")
+        ptr = np.zeros(len(order) + 1, dtype=np.int64)
+        np.cumsum(np.diff(self.ptr)[order], out=ptr[1:])
+        cols = np.empty(ptr[-1], dtype=np.int64)
+        vals = np.empty((ptr[-1], 3))
+        _take_rows(order, self.ptr, self.cols, self.vals, ptr, cols, vals)
+        return ContactRows(ptr, cols, vals, self.n_dofs)
+
 
 @jit
 def _rows_matvec(ptr, cols, vals, f, out):
@@ -77,6 +90,19 @@ def _rows_matvec(ptr, cols, vals, f, out):
         out[i, 0] = a0
         out[i, 1] = a1
         out[i, 2] = a2
+
+
+@jit
+def _take_rows(order, ptr, cols, vals, new_ptr, new_cols, new_vals):
+    for t in range(order.shape[0]):
+        i = order[t]
+        at = new_ptr[t]
+        for j in range(ptr[i], ptr[i + 1]):
+            new_cols[at] = cols[j]
+            new_vals[at, 0] = vals[j, 0]
+            new_vals[at, 1] = vals[j, 1]
+            new_vals[at, 2] = vals[j, 2]
+            at += 1
 
 
 @jit
