@@ -39,7 +39,7 @@ from .._jit import jit
 
 
 from .._parallel import blas_pinned, executor, in_worker, worker_count
-from .local import NUMERICAL_ERROR, project_cone, solve_contact
+from .local import NUMERICAL_ERROR, project_cone, solve_contact_with
 from .rows import ContactRows
 
 __all__ = ["CONVERGED", "MAX_ITERS", "NUMERICAL", "SolverResult", "colour_contacts", "project_forces",
@@ -149,6 +149,8 @@ def _sweep(order, lo, hi, ptr, cols, vals, d, gamma, Wd, b, mu, r, f, local_tol,
     u = np.empty(3)
     bl = np.empty(3)
     rn = np.empty(3)
+    M = np.empty((6, 3, 3))  # the local solves' scratch
+    V = np.empty((8, 3))
     failures = 0
     numerical = 0
     for t in range(lo, hi):
@@ -177,7 +179,7 @@ def _sweep(order, lo, hi, ptr, cols, vals, d, gamma, Wd, b, mu, r, f, local_tol,
         for a in range(3):
             bl[a] = u[a] - (Wd[i, a, 0] * r[i, 0] + Wd[i, a, 1] * r[i, 1] + Wd[i, a, 2] * r[i, 2])
             rn[a] = r[i, a]
-        status, _ = solve_contact(Wd[i], bl, mu[i], rn, local_tol, _LOCAL_ITERATIONS, desaxce)
+        status, _ = solve_contact_with(Wd[i], bl, mu[i], rn, local_tol, _LOCAL_ITERATIONS, desaxce, M, V)
         if status == NUMERICAL_ERROR:
             numerical += 1
             continue

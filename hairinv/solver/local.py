@@ -786,6 +786,13 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
     status : int, ``OK``, ``NOT_CONVERGED`` (r is the best point found) or ``NUMERICAL_ERROR``
     residual : float64, the relative residual of the returned ``r`` (inf on error)
     """
+    return solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, np.empty((6, 3, 3)), np.empty((8, 3)))
+
+
+@jit(error_model="numpy")
+def solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, M, V):
+    """:func:`solve_contact` with its scratch given, ``M`` (6, 3, 3) and ``V`` (8, 3) float64 (contents
+    ignored), for a caller that solves contact after contact: two allocations fewer per contact."""
     # ---- validate
     for i in range(3):
         if not np.isfinite(b[i]):
@@ -831,8 +838,6 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
         r[2] = 0.0
         return OK, 0.0
     # scratch: M[0:5], V[0:5] for Newton; Wh = M[5]; bh, rh, best = V[5], V[6], V[7]
-    M = np.empty((6, 3, 3))
-    V = np.empty((8, 3))
     Wh = M[5]
     for i in range(3):
         for j in range(3):
