@@ -475,6 +475,17 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     threads = worker_count()
     pool = executor(threads) if threads > 1 and not in_worker() and n_contacts >= _MIN_HALVES else None
 
+    # the checks' passes over the contacts run in three pieces: the two halves at once, then the contacts
+    # across; the same pieces on one thread, so that the sums they return do not depend on the thread count
+    pieces = [*halves, (halves[-1][1], n_contacts)] if len(halves) == 2 else [(0, n_contacts)]
+
+    def by_pieces(kernel) -> list:
+        """``kernel(lo, hi)`` over the pieces, in their order."""
+        if pool is None or len(pieces) == 1:
+            return [kernel(lo, hi) for lo, hi in pieces]
+        futures = [pool.submit(kernel, lo, hi) for lo, hi in pieces[:2]]
+        return [future.result() for future in futures] + [kernel(*pieces[2])]
+
     def accumulate(point: np.ndarray, out: np.ndarray) -> None:
         """``out = D H^T point``: the two halves' contacts at once (they touch disjoint strands, so each entry
         sums its terms in the same order as on one thread), then the contacts across."""
@@ -513,17 +524,20 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
 
     def _measure_bound() -> None:
         if not desaxce and elements:
-            gap = rest_gap(rows.ptr, rows.cols, rows.vals, f_check, gamma, b, mu, checked)
+            gap = sum(by_pieces(lambda lo, hi: rest_gap(rows.ptr[lo:hi + 1], rows.cols, rows.vals, f_check,
+                                                        gamma[lo:hi], b[lo:hi], mu[lo:hi], checked[lo:hi])))
             bound[0] = float(np.sqrt(2.0 * max(gap, 0.0) / elements))
 
     def _check(point: np.ndarray) -> float:
-        _extrapolate(point, point, 0.0, mu, checked)
+        by_pieces(lambda lo, hi: _extrapolate(point[lo:hi], point[lo:hi], 0.0, mu[lo:hi], checked[lo:hi]))
         # f rebuilt from the point itself, so round-off of the incremental updates cannot accumulate
         accumulate(checked, f_check)
         if every_check:
             _measure_bound()
-        return natural_residuals(rows.ptr, rows.cols, rows.vals, f_check, gamma, Wd, b, mu, checked, desaxce,
-                                 velocity, per_contact)
+        # the largest over the pieces (NaN if any is NaN, as over all contacts)
+        return float(np.max(by_pieces(lambda lo, hi: natural_residuals(
+            rows.ptr[lo:hi + 1], rows.cols, rows.vals, f_check, gamma[lo:hi], Wd[lo:hi], b[lo:hi], mu[lo:hi],
+            checked[lo:hi], desaxce, velocity, per_contact[lo:hi]))))
 
     def _met(residual: float) -> bool:
         return residual <= target or (rest_tolerance > 0.0 and bound[0] <= rest_tolerance)
@@ -590,7 +604,8 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
                     x_prev[:] = x
                     x[:] = r
                     fx = fz
-                    _extrapolate(x, x_prev, (tk - 1.0) / tn, mu, r)
+                    beta = (tk - 1.0) / tn
+                    by_pieces(lambda lo, hi: _extrapolate(x[lo:hi], x_prev[lo:hi], beta, mu[lo:hi], r[lo:hi]))
                     tk = tn
                 accumulate(r, f)
             if sweeps % check_every == 0 or sweeps == max_sweeps:
