@@ -475,8 +475,8 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     threads = worker_count()
     pool = executor(threads) if threads > 1 and not in_worker() and n_contacts >= _MIN_HALVES else None
 
-    # the checks' passes over the contacts run in three pieces: the two halves at once, then the contacts
-    # across; the same pieces on one thread, so that the sums they return do not depend on the thread count
+    # the other passes over the contacts run in three pieces: the two halves at once, then the contacts
+    # across; the same pieces on one thread, so that what they return does not depend on the thread count
     pieces = [*halves, (halves[-1][1], n_contacts)] if len(halves) == 2 else [(0, n_contacts)]
 
     def by_pieces(kernel) -> list:
@@ -487,17 +487,10 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
         return [future.result() for future in futures] + [kernel(*pieces[2])]
 
     def accumulate(point: np.ndarray, out: np.ndarray) -> None:
-        """``out = D H^T point``: the two halves' contacts at once (they touch disjoint strands, so each entry
-        sums its terms in the same order as on one thread), then the contacts across."""
-        if pool is None or len(halves) != 2:
-            _accumulate_f(rows.ptr, rows.cols, rows.vals, d, point, out)
-            return
+        """``out = D H^T point``. The two halves touch disjoint strands, so each entry sums its terms in the
+        same order on any number of threads."""
         out[:] = 0.0
-        with blas_pinned():
-            for future in [pool.submit(_add_f, rows.ptr, rows.cols, rows.vals, point, out, lo, hi)
-                           for lo, hi in halves]:
-                future.result()
-        _add_f(rows.ptr, rows.cols, rows.vals, point, out, halves[-1][1], n_contacts)
+        by_pieces(lambda lo, hi: _add_f(rows.ptr, rows.cols, rows.vals, point, out, lo, hi))
         out *= d
 
     f = np.empty(rows.n_dofs)
