@@ -509,7 +509,8 @@ def test_results_do_not_depend_on_the_thread_count(monkeypatch):
     touched = [set(contacts.strand[order[lo:hi]].ravel()) - {-1} for lo, hi in halves]
     assert not touched[0] & touched[1]
     answers = []
-    monkeypatch.setattr("hairinv.solver.gauss_seidel._MIN_HALVES", 0)  # threads even for this small scene
+    monkeypatch.setattr("hairinv.solver.gauss_seidel._MIN_HALVES", 0)  # threads even for this small scene,
+    monkeypatch.setattr("hairinv.solver.gauss_seidel._MIN_PIECES", 0)  # in the sweeps and the other passes
     for threads in ("1", "2"):
         monkeypatch.setenv("HAIRINV_THREADS", threads)
         model, report = solve(helices, contacts, material(), max_sweeps=50)

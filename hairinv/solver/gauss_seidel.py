@@ -56,6 +56,9 @@ _MIN_PARALLEL = 4096
 # millisecond, and handing the two halves to the pool costs about as much as it saves.
 _MIN_HALVES = 2048
 _LOCAL_ITERATIONS = 50
+# Below this many contacts the passes other than the sweep (the rebuild of f, the checks) run their pieces on
+# one thread: each takes a few microseconds a contact, and a hand-off to the pool about as long as 10,000 of them.
+_MIN_PIECES = 32768
 
 
 @dataclass
@@ -481,7 +484,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
 
     def by_pieces(kernel) -> list:
         """``kernel(lo, hi)`` over the pieces, in their order."""
-        if pool is None or len(pieces) == 1:
+        if pool is None or len(pieces) == 1 or n_contacts < _MIN_PIECES:
             return [kernel(lo, hi) for lo, hi in pieces]
         futures = [pool.submit(kernel, lo, hi) for lo, hi in pieces[:2]]
         return [future.result() for future in futures] + [kernel(*pieces[2])]
