@@ -154,8 +154,10 @@ def test_assembled_contact_rows_match_finite_differences_of_contact_gaps(rng):
     rows = order[:, None] * 3 + np.arange(3)
     np.testing.assert_array_equal(contact_rows(helices, contacts).take(order).to_sparse().toarray(),
                                   H[rows.ravel()])
-    with pytest.raises(IndexError):
-        contact_rows(helices, contacts).take(np.array([len(pairs)]))
+    for wrong, error in ((np.array([len(pairs)]), IndexError), (np.array([-1]), IndexError),
+                         (np.ones(len(pairs), bool), TypeError), (np.array([0.0]), TypeError)):
+        with pytest.raises(error):
+            contact_rows(helices, contacts).take(wrong)
 
     def relative(omega):
         out = np.empty((len(pairs), 3))

@@ -63,8 +63,11 @@ class ContactRows:
         return out
 
     def take(self, order: np.ndarray) -> "ContactRows":
-        """The rows of the contacts ``order`` (a permutation, or any selection), stored in that order: contact
-        ``t`` of the result is contact ``order[t]`` of this one."""
+        """The rows of the contacts ``order`` (1-D integer indices: a permutation, or any selection), stored in
+        that order: contact ``t`` of the result is contact ``order[t]`` of this one."""
+        order = np.asarray(order)
+        if order.ndim != 1 or not np.issubdtype(order.dtype, np.integer):
+            raise TypeError(f"contact indices must be a 1-D integer array, got {order.dtype} of shape {order.shape}")
         order = np.ascontiguousarray(order, dtype=np.int64)
         if len(order) and (order.min() < 0 or order.max() >= self.n_contacts):
             raise IndexError(f"contact indices must lie in [0, {self.n_contacts}), got {order.min()} to {order.max()}")
