@@ -816,9 +816,10 @@ def test_pairs_refined_only_where_needed_give_the_same_contacts(monkeypatch, see
         return out
 
     monkeypatch.setattr(detect_module, "_cap_pairs", spy)
+    candidates = detect_module._hair_candidates
+    monkeypatch.setattr(detect_module, "_hair_candidates", functools.partial(candidates, narrow=False))
     lazy, report = detect_contacts(h, plane(), settings, up=up)
-    monkeypatch.setattr(detect_module, "_hair_candidates",
-                        functools.partial(detect_module._hair_candidates, lazy=False))
+    monkeypatch.setattr(detect_module, "_hair_candidates", functools.partial(candidates, lazy=False))
     eager, report_eager = detect_contacts(h, plane(), settings, up=up)
     assert_same_detection(lazy, report, eager, report_eager)
     roots = [n for n in report.notes if "root_clearance" in n]
@@ -834,6 +835,73 @@ def test_pairs_refined_only_where_needed_give_the_same_contacts(monkeypatch, see
             assert some < 0.6 * total, (some, total)
 
 
+def sampled(h, n=8):
+    """What detection works on: ``(xs, Fs, s0, samples, omega, length, strand_of, is_last)`` of every element."""
+    from hairinv.contacts._curve import element_starts, sample_elements
+
+    offsets = np.asarray(h.offsets)
+    E = h.n_elements
+    xs, Fs, s0, samples = np.empty((E, 3)), np.empty((E, 3, 3)), np.empty(E), np.empty((E, n, 3))
+    omega, length = np.ascontiguousarray(h.omega), np.ascontiguousarray(h.length)
+    element_starts(np.ascontiguousarray(h.root), np.ascontiguousarray(h.frame0), offsets, omega, length, 0,
+                   h.n_strands, xs, Fs, s0)
+    sample_elements(xs, Fs, omega, length, 0, E, samples)
+    strand_of = np.repeat(np.arange(h.n_strands), np.diff(offsets))
+    is_last = np.zeros(E, np.int8)
+    is_last[offsets[1:] - 1] = 1
+    return xs, Fs, s0, samples, omega, length, strand_of, is_last
+
+
+def near_both_roots(h, within, clearance):
+    """Pairs of elements of two strands closer than ``within`` whose closest points both lie within ``clearance``
+    of their roots (and are not an element's end that starts the next): every pair refined, no cap."""
+    from hairinv.contacts import detect as detect_module
+
+    xs, Fs, s0, samples, omega, length, strand_of, is_last = sampled(h)
+    p = detect_module._found_pairs(samples, omega, length, strand_of, within)
+    detect_module._refine(p, np.ones(len(p.ea), bool), xs, Fs, omega, length)
+    kept = detect_module._kept(p.ea, p.eb, p.sa, p.sb, p.dist, within, length, is_last)
+    return int(np.count_nonzero(kept & (s0[p.ea] + p.sa < clearance) & (s0[p.eb] + p.sb < clearance)))
+
+
+@pytest.mark.parametrize("seed, cap, groom, clearance", [(5, 8, "packed", 0.004), (6, 2, "dense", 0.0),
+                                                         (7, 1, "dense", 0.02), (8, 4, "mixed", 0.004), (9, 2, "packed", 0.01),
+                                                         (0, 2, "grid", 0.004)])
+def test_elements_holding_the_cap_close_by_are_searched_no_farther(monkeypatch, seed, cap, groom, clearance):
+    """The pairs are first searched to a fraction of hair_distance; an element the greedy cap fills there is
+    searched no farther. Contacts and wisp radii are those of searching every pair to hair_distance, bit for
+    bit (the greedy could keep none of the pairs left out), with and without the wisp rule; on a dense head it
+    does leave elements out, and the note on pairs near both roots then counts those closer than the narrow
+    reach (by their definition, every pair refined)."""
+    import functools
+
+    from hairinv.contacts import detect as detect_module
+
+    h = {"dense": dense_head, "mixed": bundle_and_guides, "grid": lambda seed: straight_grid(),
+         "packed": lambda seed: dense_head(seed, guides=6, follow=20, spread=0.0004)}[groom](seed)
+    candidates = detect_module._hair_candidates
+    for up in (np.array([0.0, 1.0, 0.0]), None):
+        settings = dataclasses.replace(SETTINGS, layer=False, max_hair_per_element=cap, root_clearance=clearance)
+        monkeypatch.setattr(detect_module, "_hair_candidates", candidates)
+        narrow, report = detect_contacts(h, plane(), settings, up=up)
+        monkeypatch.setattr(detect_module, "_hair_candidates", functools.partial(candidates, narrow=False))
+        every, report_every = detect_contacts(h, plane(), settings, up=up)
+        assert_same_detection(narrow, report, every, report_every)
+        assert narrow.n_hair > 0
+        if groom in ("dense", "packed"):
+            assert any("not searched farther" in n for n in report.notes), report.notes
+        assert not any("not searched farther" in n for n in report_every.notes)
+        roots = [n for n in report.notes if "root_clearance" in n]
+        if not any("not searched farther" in n for n in report.notes):
+            assert roots == [n for n in report_every.notes if "root_clearance" in n]
+        elif clearance > 0:
+            # the note then counts the pairs closer than the narrow search's reach, all of which it found
+            closer = detect_module.NARROW * settings.hair_distance
+            assert roots == [f"hair-hair: {near_both_roots(h, closer, clearance)} contacts between two strands closer "
+                             f"than {1e3 * closer:g} mm within root_clearance ({1e3 * clearance:g} mm) of both roots "
+                             f"were not declared, nor farther ones there"]
+
+
 @pytest.mark.parametrize("seed, cap, window", [(0, 1, None), (1, 2, None), (2, 4, None), (0, 1, 7), (2, 4, 64)])
 def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed, cap, window, monkeypatch):
     """The greedy of the cap against its definition (pairs by distance, ties to the lower index, kept while both
@@ -844,21 +912,10 @@ def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed,
 
     if window is not None:
         monkeypatch.setattr(detect_module, "_CAP_WINDOW", window)
-    from hairinv.contacts._curve import element_starts, sample_elements
-
     h = dense_head(seed)
     rng = np.random.default_rng(seed)
-    offsets = np.asarray(h.offsets)
-    E, n = h.n_elements, 8
-    xs, Fs, s0 = np.empty((E, 3)), np.empty((E, 3, 3)), np.empty(E)
-    samples = np.empty((E, n, 3))
-    omega, length = np.ascontiguousarray(h.omega), np.ascontiguousarray(h.length)
-    element_starts(np.ascontiguousarray(h.root), np.ascontiguousarray(h.frame0), offsets, omega, length, 0,
-                   h.n_strands, xs, Fs, s0)
-    sample_elements(xs, Fs, omega, length, 0, E, samples)
-    strand_of = np.repeat(np.arange(h.n_strands), np.diff(offsets))
-    is_last = np.zeros(E, np.int8)
-    is_last[offsets[1:] - 1] = 1
+    E = h.n_elements
+    xs, Fs, s0, samples, omega, length, strand_of, is_last = sampled(h)
     hd = 1e-3
     fresh = detect_module._found_pairs(samples, omega, length, strand_of, hd)
     full = fresh.copy()
@@ -894,7 +951,9 @@ def test_the_lazy_cap_is_the_greedy_by_distance_for_any_valid_lower_bounds(seed,
         np.testing.assert_array_equal(pairs.dist[done], full.dist[done])
 
 
-def test_a_groom_of_dense_strands_is_searched_once_and_only_to_hair_distance(monkeypatch):
+def test_a_groom_of_dense_strands_is_searched_only_to_hair_distance(monkeypatch):
+    """No second search to hair_max_distance: every strand is dense. (The first search may go to a fraction of
+    hair_distance before it, for the cap.)"""
     from hairinv.contacts import detect as detect_module
 
     reaches = []
@@ -908,7 +967,9 @@ def test_a_groom_of_dense_strands_is_searched_once_and_only_to_hair_distance(mon
     h = bundle_and_guides()
     dense = helices([(h.root[i], h.frame0[i], h.omega[6 * i:6 * i + 6], h.length[6 * i:6 * i + 6]) for i in range(20)])
     _, report = detect_contacts(dense, plane(), dataclasses.replace(SETTINGS, layer=False), up=np.array([0, 1.0, 0]))
-    assert reaches == [SETTINGS.hair_distance] and np.all(report.wisp_radius == SETTINGS.hair_distance)
+    assert reaches[-1] == SETTINGS.hair_distance and max(reaches) == SETTINGS.hair_distance
+    assert reaches[:-1] in ([], [detect_module.NARROW * SETTINGS.hair_distance])
+    assert np.all(report.wisp_radius == SETTINGS.hair_distance)
 
 
 def _median_by_strand(nearest, strand_of, count, settings):
