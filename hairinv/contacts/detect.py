@@ -222,8 +222,9 @@ def _heap_pop(key, item, n):
 
 # With the per-element cap, hair pairs are first searched to this fraction of hair_distance (a dense head's
 # elements mostly fill the cap there); an element then holding the cap is searched no farther, since the
-# greedy cannot keep any farther pair of it. Wall s of the pair search on 100,000 ruby strands (689,361
-# elements): 94.5 searched to 1 mm at once, 32.6 / 32.3 / 37.0 first to 0.2 / 0.3 / 0.4 mm.
+# greedy cannot keep any farther pair of it. detect on 100,000 ruby strands (689,361 elements): 167 s with
+# every pair searched to 1 mm, 74 s first to 0.25 mm. Measured with the root elements searched to the end
+# too: 101 s so, slower in more steps (0.25 then 0.5 mm: 109 s; 0.15, 0.3, 0.6 mm: 120 s).
 NARROW = 0.25
 
 # pending pairs refined ahead of the greedy at once, on the worker threads (those it then measures are
@@ -771,10 +772,10 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     fewer contacts than the cap. Every other pair is refined at once; the contacts are the same.
 
     ``narrow`` (with ``lazy``): the search within ``hair_distance`` is made first to ``NARROW`` times it,
-    and an element that then holds the cap (:func:`_held_within`) is searched no farther, except with an
-    element near the roots. The pairs left out could not
-    be kept, so the contacts, wisp radii and root note are the same; the fourth value returned counts the
-    elements settled that way (0 without).
+    and an element that then holds the cap (:func:`_held_within`) is searched no farther. The pairs left out
+    could not be kept, so the contacts and wisp radii are the same; the fourth value returned counts the
+    elements settled that way (0 without), and the note on pairs near both roots then counts only those
+    closer than the first search's reach (all of which it found).
     """
     near = float(settings.hair_distance)
     cap = int(settings.max_hair_per_element)
