@@ -478,11 +478,13 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         # both points within root_clearance of their clamped roots: no coordinate moves either
         # point, the contact only makes W singular there (its forces would be fixed by gamma alone)
         near_roots = keep & (s0[ea] + sa < settings.root_clearance) & (s0[eb] + sb < settings.root_clearance)
-        if near_roots.any() and not settled:
+        # the pairs near both roots are all there unless an element that starts there was settled
+        settled_at_roots = settled is not None and bool(np.any(settled & (s0 < settings.root_clearance)))
+        if near_roots.any() and not settled_at_roots:
             notes.append(f"hair-hair: {int(near_roots.sum())} contacts between two strands within "
                          f"root_clearance ({1e3 * settings.root_clearance:g} mm) of both roots were not declared")
         elif near_roots.any():
-            # the settled elements' farther pairs were not searched: count those searched to the end
+            # such an element's farther pairs were not searched: count the pairs searched to the end
             closer = NARROW * settings.hair_distance
             notes.append(f"hair-hair: {int(np.count_nonzero(near_roots & (dist < closer)))} contacts between two "
                          f"strands closer than {1e3 * closer:g} mm within root_clearance "
@@ -495,8 +497,8 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
             left = ([f"{dropped} farther ones were not declared"] if dropped else []) + (
                 [f"{unmeasured} candidate pairs within reach were not measured (an element of each already held "
                  f"{cap} closer contacts)"] if unmeasured else []) + (
-                [f"the {settled} elements that held {cap} contacts within {1e3 * NARROW * settings.hair_distance:g} "
-                 f"mm were not searched farther"] if settled else [])
+                [f"the {np.count_nonzero(settled)} elements that held {cap} contacts within "
+                 f"{1e3 * NARROW * settings.hair_distance:g} mm were not searched farther"] if settled is not None else [])
             if left:
                 notes.append(f"hair-hair: kept the {cap} closest contacts per element (contacts.max_hair_per_element); "
                              + "; ".join(left))
@@ -746,7 +748,7 @@ def _kept(ea, eb, sa, sb, dist, within: float, length, is_last) -> np.ndarray:
 
 def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, count: int, settings: ContactSettings,
                      wisp: bool, two_pass: bool = True, lazy: bool = True,
-                     narrow: bool = True) -> tuple[_Pairs, np.ndarray, np.ndarray | None, int]:
+                     narrow: bool = True) -> tuple[_Pairs, np.ndarray, np.ndarray | None, np.ndarray | None]:
     """The element pairs the hair-hair rules choose from, within ``hair_distance``, and with the wisp rule
     within ``hair_max_distance`` wherever a wisp may be that wide.
 
@@ -774,8 +776,9 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     ``narrow`` (with ``lazy``): the search within ``hair_distance`` is made first to ``NARROW`` times it,
     and an element that then holds the cap (:func:`_held_within`) is searched no farther. The pairs left out
     could not be kept, so the contacts and wisp radii are the same; the fourth value returned counts the
-    elements settled that way (0 without), and the note on pairs near both roots then counts only those
-    closer than the first search's reach (all of which it found).
+    elements settled that way (a mask, None where none was), and where one of them starts within
+    ``root_clearance`` of its root, the note on pairs near both roots counts only those closer than the first
+    search's reach (all of which it found).
     """
     near = float(settings.hair_distance)
     cap = int(settings.max_hair_per_element)
@@ -794,19 +797,19 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
             _refine(pairs, (s0[pairs.ea] < rc) & (s0[pairs.eb] < rc), xs, Fs, omega, length)
         return pairs
 
-    def search_near() -> tuple[_Pairs, int]:
+    def search_near() -> tuple[_Pairs, np.ndarray | None]:
         if not (lazy and narrow):
-            return search(near, near, on_demand=lazy), 0
+            return search(near, near, on_demand=lazy), None
         inner = search(NARROW * near, NARROW * near, on_demand=True)
         settled = _held_within(inner, NARROW * near, cap, s0, length, is_last, rc, xs, Fs, omega) >= cap
         if not settled.any():
-            return search(near, near, on_demand=True), 0
+            return search(near, near, on_demand=True), None
         # only the pairs of two elements the cap may still take. A settled element has a neighbour within
         # hair_distance / WISP_WIDTH (a contact it holds), so it still counts towards a dense strand; an element
         # whose neighbour that close is settled may no longer, but a strand then taken as sparse gets every pair
         # from the second search, and its radius comes out as hair_distance, a dense strand's, all the same
         pairs = _union([inner, search(near, near, on_demand=True, among=np.flatnonzero(~settled))], len(length))
-        return pairs, int(np.count_nonzero(settled))
+        return pairs, settled
 
     if not wisp:
         first, settled = search_near()
@@ -814,7 +817,7 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     far = float(settings.hair_max_distance)
     if not two_pass:
         first = search(far, far)
-        return first, kept(first, far), None, 0
+        return first, kept(first, far), None, None
     first, settled = search_near()
     tight = near / WISP_WIDTH
     if lazy:
