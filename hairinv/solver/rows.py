@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse
 
 from .._jit import jit
+from .._parallel import run_chunks
 from ..rod.helix import chain
 from ..rod.statics import chained_point_jacobian
 
@@ -75,7 +76,10 @@ class ContactRows:
         np.cumsum(np.diff(self.ptr)[order], out=ptr[1:])
         cols = np.empty(ptr[-1], dtype=np.int64)
         vals = np.empty((ptr[-1], 3))
-        _take_rows(order, self.ptr, self.cols, self.vals, ptr, cols, vals)
+        # on the worker threads: the copy is bound by memory (and by first touching the new pages), not by
+        # arithmetic; a 100,000-strand head's rows (2.9 million contacts, 2 GB) took 6.9 s on one thread
+        run_chunks(lambda lo, hi: _take_rows(order, lo, hi, self.ptr, self.cols, self.vals, ptr, cols, vals),
+                   len(order), 65536)
         return ContactRows(ptr, cols, vals, self.n_dofs)
 
 
@@ -96,8 +100,9 @@ def _rows_matvec(ptr, cols, vals, f, out):
 
 
 @jit
-def _take_rows(order, ptr, cols, vals, new_ptr, new_cols, new_vals):
-    for t in range(order.shape[0]):
+def _take_rows(order, lo, hi, ptr, cols, vals, new_ptr, new_cols, new_vals):
+    """Rows ``lo:hi`` of the result: the rows of contacts ``order[lo:hi]``, at ``new_ptr``."""
+    for t in range(lo, hi):
         i = order[t]
         at = new_ptr[t]
         for j in range(ptr[i], ptr[i + 1]):
