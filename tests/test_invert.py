@@ -706,3 +706,24 @@ def rest_of(helices, mat, H, r):
     """``q0 = q - (F_g + H^T r) / K``, (E, 3)."""
     K = stiffness(helices, mat)
     return (helices.omega.ravel() - (generalized_gravity(helices, mat).ravel() + H.T @ r.ravel()) / K).reshape(-1, 3)
+
+
+def test_the_order_the_contacts_are_given_in_does_not_change_the_optimum():
+    """The sweeps store the contacts in their own update order and return the forces in the caller's: given the
+    contacts shuffled, the forces are the same contacts' forces (the optimum is unique with a gamma per
+    contact), to the solve's tolerance."""
+    specs = [horizontal_strand(n=5, total=0.1, root=(0.0, 0.0, 0.002 * k)) for k in range(6)]
+    helices = strands(specs)
+    down = (0.0, 1.0, -0.2)
+    contacts = make_contacts(helices, [(k, 0.08, -1, 0.0, UP, 0.3) for k in range(6)]
+                             + [(k, 0.06, k + 1, 0.055, down, 0.3) for k in range(5)]
+                             + [(k, 0.09, k + 1, 0.085, down, 0.5) for k in range(5)])
+    model, report = solve(helices, contacts, material(), gamma_relative=1e-2)
+    assert report.result.status == "CONVERGED" and report.carrying > 0
+    perm = np.random.default_rng(4).permutation(contacts.n_contacts)
+    assert not np.array_equal(perm, np.arange(contacts.n_contacts))
+    shuffled, report_shuffled = solve(helices, contacts.subset(perm), material(), gamma_relative=1e-2)
+    assert report_shuffled.result.status == "CONVERGED"
+    np.testing.assert_allclose(shuffled.force, model.force[perm], rtol=0, atol=1e-6 * np.abs(model.force).max())
+    np.testing.assert_allclose(shuffled.omega_rest, model.omega_rest, rtol=0,
+                               atol=1e-6 * np.abs(model.omega_rest).max())
