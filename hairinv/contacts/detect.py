@@ -223,8 +223,9 @@ def _heap_pop(key, item, n):
 # With the per-element cap, hair pairs are first searched to this fraction of hair_distance (a dense head's
 # elements mostly fill the cap there); an element then holding the cap is searched no farther, since the
 # greedy cannot keep any farther pair of it. detect on 100,000 ruby strands (689,361 elements): 167 s with
-# every pair searched to 1 mm, 74 s first to 0.25 mm. Measured with the root elements searched to the end
-# too: 101 s so, slower in more steps (0.25 then 0.5 mm: 109 s; 0.15, 0.3, 0.6 mm: 120 s).
+# every pair searched to 1 mm, 74 s first to 0.25 mm. Also measured: 101 s with the elements that start
+# within root_clearance searched to 1 mm whatever they hold, and slower in more steps (0.25 then 0.5 mm:
+# 109 s; 0.15, 0.3, 0.6 mm: 120 s).
 NARROW = 0.25
 
 # pending pairs refined ahead of the greedy at once, on the worker threads (those it then measures are
@@ -336,8 +337,8 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
     return int(state[3]), int(state[4])
 
 
-def _greedy_cap(pairs: "_Pairs", keep, cap: int, within: float, s0, length, is_last, root_clearance, xs, Fs,
-                omega) -> tuple[np.ndarray, int, int]:
+def _keep_closest(pairs: "_Pairs", keep, cap: int, within: float, s0, length, is_last, root_clearance, xs, Fs,
+                  omega) -> tuple[np.ndarray, int, int]:
     """:func:`_cap_pairs` over the candidates ``keep`` (refined pairs) and the pairs not refined yet (refined in
     place where measured). Returns ``(kept, dropped, unmeasured)``, ``kept`` a mask over the pairs."""
     known = np.flatnonzero(keep)
@@ -475,30 +476,32 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
             # of the vertical), and within the narrower wisp's width
             by_wisp[within[vertical >= WISP_VERTICAL]] = True
             keep &= (dist < settings.hair_distance) | by_wisp
-        # both points within root_clearance of their clamped roots: no coordinate moves either
-        # point, the contact only makes W singular there (its forces would be fixed by gamma alone)
-        near_roots = keep & (s0[ea] + sa < settings.root_clearance) & (s0[eb] + sb < settings.root_clearance)
+        near_roots = keep & _near_both_roots(ea, eb, sa, sb, s0, settings.root_clearance)
         # the pairs near both roots are all there unless an element that starts there was settled
         settled_at_roots = settled is not None and bool(np.any(settled & (s0 < settings.root_clearance)))
         if near_roots.any() and not settled_at_roots:
             notes.append(f"hair-hair: {int(near_roots.sum())} contacts between two strands within "
                          f"root_clearance ({1e3 * settings.root_clearance:g} mm) of both roots were not declared")
         elif near_roots.any():
-            # such an element's farther pairs were not searched: count the pairs searched to the end
+            # such an element's farther pairs were not all searched: count those closer than the first reach
             closer = NARROW * settings.hair_distance
             notes.append(f"hair-hair: {int(np.count_nonzero(near_roots & (dist < closer)))} contacts between two "
                          f"strands closer than {1e3 * closer:g} mm within root_clearance "
-                         f"({1e3 * settings.root_clearance:g} mm) of both roots were not declared, nor farther ones there")
+                         f"({1e3 * settings.root_clearance:g} mm) of both roots were not declared (nor are farther "
+                         f"ones there, not all searched)")
         keep &= ~near_roots
         cap = int(settings.max_hair_per_element)
         if cap > 0:
-            capped, dropped, unmeasured = _greedy_cap(pairs, keep, cap, float(settings.hair_distance), s0, length,
-                                                      is_last, float(settings.root_clearance), xs, Fs, omega)
+            capped, dropped, unmeasured = _keep_closest(pairs, keep, cap, float(settings.hair_distance), s0, length,
+                                                        is_last, float(settings.root_clearance), xs, Fs, omega)
+            contacts = "contact" if cap == 1 else "contacts"
             left = ([f"{dropped} farther ones were not declared"] if dropped else []) + (
-                [f"{unmeasured} candidate pairs within reach were not measured (an element of each already held "
-                 f"{cap} closer contacts)"] if unmeasured else []) + (
-                [f"the {np.count_nonzero(settled)} elements that held {cap} contacts within "
-                 f"{1e3 * NARROW * settings.hair_distance:g} mm were not searched farther"] if settled is not None else [])
+                [f"{unmeasured} candidate pairs within reach were not measured (an element of each already "
+                 f"held {cap} closer {contacts})"] if unmeasured else [])
+            if settled is not None:  # the counts above then cover only the pairs searched
+                left = [f"{np.count_nonzero(settled)} elements that held {cap} {contacts} within "
+                        f"{1e3 * NARROW * settings.hair_distance:g} mm were not searched farther"] + (
+                    [f"of the pairs searched, {' and '.join(left)}"] if left else [])
             if left:
                 notes.append(f"hair-hair: kept the {cap} closest contacts per element (contacts.max_hair_per_element); "
                              + "; ".join(left))
@@ -688,6 +691,12 @@ def _found_pairs(samples, omega, length, strand_of, reach, wide=None, among=None
     a pair is searched to the mean of its two elements' values), not yet refined. ``among`` (sorted element
     indices): only the pairs of two of these elements (each pair as the search of all elements gives it:
     the same closest polyline points, since those are the pair's own)."""
+    # the samples and the centre line's points are rounded apart by some ulps of the coordinates: a margin of
+    # many times that keeps the bound a bound where the arcs are straight (no sag) and distances tie, and the
+    # search goes that much farther, so a pair whose centre lines come within reach is found even where its
+    # polylines round to reach or a little past it
+    rounding = 64.0 * np.finfo(np.float64).eps * float(np.abs(samples).max(initial=0.0)) + 1e-12 * float(np.max(reach))
+    reach = np.asarray(reach, dtype=np.float64) + rounding
     if among is None:
         ea, eb, sa, sb, gap, _close = hair_pairs(samples, omega, length, strand_of, reach, wide)
     else:
@@ -696,9 +705,6 @@ def _found_pairs(samples, omega, length, strand_of, reach, wide=None, among=None
                                                  None if wide is None else wide[among])
         ea, eb = among[ea], among[eb]
     sag = element_sag(omega, length, samples.shape[1])
-    # the samples and the centre line's points are rounded apart by some ulps of the coordinates: a margin of
-    # many times that keeps the bound a bound where the arcs are straight (no sag) and distances tie
-    rounding = 64.0 * np.finfo(np.float64).eps * float(np.abs(samples).max(initial=0.0)) + 1e-12 * float(np.max(reach))
     low = np.maximum(gap - sag[ea] - sag[eb] - rounding, 0.0)
     return _Pairs(ea, eb, sa, sb, np.full(len(ea), np.nan), low, np.zeros(len(ea), dtype=bool))
 
@@ -738,6 +744,12 @@ def _pair_points(ea, eb, sa, sb, xs, Fs, omega) -> tuple[np.ndarray, np.ndarray,
     return out
 
 
+def _near_both_roots(ea, eb, sa, sb, s0, root_clearance: float) -> np.ndarray:
+    """The pairs whose points both lie within ``root_clearance`` of their clamped roots: no coordinate moves either
+    point, and such a contact would only make W singular (its forces fixed by gamma alone): never declared."""
+    return (s0[ea] + sa < root_clearance) & (s0[eb] + sb < root_clearance)
+
+
 def _kept(ea, eb, sa, sb, dist, within: float, length, is_last) -> np.ndarray:
     """The pairs closer than ``within`` whose closest points are not an element's end that starts the next."""
     keep = dist < within
@@ -752,10 +764,11 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     """The element pairs the hair-hair rules choose from, within ``hair_distance``, and with the wisp rule
     within ``hair_max_distance`` wherever a wisp may be that wide.
 
-    Returns ``(pairs, keep, dense)``: ``keep`` marks the refined pairs closer than their search's distance
+    Returns ``(pairs, keep, dense, settled)``: ``keep`` marks the refined pairs closer than their search's distance
     whose closest points are not an element's end that starts the next element (whose pair with the same
     other element is at least as close and declares its own); ``dense`` (per strand, or None after one
-    search) the strands whose wisp radius is ``hair_distance``.
+    search) the strands whose wisp radius is ``hair_distance``; ``settled`` (per element, or None) the elements
+    searched no farther than the first reach (``narrow``).
 
     A wisp contact joins two strands only within the narrower of their wisp radii, and a strand whose
     elements mostly have a neighbour within ``hair_distance / WISP_WIDTH`` has the radius ``hair_distance``
@@ -775,8 +788,8 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
 
     ``narrow`` (with ``lazy``): the search within ``hair_distance`` is made first to ``NARROW`` times it,
     and an element that then holds the cap (:func:`_held_within`) is searched no farther. The pairs left out
-    could not be kept, so the contacts and wisp radii are the same; the fourth value returned counts the
-    elements settled that way (a mask, None where none was), and where one of them starts within
+    could not be kept, so the contacts and wisp radii are the same; ``settled`` marks the elements left out
+    that way (None where none was), and where one of them starts within
     ``root_clearance`` of its root, the note on pairs near both roots counts only those closer than the first
     search's reach (all of which it found).
     """
@@ -864,8 +877,8 @@ def _held_within(pairs: _Pairs, within: float, cap: int, s0, length, is_last, ro
     cap after them holds it at the end, and none of its farther pairs can be kept whatever their distance.
     """
     keep = pairs.refined & _kept(pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist, within, length, is_last)
-    keep &= ~((s0[pairs.ea] + pairs.sa < root_clearance) & (s0[pairs.eb] + pairs.sb < root_clearance))
-    out, _, _ = _greedy_cap(pairs, keep, cap, within, s0, length, is_last, root_clearance, xs, Fs, omega)
+    keep &= ~_near_both_roots(pairs.ea, pairs.eb, pairs.sa, pairs.sb, s0, root_clearance)
+    out, _, _ = _keep_closest(pairs, keep, cap, within, s0, length, is_last, root_clearance, xs, Fs, omega)
     return (np.bincount(pairs.ea[out], minlength=len(length)) + np.bincount(pairs.eb[out], minlength=len(length)))
 
 

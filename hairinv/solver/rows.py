@@ -77,7 +77,7 @@ class ContactRows:
         cols = np.empty(ptr[-1], dtype=np.int64)
         vals = np.empty((ptr[-1], 3))
         # on the worker threads: the copy is bound by memory (and by first touching the new pages), not by
-        # arithmetic; a 100,000-strand head's rows (2.9 million contacts, 2 GB) took 6.9 s on one thread
+        # arithmetic; one million synthetic contacts' rows, new pages: 3.0 s on one thread, 1.7 s on two
         run_chunks(lambda lo, hi: _take_rows(order, lo, hi, self.ptr, self.cols, self.vals, ptr, cols, vals),
                    len(order), 65536)
         return ContactRows(ptr, cols, vals, self.n_dofs)
