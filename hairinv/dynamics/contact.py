@@ -20,7 +20,7 @@ import numpy as np
 from .._jit import jit
 from .._parallel import run_chunks
 from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult, _accumulate_f, diagonal_blocks,
-                                   natural_residuals, solve_cone_qp)
+                                   natural_residuals, solve_cone_qp, sweep_order)
 from ..solver.blocks import _group_fixed_point, _group_newton, strand_blocks
 from ..solver.rows import ContactRows
 
@@ -396,6 +396,10 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         # out of sweeps): sweeps over all contacts would not do better; where each did by its own count and
         # the whole does not (round-off), the fail-safe polishes
         stalled = bool(stall_rounds) and not done.all()
+    # the rounds solve problems of the same rows and contacts: their update order is made once
+    order = None
+    if not blocks and status == MAX_ITERS and sweeps < max_sweeps:
+        order = sweep_order(rows, ones, gamma, strand, n_strands, s, part_of)
     while not blocks and status == MAX_ITERS and sweeps < max_sweeps and rounds < max_rounds:
         u = contact_velocities(rows, gamma, b, r)
         shifted = b.copy()
@@ -408,7 +412,7 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         budget = max_sweeps - sweeps if inner_tol <= tolerance else min(max(20, max_sweeps // 10),
                                                                         max_sweeps - sweeps)
         inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, inner_tol,
-                              budget, 5, r0=r, s=s, part_of=part_of, velocity=True)
+                              budget, 5, r0=r, s=s, part_of=part_of, velocity=True, order=order)
         if inner.status == NUMERICAL:
             return dataclasses.replace(inner, r=best_r, status=NUMERICAL, sweeps=sweeps + inner.sweeps)
         sweeps += inner.sweeps
@@ -426,7 +430,7 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     if status != CONVERGED and sweeps < max_sweeps and not stalled:
         direct = solve_cone_qp(rows, ones, gamma, b, mu, strand, n_strands, velocity_scale, tolerance,
                                max_sweeps - sweeps, 5, r0=best_r, desaxce=True, s=s, part_of=part_of,
-                               velocity=True)
+                               velocity=True, order=order)
         sweeps += direct.sweeps
         failsafe = direct.local_failures
         if direct.status != NUMERICAL:

@@ -414,12 +414,48 @@ def sweep_plan(strand: np.ndarray, n_strands: int, s: np.ndarray | None = None,
     return order, [h for h in halves if h[1] > h[0]], (sub_bounds + start).astype(np.int64)
 
 
+@dataclass
+class SweepOrder:
+    """A problem's rows, regularisation and diagonal blocks stored in its sweeps' update order
+    (:func:`sweep_order`): made once for several solves of the same ``H``, ``D``, ``gamma`` and contacts,
+    such as the rounds of one dynamic step."""
+
+    plan: np.ndarray
+    """(C,) int64, contact indices in update order (:func:`sweep_plan`)"""
+    halves: list
+    bounds: np.ndarray
+    rows: ContactRows
+    """``H``'s rows in update order"""
+    gamma: np.ndarray
+    """(C,) float64, in update order"""
+    Wd: np.ndarray
+    """(C, 3, 3) float64, the blocks ``W_ii`` in update order"""
+
+
+def sweep_order(rows: ContactRows, d: np.ndarray, gamma, strand: np.ndarray, n_strands: int,
+                s: np.ndarray | None = None, part_of: np.ndarray | None = None) -> SweepOrder:
+    """The update order of :func:`solve_cone_qp` for these arguments (the same meaning), with what it stores in it.
+
+    Every contact's rows and data are stored in update order, so that a sweep reads them front to back: on a
+    30,000-strand head (780,199 contacts) a sweep took 0.84 s on one thread in the order detection wrote them,
+    0.42 s so (the same updates, bit for bit; sums over all contacts, such as f, round differently)."""
+    d = np.ascontiguousarray(d, dtype=np.float64)
+    gamma = np.broadcast_to(np.asarray(gamma, dtype=np.float64), (rows.n_contacts,))
+    plan, halves, bounds = sweep_plan(strand, n_strands, s, part_of)
+    rows = rows.take(plan)
+    gamma = np.ascontiguousarray(gamma[plan])
+    Wd = np.empty((rows.n_contacts, 3, 3))
+    diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, gamma, Wd)
+    return SweepOrder(plan, halves, bounds, rows, gamma, Wd)
+
+
 def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np.ndarray,
                   strand: np.ndarray, n_strands: int, force_scale: float, tolerance: float = 1e-6,
                   max_sweeps: int = 2000, check_every: int = 5, r0: np.ndarray | None = None,
                   desaxce: bool = False, progress=None, s: np.ndarray | None = None,
                   accelerate: bool = True, part_of: np.ndarray | None = None,
-                  max_seconds: float = 0.0, velocity: bool = False, rest_tolerance: float = 0.0) -> SolverResult:
+                  max_seconds: float = 0.0, velocity: bool = False, rest_tolerance: float = 0.0,
+                  order: SweepOrder | None = None) -> SolverResult:
     """Solve the cone complementarity problem of ``W = H D H^T + gamma I`` and ``b``.
 
     Parameters
@@ -451,6 +487,8 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
         the iterates' objective never increases. Each sweep then costs about
         twice as much (``f`` is rebuilt for the extrapolated point) and far
         fewer are needed on real grooms (docs/benchmarks.md).
+    order : SweepOrder, optional, :func:`sweep_order` of these ``rows``, ``d``, ``gamma``, ``strand``,
+        ``n_strands``, ``s`` and ``part_of`` (made here if not given)
     """
     started = time.perf_counter()
     n_contacts = rows.n_contacts
@@ -461,15 +499,10 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     if n_contacts == 0:
         return SolverResult(r, CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started,
                             rest_bound=float("nan") if desaxce else 0.0)
-    gamma = np.broadcast_to(np.asarray(gamma, dtype=np.float64), (n_contacts,))
-    plan, halves, bounds = sweep_plan(strand, n_strands, s, part_of)
-    # every contact's rows and data stored in update order, so that a sweep reads them front to back: on
-    # a 30,000-strand head (780,199 contacts) a sweep took 0.84 s on one thread in the order detection wrote
-    # them, 0.42 s so (the same updates, bit for bit; sums over all contacts, such as f, round differently)
-    rows = rows.take(plan)
-    r, gamma, b, mu = r[plan], gamma[plan], b[plan], mu[plan]
-    Wd = np.empty((n_contacts, 3, 3))
-    diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, gamma, Wd)
+    if order is None:
+        order = sweep_order(rows, d, gamma, strand, n_strands, s, part_of)
+    plan, halves, bounds, rows, gamma, Wd = order.plan, order.halves, order.bounds, order.rows, order.gamma, order.Wd
+    r, b, mu = r[plan], b[plan], mu[plan]
     # the start in the cones, as every point whose residual is measured: the local solves meet the cones
     # only to about eps^(3/4), and the forces returned are exactly admissible
     _extrapolate(r, r, 0.0, mu, r)
