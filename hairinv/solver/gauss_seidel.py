@@ -423,7 +423,9 @@ class SweepOrder:
     plan: np.ndarray
     """(C,) int64, contact indices in update order (:func:`sweep_plan`)"""
     halves: list
+    """ranges of ``plan`` swept at the same time (:func:`sweep_plan`)"""
     bounds: np.ndarray
+    """the colours of the rest of ``plan`` (:func:`sweep_plan`)"""
     rows: ContactRows
     """``H``'s rows in update order"""
     gamma: np.ndarray
