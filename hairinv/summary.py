@@ -13,6 +13,7 @@ import json
 import numpy as np
 
 from . import stages
+from ._text import counted
 from .groom import strand_lengths
 from .model import UNSTABLE_MARGIN
 
@@ -185,32 +186,28 @@ def _frames(g: stages.Group) -> dict:
     }
 
 
-def _n(count: int, noun: str, plural: str | None = None) -> str:
-    return f"{count} {noun if count == 1 else plural or noun + 's'}"
-
-
 def _warnings(out: dict) -> list[str]:
     """What a reader should know, from what the file records (the file stores no run-time messages)."""
     g = out["groups"]
     found = []
     if g["helices"] and g["helices"]["strands_over_tolerance"]:
         h = g["helices"]
-        found.append(f"{_n(h['strands_over_tolerance'], 'strand is', 'strands are')} fitted worse than the fit "
+        found.append(f"{counted(h['strands_over_tolerance'], 'strand is', 'strands are')} fitted worse than the fit "
                      f"tolerance {h['fit_tolerance_mm']:g} mm (largest {h['fit_error_max_mm']['max']:.3g} mm)")
     if g["contacts"] and g["contacts"]["inside_body"]:
-        found.append(f"{_n(g['contacts']['inside_body'], 'body contact lies', 'body contacts lie')} inside the body")
+        found.append(f"{counted(g['contacts']['inside_body'], 'body contact lies', 'body contacts lie')} inside the body")
     if g["model"] and g["model"]["status"] not in ("", "CONVERGED"):
         m = g["model"]
         found.append(f"the contact solver stopped with status {m['status']} after {m['sweeps']} sweeps "
                      f"(residual {m['residual_N']:.3g} N)")
     if g["model"] and g["model"]["strands_stiffened"]:
         m = g["model"]
-        found.append(f"{_n(m['strands_stiffened'], 'strand was', 'strands were')} stiffened so that "
+        found.append(f"{counted(m['strands_stiffened'], 'strand was', 'strands were')} stiffened so that "
                      f"{'it rests' if m['strands_stiffened'] == 1 else 'they rest'} stably (factor up to "
                      f"{m['stiffening_factor']['max']:.3g})")
     if g["model"] and g["model"]["unstable_strands"]:
         m = g["model"]
-        found.append(f"{_n(len(m['unstable_strands']), 'strand rests', 'strands rest')} in an unstable equilibrium "
+        found.append(f"{counted(len(m['unstable_strands']), 'strand rests', 'strands rest')} in an unstable equilibrium "
                      f"(with its contact forces held {'fixed' if m['stable_under'] == 'forces' else 'in place'}): "
                      "a simulation of the model will move it")
     return found

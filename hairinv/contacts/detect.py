@@ -26,11 +26,12 @@ from .._jit import jit
 from .._parallel import run_chunks
 from .._sorting import float_order, stable_order
 from ..config import ContactSettings
+from .._text import counted
 from ..errors import InputError
 from ..model import BODY, Contacts, Helices
 from ._curve import element_starts, sample_elements
 from .body import REFINE_ITERATIONS, BodyMesh, element_body_contacts
-from .hair import _grow, element_sag, hair_pairs, pair_points, refine_pairs
+from .hair import _grow, element_sag, hair_pairs, pair_points, polyline_slack, refine_pairs
 
 __all__ = ["Contacts", "DetectReport", "detect_contacts", "validate_settings", "contact_frames"]
 
@@ -487,24 +488,26 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
             closer = NARROW * settings.hair_distance
             notes.append(f"hair-hair: {int(np.count_nonzero(near_roots & (dist < closer)))} contacts between two "
                          f"strands closer than {1e3 * closer:g} mm within root_clearance "
-                         f"({1e3 * settings.root_clearance:g} mm) of both roots were not declared (nor are farther "
-                         f"ones there, not all searched)")
+                         f"({1e3 * settings.root_clearance:g} mm) of both roots were not declared; nor were farther "
+                         f"ones there, not all of which were searched or counted")
         keep &= ~near_roots
         cap = int(settings.max_hair_per_element)
         if cap > 0:
             capped, dropped, unmeasured = _keep_closest(pairs, keep, cap, float(settings.hair_distance), s0, length,
                                                         is_last, float(settings.root_clearance), xs, Fs, omega)
-            contacts = "contact" if cap == 1 else "contacts"
-            left = ([f"{dropped} farther ones were not declared"] if dropped else []) + (
-                [f"{unmeasured} candidate pairs within reach were not measured (an element of each already "
-                 f"held {cap} closer {contacts})"] if unmeasured else [])
+            held = counted(cap, "contact")
+            left = ([f"{counted(dropped, 'farther contact was', 'farther contacts were')} not declared"]
+                    if dropped else []) + (
+                [f"{counted(unmeasured, 'candidate pair', 'candidate pairs')} within reach "
+                 f"{'was' if unmeasured == 1 else 'were'} not measured (an element of each already held "
+                 f"{'a closer contact' if cap == 1 else f'{cap} closer contacts'})"] if unmeasured else [])
             if settled is not None:  # the counts above then cover only the pairs searched
-                left = [f"{np.count_nonzero(settled)} elements that held {cap} {contacts} within "
-                        f"{1e3 * NARROW * settings.hair_distance:g} mm were not searched farther"] + (
-                    [f"of the pairs searched, {' and '.join(left)}"] if left else [])
+                left = [f"{counted(int(np.count_nonzero(settled)), 'element')} that held {held} within "
+                        f"{1e3 * NARROW * settings.hair_distance:g} mm {'was' if np.count_nonzero(settled) == 1 else 'were'} "
+                        f"not searched farther"] + ([f"of the pairs searched, {' and '.join(left)}"] if left else [])
             if left:
-                notes.append(f"hair-hair: kept the {cap} closest contacts per element (contacts.max_hair_per_element); "
-                             + "; ".join(left))
+                kept = "the closest contact" if cap == 1 else f"the {cap} closest contacts"
+                notes.append(f"hair-hair: kept {kept} per element (contacts.max_hair_per_element); " + "; ".join(left))
             keep = capped
         hair_wisp = int(np.count_nonzero(by_wisp & keep))
         ea, eb, sa, sb = ea[keep], eb[keep], sa[keep], sb[keep]
@@ -692,20 +695,20 @@ def _found_pairs(samples, omega, length, strand_of, reach, wide=None, among=None
     indices): only the pairs of two of these elements (each pair as the search of all elements gives it:
     the same closest polyline points, since those are the pair's own)."""
     # the samples and the centre line's points are rounded apart by some ulps of the coordinates: a margin of
-    # many times that keeps the bound a bound where the arcs are straight (no sag) and distances tie, and the
-    # search goes that much farther, so a pair whose centre lines come within reach is found even where its
-    # polylines round to reach or a little past it
+    # many times that keeps the bound a bound where the arcs are straight (no sag) and distances tie. With
+    # the gap's own slack (nearly parallel segments, hair_pairs), the search goes that much farther, so a
+    # pair whose centre lines come within reach is found even where its polyline gap is a little past it
     rounding = 64.0 * np.finfo(np.float64).eps * float(np.abs(samples).max(initial=0.0)) + 1e-12 * float(np.max(reach))
-    reach = np.asarray(reach, dtype=np.float64) + rounding
+    slack = polyline_slack(length, samples.shape[1])
+    reach = np.asarray(reach, dtype=np.float64) + 2.0 * slack + rounding  # (a pair: the mean of its two)
     if among is None:
         ea, eb, sa, sb, gap, _close = hair_pairs(samples, omega, length, strand_of, reach, wide)
     else:
         ea, eb, sa, sb, gap, _close = hair_pairs(samples[among], omega[among], length[among], strand_of[among],
-                                                 reach if np.ndim(reach) == 0 else reach[among],
-                                                 None if wide is None else wide[among])
+                                                 reach[among], None if wide is None else wide[among])
         ea, eb = among[ea], among[eb]
-    sag = element_sag(omega, length, samples.shape[1])
-    low = np.maximum(gap - sag[ea] - sag[eb] - rounding, 0.0)
+    stray = element_sag(omega, length, samples.shape[1]) + slack
+    low = np.maximum(gap - stray[ea] - stray[eb] - rounding, 0.0)
     return _Pairs(ea, eb, sa, sb, np.full(len(ea), np.nan), low, np.zeros(len(ea), dtype=bool))
 
 

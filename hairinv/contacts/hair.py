@@ -27,7 +27,7 @@ from .._parallel import run_chunks, worker_count
 from .._sorting import stable_order
 from ._curve import point_tangent
 
-__all__ = ["segment_closest", "hair_pairs", "refine_pairs", "pair_points", "element_sag"]
+__all__ = ["segment_closest", "hair_pairs", "refine_pairs", "pair_points", "element_sag", "polyline_slack"]
 
 # Grid cell over the median inflated segment box (Teschner et al. suggest about one box). CPU s of the pair
 # search on 20,000 synthetic strands x 10 elements for 0.5/0.75/1/1.5/2/3: 3.2/2.1/1.9/2.0/2.3/3.0.
@@ -39,6 +39,9 @@ REFINE_STEPS = 12
 STEP_TOLERANCE = 1e-6
 # Step halvings tried before a refinement step is given up.
 HALVINGS = 8
+# Segments whose angle has a sine below this are taken as parallel by segment_closest (the general formula
+# loses its digits there).
+PARALLEL_SINE = 1e-7
 
 
 @jit
@@ -46,8 +49,9 @@ def segment_closest(p1, q1, p2, q2):
     """Closest points of segments ``p1 q1`` and ``p2 q2`` (Ericson, Real-Time Collision Detection, 5.1.9).
 
     Returns ``(u, v, d2)``: the parameters in [0, 1] along each segment (0 and
-    1 exactly when clamped) and the squared distance. Parallel segments take
-    ``u = 0`` where the first segment's start projects inside the second.
+    1 exactly when clamped) and the squared distance. Parallel segments (within an angle of sine
+    ``PARALLEL_SINE``) take ``u = 0`` where the first segment's start projects inside the second: the
+    distance may then exceed the least by up to that sine times the longer segment (:func:`polyline_slack`).
     """
     d10, d11, d12 = q1[0] - p1[0], q1[1] - p1[1], q1[2] - p1[2]
     d20, d21, d22 = q2[0] - p2[0], q2[1] - p2[1], q2[2] - p2[2]
@@ -70,7 +74,7 @@ def segment_closest(p1, q1, p2, q2):
             b = d10 * d20 + d11 * d21 + d12 * d22
             denom = a * e - b * b
             # (nearly) parallel: the solution is a segment of equally close pairs; take u = 0
-            u = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-14 * a * e else 0.0
+            u = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > PARALLEL_SINE * PARALLEL_SINE * a * e else 0.0
             v = (b * u + f) / e
             if v < 0.0:
                 v = 0.0
@@ -388,6 +392,15 @@ def element_sag(omega: np.ndarray, length: np.ndarray, n: int) -> np.ndarray:
     return np.minimum(np.hypot(omega[:, 0], omega[:, 1]) * spacing**2 / 8.0, 0.5 * spacing)
 
 
+def polyline_slack(length: np.ndarray, n: int) -> np.ndarray:
+    """(E,) m: how far :func:`segment_closest` may overstate the distance from one of an element's segments
+    (``n`` samples) to another segment, for the element's share: on segments nearly parallel it takes one end
+    of the first, where the distance may be larger, by at most the angle's sine (``PARALLEL_SINE``) times
+    the longer segment (twice that here, for the rounding of the angle's test). A pair's polyline gap
+    exceeds the polylines' least distance by at most the sum of its two elements' values."""
+    return 2.0 * PARALLEL_SINE * length / (n - 1)
+
+
 def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, strand_of: np.ndarray,
                hair_distance, wide: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                                        np.ndarray, np.ndarray, int]:
@@ -408,7 +421,9 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     elem_a, elem_b : (P,) int64, element pairs, ``strand_of[elem_a] < strand_of[elem_b]``, sorted
     sigma_a, sigma_b : (P,) float64, m, arc lengths along the elements of the closest polyline points
     gap : (P,) float64, m, the polylines' distance there; the centre lines' own closest points are at least
-        ``gap - sag[elem_a] - sag[elem_b]`` apart (:func:`element_sag`)
+        ``gap - sag[elem_a] - sag[elem_b] - slack[elem_a] - slack[elem_b]`` apart (:func:`element_sag`,
+        :func:`polyline_slack`; a search that must find every pair of centre lines within a reach searches
+        that much farther)
     close : int, segment pairs found within reach (before keeping one per element pair)
     """
     count, n = samples.shape[0], samples.shape[1]
