@@ -575,7 +575,10 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
         bar.close()
     for line in report.lines():
         _say(obj, line)
-    features = invert_features(settings.contacts, settings.solver, material.gravity, scene.body is not None)
+    # body contact as the contacts in use model it (reused from the file, they may have been found against a body
+    # not given now)
+    body = "body_contact" in scene.features.modelled if scene.features is not None else scene.body is not None
+    features = invert_features(settings.contacts, settings.solver, material.gravity, body)
     _say(obj, features.line())
     if model.result.status == "NUMERICAL_ERROR":
         raise RunError(f"the contact solver met a numerical error after {model.result.sweeps} sweeps "

@@ -62,6 +62,18 @@ class Features:
         """The ``features`` attribute: JSON ``{"modelled": [key, ...], "skipped": {key: why}}``."""
         return json.dumps({"modelled": list(self.modelled), "skipped": dict(self.skipped)})
 
+    @classmethod
+    def from_attr(cls, text) -> "Features | None":
+        """The features a stage file's ``features`` attribute records (details are not stored), None if it
+        records none or not in :meth:`attr`'s form."""
+        try:
+            data = json.loads(text)
+            modelled = {str(k): "" for k in data["modelled"] if k in FEATURES}
+            skipped = {str(k): str(why) for k, why in data["skipped"].items() if k in FEATURES}
+        except (TypeError, ValueError, KeyError, AttributeError):
+            return None
+        return cls(modelled, skipped)
+
 
 def _contact_features(out: Features, settings: ContactSettings, body: bool, body_why: str = "") -> None:
     """Hair-body and hair-hair contact, as detection declares them."""

@@ -25,6 +25,7 @@ from .errors import InputError
 from .features import Features, detect_features
 from .fit import Helices, fit_groom
 from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto
+from .model import BODY
 
 __all__ = ["Scene", "prepare"]
 
@@ -258,6 +259,11 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         scene.contacts = Contacts.from_group(stored_contacts)
         groups[stages.CONTACTS] = stored_contacts
         lines.append(f"using the {scene.contacts.n_contacts} contacts in {style.name}")
+        # what they model is what their detection modelled (with or without a body given now); a file
+        # that does not record it models body contact where it has some
+        stored = Features.from_attr(stored_contacts.attrs.get("features"))
+        scene.features = stored if stored is not None else detect_features(
+            settings.contacts, bool(np.any(scene.contacts.strand[:, 1] == BODY)))
         if (stored_model is not None and scene.contacts.n_contacts
                 and np.shape(stored_model["force"]) == (scene.contacts.n_contacts, 3)):
             scene.model = stored_model

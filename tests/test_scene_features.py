@@ -302,3 +302,28 @@ def test_detect_features_say_why():
     on = config.resolve().contacts
     assert detect_features(on, True).line() == "modelled: hair-body contact, hair-hair contact; skipped: nothing"
     assert detect_features(on, False).skipped == {"body_contact": "no body mesh given"}
+
+
+def test_contacts_reused_from_the_file_model_what_their_detection_modelled(tmp_path):
+    """``invert`` of a detected file without the body: the body contacts found against it are solved for, and
+    the report and the model's ``features`` say so (with their friction); a file that does not record its
+    contacts' features models body contact where it has some."""
+    detected = tmp_path / "detected.h5"
+    run = subprocess.run([HAIRINV, "detect", str(GROOM), str(BODY_FILE), "-o", str(detected)],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    with h5py.File(detected, "r") as fh:
+        body_contacts = int(np.count_nonzero(fh["contacts/strand"][:, 1] < 0))
+    assert body_contacts > 0
+    for recorded in (True, False):
+        if not recorded:
+            with h5py.File(detected, "r+") as fh:
+                del fh["contacts"].attrs["features"]
+        model = tmp_path / f"model_{recorded}.h5"
+        run = subprocess.run([HAIRINV, "invert", str(detected), "-o", str(model)], capture_output=True, text=True)
+        assert run.returncode == 0, run.stderr
+        assert f"({body_contacts} body" in run.stdout
+        line = next(text for text in run.stdout.splitlines() if text.startswith("modelled:"))
+        assert "hair-body contact" in line.split("; skipped:")[0] and "mu_body" in line, line
+        with h5py.File(model, "r") as fh:
+            assert "body_contact" in json.loads(fh["model"].attrs["features"])["modelled"]
