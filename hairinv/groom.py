@@ -23,6 +23,10 @@ from .formats.mesh import CORNER_UV
 AXES = {"x": 0, "y": 1, "z": 2}
 # Typical diagonal of the bounding box, m: a head of hair, and a bust.
 _TYPICAL_HAIR_SIZE = 0.45
+# m: the longest strand a groom may have once in metres. The longest human hair on record is under 6 m; a
+# longer strand is a unit mistake (a file in centimetres read as metres) or a corrupt file, and fitting it
+# would take minutes and gigabytes for nothing.
+MAX_STRAND_LENGTH = 10.0
 _TYPICAL_BODY_SIZE = 0.6
 # |a . b| above this: two unit vectors are the same axis (a stored up vector is a unit axis to round-off).
 SAME_AXIS = 1.0 - 1e-9
@@ -260,6 +264,12 @@ def load_groom(path, settings: ImportSettings, body_size_native: float | None = 
     if len(keep_idx) == 0:
         raise InputError("no strand is left after cleaning (all are degenerate or shorter than the minimum length)", path)
     pts, offsets = _subset(pts, offsets, keep_idx)
+    lengths = strand_lengths(pts, offsets)
+    if not np.all(lengths <= MAX_STRAND_LENGTH):  # (NaN included)
+        worst = int(np.argmax(np.where(np.isfinite(lengths), lengths, np.inf)))
+        raise InputError(f"a strand is {lengths[worst]:.3g} m long at {scale:.3g} m per file unit, longer than any hair "
+                         f"({MAX_STRAND_LENGTH:g} m at most): pass --units or --scale if the unit is wrong, else the "
+                         f"file is corrupt", path, strand=int(keep_idx[worst]))
     if settings.guides > 0 and settings.guides < len(keep_idx):
         chosen = select_guides(pts[offsets[:-1]], settings.guides, settings.seed)
         report.notes.append(f"guides: kept {len(chosen)} of {len(keep_idx)} strands (seed {settings.seed})")

@@ -293,6 +293,12 @@ BAD = {
         _write("neg.data", struct.pack("<i", -5) + bytes(16), ["fit", "neg.data", "-o", "out.h5"]),
         "neg.data", ["negative"]),
     "nan in strand 3": (_nan_in_strand_3, "nan.data", ["strand 3", "NaN"]),
+    "a strand 100 m long": (
+        _write("long.data", _usc([np.column_stack([np.zeros(50), -np.linspace(0.0, 100.0, 50), np.zeros(50)])]),
+               ["fit", "long.data", "-o", "out.h5", "--units", "m"]), "long.data", ["strand 0", "100 m long", "--units"]),
+    "a coordinate of 1e37": (
+        _write("huge.data", _usc([np.column_stack([np.zeros(9), -np.linspace(0.0, 0.2, 9), np.r_[np.zeros(8), 1e37]])]),
+               ["fit", "huge.data", "-o", "out.h5", "--units", "m"]), "huge.data", ["strand 0", "longer than any hair"]),
     "unknown suffix": (_write("hair.xyz", b"1 2 3\n", ["fit", "hair.xyz", "-o", "out.h5"]), "hair.xyz", [".xyz"]),
     "unknown setting": (_nothing(["fit", "wavy.h5", "-o", "out.h5", "--set", "fit.nope=1"]), "fit.nope", ["unknown"]),
     "setting of the wrong type": (

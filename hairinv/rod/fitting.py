@@ -798,6 +798,8 @@ def _discrete_darboux(p, j0, j1):
     scale = 0.0
     for i in range(3):
         scale = max(scale, A[i, i])
+    if not (scale > 0.0 and scale < np.inf):
+        return out  # no chord pair that turns less than back on itself (a spike: A = 0), or none finite
     for i in range(3):
         A[i, i] += 1e-6 * scale
     om = np.linalg.solve(A, b)
