@@ -35,7 +35,7 @@ from .._parallel import run_chunks
 from ..config import ContactSettings, DynamicsSettings
 from ..contacts.body import REFINE_ITERATIONS, BodyMesh
 from ..contacts.detect import COINCIDENT, contact_frames, detect_contacts
-from ..rod.helix import chain, point_at
+from ..rod.helix import chain, strand_points
 from ..errors import InputError
 from ..invert import tolerance_gravity
 from ..model import Contacts, Helices, Material, stiffness
@@ -312,39 +312,9 @@ _MOVING_REFINE = 12
 _CONTACT_CHUNK = 256
 
 
-@jit
-def _points_on(root, frame0, offsets, omega, length, strand, s, out):
-    """Centerline points of strands ``strand`` at arc lengths ``s``, (n, 3); each strand's element
-    chain is made once for its consecutive entries."""
-    last = -1
-    xs = np.empty((1, 3))
-    Fs = np.empty((1, 3, 3))
-    starts = np.zeros(1)
-    for i in range(strand.shape[0]):
-        k = strand[i]
-        a = offsets[k]
-        z = offsets[k + 1]
-        if k != last:
-            n = z - a
-            xs = np.empty((n + 1, 3))
-            Fs = np.empty((n + 1, 3, 3))
-            chain(root[k], frame0[k], omega[a:z], length[a:z], xs, Fs)
-            starts = np.zeros(n + 1)
-            for e in range(n):
-                starts[e + 1] = starts[e] + length[a + e]
-            last = k
-        point_at(xs, Fs, omega[a:z], starts, s[i], out[i])
-
-
 def points_on(helices: Helices, omega: np.ndarray, strand: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """:func:`_points_on` with the entries taken strand by strand, (n, 3)."""
-    order = np.argsort(strand, kind="stable")
-    out = np.empty((len(strand), 3))
-    _points_on(helices.root, helices.frame0, helices.offsets, omega, helices.length,
-               np.ascontiguousarray(strand[order]), np.ascontiguousarray(s[order]), out)
-    result = np.empty_like(out)
-    result[order] = out
-    return result
+    """:func:`hairinv.rod.helix.strand_points` of ``helices`` with the curvatures ``omega``, (n, 3)."""
+    return strand_points(helices.root, helices.frame0, helices.offsets, omega, helices.length, strand, s)
 
 
 @jit

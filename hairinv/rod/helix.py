@@ -38,6 +38,7 @@ __all__ = [
     "point_at",
     "points_at",
     "frames_at",
+    "strand_points",
 ]
 
 # Taylor series of A, B, C, D in y = x^2: coefficient k of each is
@@ -338,3 +339,41 @@ def element_derivatives(omega_e, sigma, F, dx, dth):
         for i in range(3):
             dx[k, i] = F[0, i] * p0 + F[1, i] * p1 + F[2, i] * p2
             dth[k, i] = F[0, i] * f0 + F[1, i] * f1 + F[2, i] * f2
+
+
+@jit
+def _points_on(root, frame0, offsets, omega, length, strand, s, out):
+    """Centerline points of strands ``strand`` at arc lengths ``s``, (n, 3); each strand's element
+    chain is made once for its consecutive entries."""
+    last = -1
+    xs = np.empty((1, 3))
+    Fs = np.empty((1, 3, 3))
+    starts = np.zeros(1)
+    for i in range(strand.shape[0]):
+        k = strand[i]
+        a = offsets[k]
+        z = offsets[k + 1]
+        if k != last:
+            n = z - a
+            xs = np.empty((n + 1, 3))
+            Fs = np.empty((n + 1, 3, 3))
+            chain(root[k], frame0[k], omega[a:z], length[a:z], xs, Fs)
+            starts = np.zeros(n + 1)
+            for e in range(n):
+                starts[e + 1] = starts[e] + length[a + e]
+            last = k
+        point_at(xs, Fs, omega[a:z], starts, s[i], out[i])
+
+
+def strand_points(root, frame0, offsets, omega, length, strand, s) -> np.ndarray:
+    """Centerline points of strands ``strand`` (n,) at arc lengths ``s`` (n,) from their roots, (n, 3), m: each
+    strand's chain made once (:func:`_points_on`, the entries taken strand by strand)."""
+    strand = np.asarray(strand, dtype=np.int64)
+    order = np.argsort(strand, kind="stable")
+    out = np.empty((len(strand), 3))
+    f64 = (lambda a: np.ascontiguousarray(a, dtype=np.float64))
+    _points_on(f64(root), f64(frame0), np.ascontiguousarray(offsets, dtype=np.int64), f64(omega), f64(length),
+               np.ascontiguousarray(strand[order]), f64(np.asarray(s)[order]), out)
+    result = np.empty_like(out)
+    result[order] = out
+    return result
