@@ -23,11 +23,11 @@ from .formats.mesh import CORNER_UV
 AXES = {"x": 0, "y": 1, "z": 2}
 # Typical diagonal of the bounding box, m: a head of hair, and a bust.
 _TYPICAL_HAIR_SIZE = 0.45
+_TYPICAL_BODY_SIZE = 0.6
 # m: the longest strand a groom may have once in metres. The longest human hair on record is under 6 m; a
 # longer strand is a unit mistake (a file in centimetres read as metres) or a corrupt file, and fitting it
 # would take minutes and gigabytes for nothing.
 MAX_STRAND_LENGTH = 10.0
-_TYPICAL_BODY_SIZE = 0.6
 # |a . b| above this: two unit vectors are the same axis (a stored up vector is a unit axis to round-off).
 SAME_AXIS = 1.0 - 1e-9
 
