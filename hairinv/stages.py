@@ -146,9 +146,6 @@ FRAME_TOLERANCE = 1e-6
 #: length (the round-off of summing element lengths).
 ARC_TOLERANCE_M = 1e-6
 ARC_TOLERANCE_RELATIVE = 1e-9
-# m: how far /contacts/point may lie from side A's centre line at its arc length (detection computes it there,
-# to round-off; a tenth of a hair's radius)
-POINT_TOLERANCE_M = 1e-5
 
 
 @dataclass
@@ -741,24 +738,6 @@ def _check_contacts(path, contacts: Group, helices: Group | None, n_strands: int
                              f"from 0 to {length[i]:.6g} m along /helices", path)
     if "element" in contacts.datasets:
         _check_contact_elements(path, contacts["element"], a, b, s, helices)
-    if "point" in contacts.datasets:
-        _check_contact_points(path, contacts, a, s, helices)
-
-
-def _check_contact_points(path, contacts: Group, a, s, helices: Group) -> None:
-    """``/contacts/point`` lies on side A's centre line of ``/helices`` at its arc length: contacts found on
-    other helices (the helices changed since, the layout kept) are refused before any solve."""
-    from .rod.helix import strand_points
-
-    found = strand_points(helices["root"], helices["frame0"], helices["offsets"], helices["omega"],
-                          helices["length"], a, s[:, 0])
-    off = np.linalg.norm(found - contacts["point"], axis=1)
-    bad = np.flatnonzero(~(off <= POINT_TOLERANCE_M))
-    if len(bad):
-        i = int(bad[0])
-        raise InputError(f"/contacts/point[{i}] lies {1e3 * off[i]:.3g} mm from strand {int(a[i])}'s centre line in "
-                         f"/helices at /contacts/s[{i}, 0] = {s[i, 0]:.6g} m: the contacts were not found on these "
-                         f"helices (were they changed after detection? detect the contacts again)", path)
 
 
 def _check_contact_elements(path, element, a, b, s, helices: Group) -> None:
