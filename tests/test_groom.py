@@ -94,11 +94,12 @@ def strands_cm():
 
 @pytest.mark.parametrize("unit", sorted(UNITS))
 def test_explicit_units_scale_exactly(tmp_path, strands_cm, unit):
-    path = write_obj_lines(tmp_path / "h.obj", strands_cm)
+    strands = [s / 8 for s in strands_cm]  # 5 units across: a hair's length in any of the units (still exact)
+    path = write_obj_lines(tmp_path / "h.obj", strands)
     groom, report = load_groom(path, ImportSettings(units=unit))
     expected = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}[unit]
     assert groom.scale_to_m == expected
-    np.testing.assert_allclose(groom.points, flat(strands_cm) * expected, rtol=EXACT, atol=EXACT)
+    np.testing.assert_allclose(groom.points, flat(strands) * expected, rtol=EXACT, atol=EXACT)
     assert f"units: {unit} (as given)" in report.lines()
     assert not any("guessed" in line for line in report.lines())
 
@@ -120,8 +121,8 @@ def test_scale_wins_over_units(tmp_path, strands_cm):
 
 
 def test_stated_unit_is_used_when_auto(tmp_path):
-    # 40 m across: a guess would say cm, but the hairinv file states metres
-    strands = two_strands(40.0)
+    # 12 m across (strands under 10 m): a guess would not say m, but the hairinv file states metres
+    strands = two_strands(12.0)
     path = write_h5(tmp_path / "h.h5", strands)
     groom, report = load_groom(path, ImportSettings())
     assert groom.scale_to_m == 1.0
