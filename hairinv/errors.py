@@ -7,6 +7,7 @@ input and failed. Each carries one sentence a user can act on.
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 
@@ -41,6 +42,18 @@ class InputError(HairinvError):
         where = f"{self.path}: " if self.path else ""
         what = f"strand {self.strand}: " if self.strand is not None else ""
         return f"{where}{what}{self.message}"
+
+
+@contextlib.contextmanager
+def in_file(path):
+    """Input errors raised within that name no file are said of ``path`` (a reader's checks that see only
+    the data, such as a body mesh's)."""
+    try:
+        yield
+    except InputError as error:
+        if error.path is None and path is not None:
+            raise InputError(error.message, path, error.strand) from None
+        raise
 
 
 class RunError(HairinvError):

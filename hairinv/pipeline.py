@@ -21,7 +21,7 @@ from . import formats, stages
 from .config import BodySettings, UNITS, ImportSettings, Settings
 from .contacts import Contacts, detect_contacts
 from .contacts.body import BodyMesh
-from .errors import InputError
+from .errors import InputError, in_file
 from .features import Features, detect_features
 from .fit import Helices, fit_groom
 from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto
@@ -233,7 +233,8 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         mesh = load_body(body, to_groom, native)
     # built once: the roots' check here and the body contacts below; with contacts.body off the body is
     # read (its file is an input) but never queried
-    body_mesh = BodyMesh.from_mesh(mesh) if mesh is not None and settings.contacts.body and contacts else None
+    with in_file(body):
+        body_mesh = BodyMesh.from_mesh(mesh) if mesh is not None and settings.contacts.body and contacts else None
     if body_mesh is not None:
         roots = groom.points[groom.offsets[:-1]] if helices is None else helices.root
         lines += root_distance_lines(roots, body_mesh, body, up, settings.body, to_groom)

@@ -299,6 +299,9 @@ BAD = {
     "a coordinate of 1e37": (
         _write("huge.data", _usc([np.column_stack([np.zeros(9), -np.linspace(0.0, 0.2, 9), np.r_[np.zeros(8), 1e37]])]),
                ["fit", "huge.data", "-o", "out.h5", "--units", "m"]), "huge.data", ["strand 0", "longer than any hair"]),
+    "a body of degenerate triangles only": (
+        _write("flat.obj", b"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", ["detect", "wavy.h5", "flat.obj", "-o", "out.h5"]),
+        "flat.obj", ["degenerate"]),
     "unknown suffix": (_write("hair.xyz", b"1 2 3\n", ["fit", "hair.xyz", "-o", "out.h5"]), "hair.xyz", [".xyz"]),
     "unknown setting": (_nothing(["fit", "wavy.h5", "-o", "out.h5", "--set", "fit.nope=1"]), "fit.nope", ["unknown"]),
     "setting of the wrong type": (
