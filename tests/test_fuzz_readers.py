@@ -60,16 +60,16 @@ def corrupt(data: bytes, rng: np.random.Generator) -> bytes:
 
 
 def read_and_fit(path: Path) -> None:
-    """What ``hairinv fit`` does with the file; returns if it is refused as bad input or fits cleanly."""
+    """What ``hairinv fit`` does with the file: refused as bad input naming it, or fitted to finite helices."""
     try:
         groom, _ = load_groom(path, ImportSettings(units="m"))
         helices, _ = fit_groom(groom, FitSettings())
-    except InputError as error:
+    except InputError as error:  # refused: the sentence names the file
         assert path.name in str(error), str(error)
-        return
-    for name in ("root", "frame0", "omega", "length"):
-        assert np.all(np.isfinite(getattr(helices, name))), name
-    assert np.all(helices.length > 0.0)
+    else:  # read: the fit is finite
+        for name in ("root", "frame0", "omega", "length"):
+            assert np.all(np.isfinite(getattr(helices, name))), name
+        assert np.all(helices.length > 0.0)
 
 
 @pytest.mark.parametrize("suffix", [".data", ".hair", ".usda", ".obj"])

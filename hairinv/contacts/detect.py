@@ -495,16 +495,15 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         if cap > 0:
             capped, dropped, unmeasured = _keep_closest(pairs, keep, cap, float(settings.hair_distance), s0, length,
                                                         is_last, float(settings.root_clearance), xs, Fs, omega)
-            held = counted(cap, "contact")
             left = ([f"{counted(dropped, 'farther contact was', 'farther contacts were')} not declared"]
                     if dropped else []) + (
-                [f"{counted(unmeasured, 'candidate pair', 'candidate pairs')} within reach "
-                 f"{'was' if unmeasured == 1 else 'were'} not measured (an element of each already held "
+                [f"{counted(unmeasured, 'candidate pair within reach was', 'candidate pairs within reach were')} "
+                 f"not measured (an element of each already held "
                  f"{'a closer contact' if cap == 1 else f'{cap} closer contacts'})"] if unmeasured else [])
             if settled is not None:  # the counts above then cover only the pairs searched
-                left = [f"{counted(int(np.count_nonzero(settled)), 'element')} that held {held} within "
-                        f"{1e3 * NARROW * settings.hair_distance:g} mm {'was' if np.count_nonzero(settled) == 1 else 'were'} "
-                        f"not searched farther"] + ([f"of the pairs searched, {' and '.join(left)}"] if left else [])
+                held = f"held {counted(cap, 'contact')} within {1e3 * NARROW * settings.hair_distance:g} mm"
+                left = [f"{counted(int(np.count_nonzero(settled)), f'element that {held} was', f'elements that {held} were')}"
+                        " not searched farther"] + ([f"of the pairs searched, {' and '.join(left)}"] if left else [])
             if left:
                 kept = "the closest contact" if cap == 1 else f"the {cap} closest contacts"
                 notes.append(f"hair-hair: kept {kept} per element (contacts.max_hair_per_element); " + "; ".join(left))
