@@ -24,7 +24,7 @@ from .contacts.body import BodyMesh
 from .errors import InputError, in_file
 from .features import Features, detect_features
 from .fit import Helices, fit_groom
-from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto
+from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto, strand_lengths
 from .model import BODY
 
 __all__ = ["Scene", "prepare"]
@@ -98,8 +98,9 @@ _UNIT_FACTORS = (1000.0, 100.0, 25.4, 10.0, 2.54, 1 / 2.54, 0.1, 1 / 25.4, 0.01,
 
 
 def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: BodySettings,
-                        to_groom: np.ndarray | None = None) -> list[str]:
-    """A warning when the strands' roots do not lie on or near the body (checked before the fit).
+                        to_groom: np.ndarray | None = None, reach: np.ndarray | None = None) -> list[str]:
+    """A warning when the strands' roots do not lie on or near the body (checked before the fit), and a
+    refusal when no strand can touch it.
 
     Roots grow from the scalp: a median root more than :data:`ROOTS_FAR` from the mesh means the two files
     do not meet, most often because they are in different units (a groom in centimetres on a head in metres
@@ -107,10 +108,15 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
     found. Each usual factor between units, and each other up axis of the body file when none was given,
     is tried on the body (as the roots moved the other way about the origin); the one that puts the roots
     on the body is named with the option that does it. ``to_groom``: the body's transform in use, whose
-    scale the suggested unit is computed from."""
+    scale the suggested unit is computed from.
+
+    ``reach``: (S,) m, how far from its root each strand can touch the body (its length plus the contact
+    distance). When every root lies farther from the body than that, the body can carry no strand
+    whatever its shape, so it is not the body the groom rests on: an :class:`InputError` of the body file
+    says so, with the fix, before any work is done."""
     if len(roots) == 0 or len(body_mesh.face_index) == 0:
         return []
-    roots = np.ascontiguousarray(roots, dtype=np.float64)
+    every_root = roots = np.ascontiguousarray(roots, dtype=np.float64)
     if len(roots) > _ROOTS_CHECKED:
         roots = roots[np.random.default_rng(0).choice(len(roots), _ROOTS_CHECKED, replace=False)]
 
@@ -121,9 +127,22 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
     median, nearest = median_distance(roots)
     if not median > ROOTS_FAR:
         return []
+    fix = _body_fix(roots, median_distance, up, body_settings, to_groom)
+    if reach is not None:
+        distance = np.abs(body_mesh.closest(every_root)[0])
+        if not np.any(distance <= reach):
+            raise InputError(f"no strand can reach this body: its nearest root lies {1e3 * distance.min():.4g} mm "
+                             f"from it, farther than any strand's length (at most {1e3 * float(np.max(reach)):.4g}"
+                             f" mm with the contact distance); {fix}, or run without a body", body)
     name = getattr(body, "name", str(body))
-    line = (f"warning: the strands' roots lie {1e3 * median:.4g} mm from the body {name} (median over "
-            f"{len(roots)} strands; nearest {1e3 * nearest:.4g} mm), so few or no body contacts will be found")
+    return [f"warning: the strands' roots lie {1e3 * median:.4g} mm from the body {name} (median over "
+            f"{len(roots)} strands; nearest {1e3 * nearest:.4g} mm), so few or no body contacts will be found; "
+            + fix]
+
+
+def _body_fix(roots: np.ndarray, median_distance, up, body_settings: BodySettings, to_groom) -> str:
+    """What would put ``roots`` on the body: the usual unit factor or up axis that does (with the option),
+    else the options to check."""
     up = np.asarray(up, dtype=np.float64)
     turns = [(None, np.eye(3))]
     if body_settings.up == "hair":
@@ -139,8 +158,8 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
             if moved <= ROOTS_FAR and (best is None or moved < best[2]):
                 best = (axis, factor, moved)
     if best is None:
-        return [line + "; check that the groom and the body share their units, up axis and placement "
-                       "(--body-units, --body-scale, --body-up)"]
+        return ("check that the groom and the body share their units, up axis and placement "
+                "(--body-units, --body-scale, --body-up)")
     axis, factor, moved = best
     fixes, what = [], []
     if factor != 1.0:
@@ -153,9 +172,9 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
     if axis is not None:
         what.append(f"turned as a +{axis.upper()}-up file")
         fixes.append(f"--body-up {axis}")
-    return [line + f"; the body {' and '.join(what)} would put them {1e3 * moved:.3g} mm from it: the two files "
-                   f"are likely in different {'units' if factor != 1.0 else 'axes'}"
-                   + (f" (try {' '.join(fixes)})" if fixes else "")]
+    return (f"the body {' and '.join(what)} would put them {1e3 * moved:.3g} mm from it: the two files "
+            f"are likely in different {'units' if factor != 1.0 else 'axes'}"
+            + (f" (try {' '.join(fixes)})" if fixes else ""))
 
 
 def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Scene:
@@ -237,7 +256,12 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         body_mesh = BodyMesh.from_mesh(mesh) if mesh is not None and settings.contacts.body and contacts else None
     if body_mesh is not None:
         roots = groom.points[groom.offsets[:-1]] if helices is None else helices.root
-        lines += root_distance_lines(roots, body_mesh, body, up, settings.body, to_groom)
+        if helices is None:
+            lengths = strand_lengths(groom.points, groom.offsets)
+        else:
+            lengths = np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements else np.zeros(0)
+        lines += root_distance_lines(roots, body_mesh, body, up, settings.body, to_groom,
+                                     reach=lengths + settings.contacts.body_distance)
     if helices is None:
         bar = progress("fit", groom.n_strands) if progress else None
         try:

@@ -138,14 +138,16 @@ def test_the_recorded_transform_reads_the_body_again(detected, bodies):
 
 
 def test_options_that_do_not_match_the_body_are_caught(detected, bodies):
-    """The Z-up cm body read in the hair's unit: the roots lie far from it and the line names both options
-    that put them back; contacts detected with the body read otherwise are detected again."""
+    """The Z-up cm body read in the hair's unit: the roots lie farther from it than any strand is long, so it
+    is refused in one line naming both options that put them back; contacts detected with the body read
+    otherwise are detected again."""
     result = hairinv(bodies, "detect", SAMPLES / "wavy.h5", "body_cm_zup.obj", "--guides", "3", "-o", "x.h5")
-    assert result.returncode == 0, result.stderr
-    warning = [line for line in (result.stdout + result.stderr).splitlines() if "roots lie" in line]
-    assert len(warning) == 1 and "--body-units cm" in warning[0] and "--body-up z" in warning[0], warning
-    rerun = hairinv(bodies, "detect", detected["cm_zup"][0], "body_cm_zup.obj", "--body-units", "mm",
-                    "--body-up", "z", "-o", "y.h5")
+    assert result.returncode == 2 and not (bodies / "x.h5").exists(), result.stderr
+    refusal = result.stderr.strip().splitlines()
+    assert len(refusal) == 1 and "body_cm_zup.obj" in refusal[0], refusal
+    assert "--body-units cm" in refusal[0] and "--body-up z" in refusal[0], refusal
+    rerun = hairinv(bodies, "detect", detected["cm_zup"][0], "body_cm_zup.obj", "--body-scale", "0.0102",
+                    "--body-up", "z", "-o", "y.h5")  # 2 % larger than in cm: within the strands' reach
     assert rerun.returncode == 0, rerun.stderr
     assert "were detected with the body in other units or axes; detecting them again" in rerun.stdout
     kept = hairinv(bodies, "detect", detected["cm_zup"][0], "body_cm_zup.obj", "--body-units", "cm",

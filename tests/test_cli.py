@@ -426,22 +426,42 @@ def test_plain_progress_lines_when_stderr_is_not_a_terminal(tmp_path):
     assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == ""
 
 
-def test_roots_away_from_the_body_are_reported_with_the_likely_unit_mix_up(tmp_path):
-    """A head in centimetres under a groom in metres: the roots lie a metre and more from it. The run says
-    so among the import's lines (ahead of the fit's), with the factor that would put them back on it (0.01)
-    and the option that does it (--body-units cm), and goes on; given that option, or a body in the hair's
-    unit, it gets no such line."""
+def test_a_body_no_strand_can_reach_is_refused_with_the_likely_unit_mix_up(tmp_path):
+    """A head in centimetres under a groom in metres: every root lies a metre and more from it, farther than
+    any strand is long, so the body can carry nothing. The run stops before the fit (exit 2, one line naming
+    the body file, the factor that would put the roots back on it, 0.01, and the option that does it,
+    --body-units cm) and writes nothing; given that option it runs without a word about the roots."""
     import trimesh
 
     body = trimesh.load(SAMPLES / "body.obj", process=False)
     body.vertices = np.asarray(body.vertices) * 100.0
     body.export(tmp_path / "body_cm.obj")
     result = hairinv(tmp_path, "detect", SAMPLES / "wavy.h5", "body_cm.obj", "--guides", "3", "-o", "d.h5")
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "body_cm.obj" in lines[0] and "no strand can reach this body" in lines[0], lines
+    assert "at 0.01 times its size" in lines[0] and "--body-units cm" in lines[0]
+    assert "fit" not in result.stdout and not (tmp_path / "d.h5").exists()
+    fine = hairinv(tmp_path, "detect", SAMPLES / "wavy.h5", "body_cm.obj", "--body-units", "cm", "--guides", "3",
+                   "-o", "e.h5")
+    assert fine.returncode == 0 and "roots lie" not in fine.stdout + fine.stderr, fine.stderr
+
+
+def test_roots_away_from_a_body_they_can_reach_are_reported_and_the_run_goes_on(tmp_path):
+    """The sample head lowered by 5 cm: the roots lie centimetres above it, within reach of the strands
+    (30 cm long), so the run warns among the import's lines (ahead of the fit's), says which options to
+    check, and goes on (exit 0); the head in place gets no such line."""
+    import trimesh
+
+    body = trimesh.load(SAMPLES / "body.obj", process=False)
+    body.vertices = np.asarray(body.vertices) - [0.0, 0.05, 0.0]  # the sample is Y-up
+    body.export(tmp_path / "body_low.obj")
+    result = hairinv(tmp_path, "detect", SAMPLES / "wavy.h5", "body_low.obj", "--guides", "3", "-o", "d.h5")
     assert result.returncode == 0, result.stderr
     warning = [line for line in (result.stdout + result.stderr).splitlines() if "roots lie" in line]
-    assert len(warning) == 1 and "body_cm.obj" in warning[0] and "at 0.01 times its size" in warning[0]
-    assert "--body-units cm" in warning[0]
+    assert len(warning) == 1 and "body_low.obj" in warning[0] and "--body-scale" in warning[0], warning
     assert warning[0].index("roots lie") < (result.stdout + result.stderr).find("fit error")
+    assert (tmp_path / "d.h5").exists()
     fine = hairinv(tmp_path, "detect", SAMPLES / "wavy.h5", SAMPLES / "body.obj", "--guides", "3", "-o", "e.h5")
     assert fine.returncode == 0 and "roots lie" not in fine.stdout + fine.stderr
 
