@@ -605,9 +605,11 @@ def _init_option(fn):
 
 
 def _load_simulation(say, model: Path, body: Path | None, output: Path | None, scene_name: str, quality,
-                     config_file, sets, body_frame: dict | None = None) -> dict:
+                     config_file, sets, body_frame: dict | None = None, init: str = "inverted") -> dict:
     """What ``simulate`` and ``verify`` share before running: the model's groups, the settings (contacts as the
-    model declared them, which --config and --set may still change), the scene and the body mesh.
+    model declared them, which --config and --set may still change), the scene and the body mesh. With
+    ``init = "inverted"`` the model must hold its helices in equilibrium with its forces (eq. 4), or it was
+    changed since it was inverted and is refused.
 
     ``say`` gets the lines about the body. Returns a dict: stage, helices, contacts, mesh, body, scene, settings.
     """
@@ -653,6 +655,8 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
     curves = stage[stages.CURVES]
     helices = Helices.from_group(stage[stages.HELICES])
     contacts = Contacts.from_group(stage[stages.CONTACTS]) if stages.CONTACTS in stage else None
+    if init == "inverted":
+        _check_equilibrium(model, helices, contacts, stage[stages.MODEL])
     body, to_groom, notes, read = simulation_body(settings.body, body, stage, model, curves)
     mesh = None
     if body is not None:
@@ -664,6 +668,21 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
         say("no body: only hair-hair contacts")
     return {"stage": stage, "helices": helices, "contacts": contacts, "mesh": mesh, "body": body, "scene": scene,
             "settings": settings, "to_groom": to_groom}
+
+
+def _check_equilibrium(path: Path, helices, contacts, model) -> None:
+    """Refuse a model whose rest shape does not hold ``helices`` with its forces (:func:`model_mismatch`)."""
+    import numpy as np
+
+    from hairinv.errors import InputError
+    from hairinv.invert import model_mismatch
+
+    miss, element = model_mismatch(helices, contacts, model)
+    if element >= 0:
+        strand = int(np.searchsorted(helices.offsets, element, side="right") - 1)
+        raise InputError(f"/model does not hold /helices in equilibrium with its forces: its rest shape is "
+                         f"{miss:.3g} 1/m from theirs at element {element} (strand {strand}), so the helices, "
+                         "contacts or material were changed after it was inverted; invert it again", path)
 
 
 def _simulation_features(run: dict, init: str):
@@ -692,7 +711,8 @@ def _run_simulation(obj, run: dict, init: str, seconds: float, fps: float, on_fr
     bar = Progress(steps, run["scene"].name, obj["progress"], unit="step")
     try:
         return run_scene(run["helices"], run["stage"][stages.MODEL], run["contacts"], run["mesh"], run["scene"],
-                         settings, init=init, seconds=seconds, fps=fps, on_frame=on_frame, on_step=bar)
+                         settings, init=init, seconds=seconds, fps=fps, on_frame=on_frame, on_step=bar,
+                         body_path=run["body"])
     except FloatingPointError as exc:
         raise RunError(f"the simulation diverged ({exc}); no output was written; try a smaller "
                        "dynamics.time_step") from None
@@ -750,7 +770,7 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
 
     output = output or _default_output(model, "frames")
     run = _load_simulation(functools.partial(_say, obj), model, body, output, scene_name, quality, config_file,
-                           sets, body_frame)
+                           sets, body_frame, init)
     scene = run["scene"]
     run_seconds = scene.seconds if seconds is None else seconds
     run_fps = scene.fps if fps is None else fps
@@ -848,7 +868,8 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
     if if_stale and output is None:
         raise click.UsageError("--if-stale needs -o: without an output file verify keeps nothing to compare")
     notes = []
-    run = _load_simulation(notes.append, model, body, output, "still", quality, config_file, sets, body_frame)
+    run = _load_simulation(notes.append, model, body, output, "still", quality, config_file, sets, body_frame,
+                           init)
     scene = run["scene"]
     run_seconds = scene.seconds if seconds is None else seconds
     run_fps = scene.fps if fps is None else fps

@@ -94,6 +94,39 @@ def generalized_gravity(helices: Helices, material: Material) -> np.ndarray:
     return out
 
 
+#: 1/m: how far a stored rest shape may be from the one its forces give on its helices (eq. 4), plus
+#: :data:`MODEL_MISMATCH_RELATIVE` of the curvatures involved; a model read back as written is at round-off
+MODEL_MISMATCH = 1e-6
+MODEL_MISMATCH_RELATIVE = 1e-9
+
+
+def model_mismatch(helices: Helices, contacts: Contacts | None, group: stages.Group) -> tuple[float, int]:
+    """How far a ``/model`` group's rest shape is from holding ``helices`` with its own forces: the largest
+    ``|q0 - (q - K^-1 (F_g + H^T r))|`` over elements (1/m) beyond round-off, and the element where it is
+    (-1 where it holds).
+
+    Equation (4) holds for the model :func:`invert` writes whatever solved it, so a model whose helices or
+    contacts were changed after it was inverted (same sizes) shows here. The rest shape checked is the
+    one a simulation takes: ``omega_rest_stiffened`` at the stiffened stiffness where the model has one."""
+    material = material_from_group(group)
+    factor = stiffening_from_group(group, helices.n_strands)
+    name = "omega_rest_stiffened" if "omega_rest_stiffened" in group.datasets else "omega_rest"
+    stored = np.asarray(group[name], dtype=np.float64).reshape(-1)
+    q = helices.omega.ravel()
+    load = generalized_gravity(helices, material).ravel()
+    force = np.asarray(group["force"], dtype=np.float64)
+    if contacts is not None and contacts.n_contacts and np.any(force):
+        load = load + contact_rows(helices, contacts).rmatvec(force)
+    change = load / stiffness(helices, material, factor if name == "omega_rest_stiffened" else None)
+    miss = np.abs(stored - (q - change))
+    allowed = MODEL_MISMATCH + MODEL_MISMATCH_RELATIVE * (np.abs(q) + np.abs(change))
+    beyond = (miss - allowed).reshape(-1, 3).max(axis=1) if len(miss) else np.zeros(0)
+    if not len(beyond) or not np.any(beyond > 0):
+        return 0.0, -1
+    e = int(np.argmax(beyond))
+    return float(miss.reshape(-1, 3)[e].max()), e
+
+
 def tolerance_gravity(material: Material) -> float:
     """m/s^2: the gravity of the weight the solver's tolerance is relative to: the material's, or, in a scene
     without gravity (where every weight is zero and no residual could meet a tolerance relative to one),

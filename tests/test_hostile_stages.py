@@ -8,7 +8,8 @@ code 2, one line on stderr naming the file and the problem, no traceback, nothin
 Runtime: about 30-50 s with a warm numba cache on two cores (the upper figure with other jobs on them):
 one inversion and one detection (2-3 s), about 60 refusals (0.3-1.3 s each, interpreter start-up and
 imports; four at a time), and three detections killed as they write (1-2 s each). The refusals run no
-numerical kernel.
+numerical kernel, but for a model edited in a way only its equilibrium shows (simulate and verify check it
+with the statics kernels before they start).
 """
 
 from __future__ import annotations
@@ -313,6 +314,18 @@ CASES = {
                              ["/model/stability_margin[1] is nan"]),
     "model without contacts": ("model.h5", _delete("contacts"), ["simulate"],
                                ["has shape", "C = 0 contacts (the file has no /contacts group)"]),
+    # a model of the same layout that no longer holds its helices in equilibrium (eq. 4): edited after
+    # the inversion (checked by simulate and verify, which start from it, with the statics kernels)
+    "helices changed after the model was inverted": (
+        "model.h5", edit("helices/omega", lambda a: a * 1.01), ["simulate", "verify"],
+        ["/model does not hold /helices in equilibrium with its forces", "1/m from theirs at element",
+         "invert it again"]),
+    "material changed after the model was inverted": (
+        "model.h5", set_attr("model", "youngs_modulus", 7.0e9), ["verify"],
+        ["/model does not hold /helices in equilibrium"]),
+    "forces changed after the model was inverted": (
+        "model.h5", edit("model/force", lambda a: a * 1.5), ["simulate"],
+        ["/model does not hold /helices in equilibrium"]),
     # frames
     "frames going back in time": ("frames.h5", edit("frames/time", setitem(1, -1.0)), ["export"],
                                   ["/frames/time[1] is -1 s"]),
@@ -360,6 +373,19 @@ def refusals(valid):
 @pytest.mark.parametrize("case, command", RUNS, ids=[f"{command}: {case}" for case, command in RUNS])
 def test_hostile_stage_file_is_refused(refusals, case, command):
     check_refused(refusals[(case, command)], *CASES[case][3])
+
+
+@pytest.mark.parametrize("command", ["simulate", "verify"])
+def test_a_body_refused_for_its_data_is_named_by_simulate_and_verify(valid, tmp_path, command):
+    """A body of degenerate triangles only, given to a valid model, is refused in one line naming the body
+    file (as detect and invert name it), exit 2, nothing written."""
+    shutil.copyfile(valid / "model.h5", tmp_path / "model.h5")
+    (tmp_path / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
+    result = hairinv(tmp_path, command, "model.h5", "flat.obj", "--seconds", "0.1", "-o", "out.h5")
+    assert result.returncode == 2, (result.stdout[-2000:], result.stderr[-2000:])
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("hairinv: error: flat.obj: ") and "degenerate" in lines[0], lines
+    assert not (tmp_path / "out.h5").exists() and "Traceback" not in result.stderr
 
 
 @pytest.mark.parametrize("command", ["invert", "simulate"])

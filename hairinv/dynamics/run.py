@@ -19,7 +19,7 @@ import numpy as np
 from .. import stages
 from ..config import Settings
 from ..contacts.body import BodyMesh
-from ..errors import InputError
+from ..errors import InputError, in_file
 from ..invert import generalized_gravity
 from ..model import (Contacts, Helices, Material, material_from_group, rest_from_group, stiffening_from_group,
                      stiffness)
@@ -138,7 +138,7 @@ def _samples(helices: Helices, q: np.ndarray, per_element: int = 2) -> list[np.n
 
 def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts | None, body_mesh,
               scene: Scene, settings: Settings, init: str = "inverted", seconds: float | None = None,
-              fps: float | None = None, on_frame=None, on_step=None) -> Frames:
+              fps: float | None = None, on_frame=None, on_step=None, body_path=None) -> Frames:
     """Simulate ``scene`` from the model.
 
     Parameters
@@ -151,6 +151,7 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
     settings : Settings (``material`` is taken from the model when there is one)
     on_frame : callable(FrameLog), optional, after every frame; returning True stops the run there
     on_step : callable(), optional, after every step
+    body_path : the body mesh's file, named by a refusal of its data (a mesh of degenerate triangles only)
     """
     seconds = float(scene.seconds if seconds is None else seconds)
     fps = float(scene.fps if fps is None else fps)
@@ -182,8 +183,9 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
             contacts = contacts.subset(keep)
             force = None if force is None else force[keep]
     # no body queries where no body contact is modelled (the scene removes it, or contacts.body is off)
-    body = BodyMesh.from_mesh(body_mesh) if (body_mesh is not None and not body_removed
-                                             and contact_settings.body) else None
+    with in_file(body_path):
+        body = BodyMesh.from_mesh(body_mesh) if (body_mesh is not None and not body_removed
+                                                 and contact_settings.body) else None
     sim = Simulation(helices, rest, material, body, contact_settings, settings.dynamics,
                      initial=contacts, initial_force=force, stiffening=factor)
 
