@@ -83,6 +83,38 @@ class FitSettings:
     """Levenberg-Marquardt iterations per element count; near-zero-residual fits converge in under 10."""
 
 
+#: The physical range of each material constant (SI), beyond which a value is a mistake (a unit slip,
+#: a stray exponent) rather than a material: Young's and shear moduli from soft gels to beyond diamond
+#: (1.2e12 Pa; a shear modulus down to E / 3), densities from aerogels to beyond osmium (22,590 kg/m^3), fibre radii from 0.1 um to a
+#: 1 cm rope, gravity up to 100 g. Values outside are refused where they are read (settings and
+#: /model), as hair far outside them makes the arithmetic overflow or underflow.
+MATERIAL_RANGE = {
+    "youngs_modulus": (1e3, 1e14, "Pa"),
+    "shear_modulus": (1e2, 1e14, "Pa"),  # E / 3 at the least, for the least E
+    "density": (1.0, 1e5, "kg/m^3"),
+    "radius": (1e-7, 1e-2, "m"),
+    "gravity": (0.0, 1e3, "m/s^2"),
+}
+
+
+def material_range_error(key: str, value: float, setting: bool = True) -> str | None:
+    """The sentence refusing ``value`` for the material constant ``key`` (out of :data:`MATERIAL_RANGE`,
+    or not a finite number), or None where it is within range. A gravity of 0 is within range (no
+    gravity), and so is a shear modulus of 0 where it is a ``setting`` (derived from E) rather than the
+    modulus in use."""
+    lo, hi, unit = MATERIAL_RANGE[key]
+    if value == 0 and (key == "gravity" or (key == "shear_modulus" and setting)):
+        return None
+    try:
+        inside = lo <= float(value) <= hi
+    except (TypeError, ValueError):
+        inside = False
+    if inside:
+        return None
+    return f"{key} is {value!r}; it must be a number from {lo:g} to {hi:g} {unit}" + (
+        " (or 0: from E and poisson_ratio)" if key == "shear_modulus" and setting else "")
+
+
 @dataclass(frozen=True)
 class MaterialSettings:
     """The hair material: stiffness, mass and cross-section (paper, section 7)."""

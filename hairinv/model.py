@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import stages
-from .config import ContactSettings, FitSettings, MaterialSettings
+from .config import MATERIAL_RANGE, ContactSettings, FitSettings, MaterialSettings, material_range_error
 from .errors import InputError
 
 if TYPE_CHECKING:  # the solver's result type, for annotations only
@@ -183,13 +183,16 @@ class Material:
 
     @classmethod
     def from_settings(cls, settings: MaterialSettings, up: np.ndarray) -> "Material":
-        for name in ("youngs_modulus", "density", "radius"):
-            if not getattr(settings, name) > 0:
-                raise InputError(f"material.{name} must be > 0, got {getattr(settings, name)}")
-        if not (np.isfinite(settings.gravity) and settings.gravity >= 0):
-            raise InputError(f"material.gravity must be a finite number >= 0 (0: no gravity), got {settings.gravity}")
-        if settings.shear_modulus < 0 or not -1.0 < settings.poisson_ratio <= 0.5:
-            raise InputError("material.shear_modulus must be >= 0 and material.poisson_ratio in (-1, 0.5]")
+        for name in MATERIAL_RANGE:
+            problem = material_range_error(name, getattr(settings, name))
+            if problem is not None:
+                raise InputError(f"material.{problem}")
+        if not -1.0 < settings.poisson_ratio <= 0.5:
+            raise InputError(f"material.poisson_ratio must be in (-1, 0.5], got {settings.poisson_ratio}")
+        lo, hi, _ = MATERIAL_RANGE["shear_modulus"]
+        if not lo <= settings.shear <= hi:
+            raise InputError(f"the shear modulus E / (2 (1 + poisson_ratio)) is {settings.shear:g} Pa; it must be "
+                             f"from {lo:g} to {hi:g} Pa: set material.shear_modulus")
         up = np.asarray(up, dtype=np.float64)
         return cls(float(settings.youngs_modulus), float(settings.shear), float(settings.density),
                    float(settings.radius), -settings.gravity * up / np.linalg.norm(up))

@@ -20,6 +20,7 @@ import numpy as np
 
 from . import __version__
 from .atomic import atomic_path
+from .config import MATERIAL_RANGE, material_range_error
 from .errors import InputError
 
 FORMAT = "hairinv"
@@ -109,11 +110,11 @@ ATTRS = {
     HELICES: {"seconds": ("nonnegative", False)},
     CONTACTS: {"seconds": ("nonnegative", False)},
     MODEL: {
-        "youngs_modulus": ("positive", True),
-        "shear_modulus": ("nonnegative", True),
-        "density": ("positive", True),
-        "radius": ("positive", True),
-        "gravity": ("vector0", True),  # all 0: a scene without gravity (material.gravity = 0)
+        "youngs_modulus": ("material", True),  # within config.MATERIAL_RANGE
+        "shear_modulus": ("material", True),
+        "density": ("material", True),
+        "radius": ("material", True),
+        "gravity": ("vector0", True),  # all 0: a scene without gravity (material.gravity = 0); length in range
         "gamma": ("positive", True),
         "gamma_relative": ("nonnegative", False),
         "target": (MODEL_TARGETS, False),
@@ -819,11 +820,18 @@ def _check_attrs(path, name, attrs: dict) -> None:
         elif kind == "count":
             ok, want = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 0, \
                 "an integer >= 0"
+        elif kind == "material":
+            problem = material_range_error(key, value, setting=False) if number else f"{key} is {value!r}; it must be a number"
+            if problem is not None:
+                raise InputError(f"/{name} attribute {problem}", path)
+            continue
         elif kind in ("vector", "vector0"):
             v = np.asarray(value)
             ok = (v.shape == (3,) and v.dtype.kind in "iuf" and bool(np.all(np.isfinite(v)))
                   and (kind == "vector0" or bool(np.any(v != 0))))
             want = "3 finite numbers" + (", not all 0" if kind == "vector" else "")
+            if ok and key == "gravity" and material_range_error(key, float(np.linalg.norm(v))) is not None:
+                ok, want = False, want + f" of length at most {MATERIAL_RANGE['gravity'][1]:g} m/s^2"
         elif kind == "str":
             ok, want = isinstance(value, str), "a string"
         elif kind == "bool":

@@ -21,6 +21,7 @@ rest shape of sweeps stopped by the residual alone).
 from __future__ import annotations
 
 import dataclasses
+import re
 import warnings
 
 import numpy as np
@@ -29,7 +30,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import FINITE_DIFFERENCE
-from hairinv.config import MaterialSettings, SolverSettings
+from hairinv.config import MATERIAL_RANGE, MaterialSettings, SolverSettings
 from hairinv.contacts import Contacts
 from hairinv.invert import generalized_gravity, invert, stiffness
 from hairinv.model import Helices, Material
@@ -781,3 +782,37 @@ def test_a_still_step_from_an_inverted_strand_on_a_floor_at_the_extremes(case):
         assert step.status == "CONVERGED"
     # the free velocity is of order h g / length ~ 1 1/(m s); what is left is round-off
     assert np.all(np.isfinite(sim.q)) and np.abs(sim.v).max() < 1e-8
+
+
+# ---------------------------------------------------------------------------- the material's range
+
+#: (setting, value) at each end of hairinv.config.MATERIAL_RANGE
+RANGE_ENDS = [(key, end) for key, (lo, hi, _) in MATERIAL_RANGE.items() for end in (lo, hi) if end > 0]
+
+
+@pytest.mark.parametrize("key, value", RANGE_ENDS, ids=[f"{k}={v:g}" for k, v in RANGE_ENDS])
+def test_every_material_constant_at_either_end_of_its_range_inverts(key, value):
+    """The two-strand scene inverted with one material constant at an end of its range, by both methods:
+    every result finite, the equilibrium and the cones hold, the status is honest (checked_inversion)."""
+    helices, contacts = two_strand_scene()
+    settings = MaterialSettings(**{key: value})
+    mat = Material.from_settings(settings, UP)
+    for method in ("sweeps", "auto"):
+        model, report = checked_inversion(helices, contacts, mat, method=method)
+        assert report.result.status in ("CONVERGED", "MAX_ITERS")
+
+
+@pytest.mark.parametrize("key, factor", [(k, f) for k in MATERIAL_RANGE for f in (0.5, 2.0)])
+def test_a_material_constant_out_of_its_range_is_refused_in_one_sentence(key, factor):
+    """Just below or above the range (the values that overflowed or underflowed before: E = 1e-300 Pa gave
+    an internal error, a density of 1e300 a NaN model written with exit 0): refused, naming the setting,
+    the value and the range."""
+    from hairinv.errors import InputError
+
+    lo, hi, unit = MATERIAL_RANGE[key]
+    value = (lo if factor < 1 else hi) * factor
+    if value == 0:  # gravity's range starts at 0 (none): below it is negative
+        value = -1.0
+    with pytest.raises(InputError, match=re.escape(f"material.{key} is {value!r}; it must be a number from "
+                                                   f"{lo:g} to {hi:g} {unit}")):
+        Material.from_settings(MaterialSettings(**{key: value}), UP)
