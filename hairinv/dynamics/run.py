@@ -245,7 +245,10 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
         reports = []
         for _ in range(steps_per_frame):
             _, _, motion = state(t)
-            reports.append(sim.step(motion, h))
+            try:
+                reports.append(sim.step(motion, h))
+            except FloatingPointError as exc:
+                raise FloatingPointError(f"{exc}, at t = {t:.4g} s") from None
             t += h
             if on_step is not None:
                 on_step()

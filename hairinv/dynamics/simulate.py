@@ -851,6 +851,7 @@ class Simulation:
         keys, thickness, impulse = self._remember(found, h)
         report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0, depth=depth, last_depth=depth)
         v_new = v_free
+        reached = ""  # what the contact solve reached, for the message of a step that fails at every length
         if found.n_contacts:
             contact_run = lambda work, n: run_chunks(work, n, _CONTACT_CHUNK)  # noqa: E731
             rows = contact_rows(self.current(), found, run=contact_run)
@@ -875,6 +876,8 @@ class Simulation:
                 correction = self._mass_solve(z_rows.rmatvec(result.r), factored=True)
                 del z_rows
             failed = result.status == NUMERICAL
+            reached = (f" ({result.status} after {result.sweeps} sweeps, relative residual "
+                       f"{result.relative_residual:.3g}, {found.n_contacts} contacts)")
             if not failed:
                 v_new = v_free + correction.reshape(-1, 3)
                 impulse = result.r
@@ -887,7 +890,8 @@ class Simulation:
         if not np.isfinite(turn):
             failed = True
         if failed and depth >= self.settings.max_substeps:
-            raise FloatingPointError("the contact solve failed" if found.n_contacts else "the velocity is not finite")
+            what = "the contact solve failed" if reached and result.status == NUMERICAL else "the velocity is not finite"
+            raise FloatingPointError(f"{what}{reached} at a step of {h:.3g} s, halved {depth} times")
         # a halved attempt that turns nearly as far as the attempt it replaces shows that halving does
         # not slow the motion down (a push asked within the step, whatever its length): it is kept
         futile = not failed and turn <= _FUTILE_CAP * self.settings.max_turn and turn > _HALVING_GAIN * parent_turn
