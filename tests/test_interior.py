@@ -113,7 +113,28 @@ def test_rest_shape_matches_clarabel_and_the_bound_holds(scene, mu):
     assert bounds == sorted(bounds, reverse=True)
 
 
-@pytest.mark.parametrize("mu", [0.0, 1e6, np.inf])
+@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("frictionless", ["all", "every other"])
+def test_frictionless_contacts_are_solved_exactly_by_the_steps_alone(scene, frictionless):
+    """mu = 0 (all contacts, or every other one beside mu = 0.3): the steps solve it, with no sweep to
+    finish; tangential forces exactly 0; the optimality conditions of the problem as declared (cone, dual
+    cone, complementarity) hold; the rest shape is within the reported bound of the sweeps' tight one."""
+    helices, contacts = scene() if scene is four_strands_in_a_pile else scene(mu=0.3)
+    contacts.mu[:] = 0.3
+    contacts.mu[:: 1 if frictionless == "all" else 2] = 0.0
+    mat = material()
+    model, report = solve(helices, contacts, mat, **ip(helices, mat))
+    r = report.result
+    assert r.status == "CONVERGED" and r.interior_steps > 0 and r.sweeps == 0
+    assert r.method == "interior-point" and r.bound_from == "interior-point"
+    assert np.all(model.force[contacts.mu == 0.0, 1:] == 0.0)
+    W, b, _, _ = dense_problem(helices, contacts, mat, model)
+    check_optimality(W, b, model.force, contacts.mu, rtol=1e-6)
+    tight, _ = solve(helices, contacts, mat)  # the sweeps, to 1e-10 of a strand's weight
+    assert rms(model.omega_rest - tight.omega_rest) <= r.rest_bound + 1e-9 * sag(helices, mat)
+
+
+@pytest.mark.parametrize("mu", [1e6, np.inf])
 def test_friction_outside_the_steps_range_is_finished_by_the_sweeps(mu):
     helices, contacts = two_strand_scene(mu=mu)
     mat = material()
@@ -125,8 +146,6 @@ def test_friction_outside_the_steps_range_is_finished_by_the_sweeps(mu):
     assert any("by the forces' duality gap" in line for line in report.lines())
     W, b, _, _ = dense_problem(helices, contacts, mat, model)
     check_optimality(W, b, model.force, contacts.mu, rtol=1e-7)
-    if mu == 0.0:
-        assert np.all(model.force[:, 1:] == 0.0)
 
 
 @pytest.mark.parametrize("gamma", [1e-12, 1e9])

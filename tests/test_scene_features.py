@@ -149,8 +149,9 @@ def test_frictionless_contacts_get_no_tangential_force_and_meet_the_frictionless
     contacts = dataclasses.replace(scene.contacts, mu=np.zeros(scene.contacts.n_contacts))
     s = settings(mu_body=0.0, mu_hair=0.0)
     mat = Material.from_settings(s.material, scene.up)
-    # the residual alone stops the sweeps (mu = 0 is theirs): rest_tolerance far below what they reach
-    solver = dataclasses.replace(s.solver, tolerance=TIGHT, max_sweeps=50000, stabilize="off",
+    # the residual alone stops the sweeps: rest_tolerance far below what they reach (the interior point's
+    # frictionless solve: tests/test_interior.py)
+    solver = dataclasses.replace(s.solver, method="sweeps", tolerance=TIGHT, max_sweeps=50000, stabilize="off",
                                  check_stability=False, rest_tolerance=1e-300)
     model, report = invert(helices, contacts, mat, solver)
     assert report.result.status == "CONVERGED"

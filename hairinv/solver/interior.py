@@ -70,7 +70,8 @@ from .supernodal import column_counts as supernodal_counts
 __all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "column_counts", "mu_in_range", "solve_interior"]
 
 # The cone is scaled by mu: friction coefficients are held within these bounds in the interior-point
-# steps only (mu = 0 and mu = inf have no interior in this scaling); the sweeps that follow use mu itself.
+# steps only (mu = inf has no interior in this scaling); the sweeps that follow use mu itself. A frictionless
+# contact (mu = 0) is solved exactly instead (solve_interior).
 _MU_RANGE = (1e-3, 1e3)
 _STEP_FRACTION = 0.99
 _REFINEMENT = 1
@@ -93,9 +94,9 @@ _SIGN = np.array([1.0, -1.0, -1.0])
 
 
 def mu_in_range(mu: np.ndarray) -> np.ndarray:
-    """Contacts whose friction coefficient the interior-point steps take as it is."""
+    """Contacts whose friction coefficient the interior-point steps take as it is (frictionless ones too)."""
     mu = np.asarray(mu, dtype=np.float64)
-    return (mu >= _MU_RANGE[0]) & (mu <= _MU_RANGE[1])
+    return (mu == 0.0) | ((mu >= _MU_RANGE[0]) & (mu <= _MU_RANGE[1]))
 
 
 @dataclass
@@ -450,17 +451,28 @@ def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: n
     d = np.asarray(d, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64).reshape(C, 3)
     gamma = np.broadcast_to(np.asarray(gamma, dtype=np.float64), (C,))
-    m = np.clip(np.asarray(mu, dtype=np.float64), *_MU_RANGE)
+    mu = np.asarray(mu, dtype=np.float64)
+    # a frictionless contact (r_T = 0) is a contact of any cone whose tangential rows of H and b are zero:
+    # its tangential force then costs gamma |r_T|^2 / 2 and buys nothing, so it is 0 at the optimum, and the
+    # normal forces solve the frictionless problem; the cone taken is mu = 1 and r_T is set to 0 at the end
+    frictionless = mu == 0.0
+    m = np.clip(np.where(frictionless, 1.0, mu), *_MU_RANGE)
     sqd = np.sqrt(d)
     ptr, cols = rows.ptr, rows.cols
     contact_of = np.repeat(np.arange(C), np.diff(ptr))
+    vals = rows.vals
+    if frictionless.any():
+        vals = vals.copy()
+        vals[frictionless[contact_of], 1:] = 0.0
+        b = b.copy()
+        b[frictionless, 1:] = 0.0
     # G~ = D^1/2 H' with each contact's columns scaled to the standard cone
     rho = np.zeros(C)
-    np.add.at(rho, contact_of, np.sum(rows.vals ** 2, axis=1) * d[cols])
+    np.add.at(rho, contact_of, np.sum(vals ** 2, axis=1) * d[cols])
     rho = rho / 3.0 + gamma
     rho = np.where(rho > 0.0, rho, 1.0)
     scale = np.stack([1.0 / m, np.ones(C), np.ones(C)], axis=1) / np.sqrt(rho)[:, None]  # r = scale * x
-    g = np.ascontiguousarray(rows.vals * sqd[cols][:, None] * scale[contact_of])
+    g = np.ascontiguousarray(vals * sqd[cols][:, None] * scale[contact_of])
     q = b * scale
     gam = gamma[:, None] * scale ** 2
     max_gflop = MAX_GFLOP if max_gflop is None else float(max_gflop)
@@ -479,7 +491,9 @@ def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: n
         status, it, best = _iterate(problem, x, x.copy(), rest_tolerance, max_iterations, max_seconds, started,
                                     history, progress)
     bound, xb, relgap, dres, _ = best
-    return InteriorResult(xb * scale, it, status, bound, relgap, dres, time.perf_counter() - started, history,
+    r = xb * scale
+    r[frictionless, 1:] = 0.0  # lowers the objective by gamma |r_T|^2 / 2: the bound still holds
+    return InteriorResult(r, it, status, bound, relgap, dres, time.perf_counter() - started, history,
                           backend, factor.flops / 1e9)
 
 
