@@ -3,9 +3,10 @@
 A scene says what exists (docs/scenes.md, "What a scene models"); what it leaves out should cost
 nothing. On the sample wavy groom on the sample bust, each stage runs with a feature on and with it off,
 in this process, alternately, and the medians of several runs are compared: detection with and without
-hair-hair contact and without a body; the inversion with and without the stability check and with
-frictionless contacts (the same contacts, mu = 0); a still simulation of the models inverted with and
-without hair-hair contact and with frictionless contacts, and the moving scene against the still one.
+hair-hair contact and without a body; the inversion with and without the stability check, with
+frictionless contacts (the same contacts, mu = 0), with and without stiffening (the check on in both) and
+without gravity; a still simulation of the models inverted with and without hair-hair contact, with
+frictionless contacts and without gravity, and the moving and the trim scenes against the still one.
 
     .venv/bin/python bench/run.py scene      # rewrites this section of docs/benchmarks.md
     .venv/bin/python bench/scene_cost_bench.py   # prints it
@@ -48,6 +49,20 @@ def _ratio(on, off) -> str:
 
 def _ms(t) -> str:
     return f"{1e3 * t.median:.1f}"
+
+
+def _solved(result) -> str:
+    """How an inversion's contact problem was solved: its interior-point steps and sweeps."""
+    sweeps = f"{result.sweeps} sweeps ({1e3 * result.seconds / max(result.sweeps, 1):.3f} ms each)"
+    if result.method != "interior-point":
+        return sweeps
+    steps = f"{result.interior_steps} interior-point steps"
+    return steps + (f" and {result.sweeps} sweeps" if result.sweeps else "") + f" ({1e3 * result.seconds:.0f} ms)"
+
+
+def _stiffened(report) -> int:
+    """Strands an inversion stiffened."""
+    return 0 if report.stiffening is None else int(np.count_nonzero(report.stiffening > 1.0))
 
 
 def run() -> str:
@@ -95,10 +110,34 @@ def run() -> str:
     on = median_time(lambda: invert(helices, contacts, material, unchecked), REPEATS)
     off = median_time(lambda: invert(helices, smooth, material, unchecked), REPEATS)
     ron, roff = on.result[1].result, off.result[1].result
+    # mu = 0 lies outside the friction the interior-point steps take as it is: the sweeps finish that problem
+    finished = roff.method == "interior-point" and roff.sweeps > 0
+    frictionless_saves = on.median > off.median
     rows.append(["invert", "frictionless (mu = 0 on the same contacts; no stability check)", _ms(on), _ms(off),
-                 _ratio(on, off), f"{ron.sweeps} sweeps ({1e3 * ron.seconds / max(ron.sweeps, 1):.3f} ms each) → "
-                 f"{roff.sweeps} ({1e3 * roff.seconds / max(roff.sweeps, 1):.3f} ms each); r_T max "
+                 _ratio(on, off), f"{_solved(ron)} → {_solved(roff)}; r_T max "
                  f"{np.abs(off.result[0].force[:, 1:]).max():.0e} N"])
+    log("invert: stiffening on and off, the stability check on in both")
+    on = median_time(lambda: invert(helices, contacts, material, base.solver), REPEATS)
+    off = median_time(lambda: invert(helices, contacts, material, plain), REPEATS)
+    factor = on.result[1].stiffening
+    stiffened = factor[factor > 1.0] if factor is not None else np.zeros(0)
+    rows.append(["invert", "stiffening off (solver.stabilize = off; stability check on in both)", _ms(on), _ms(off),
+                 _ratio(on, off), f"{len(stiffened)} of {helices.n_strands} strands stiffened (largest factor "
+                 f"{stiffened.max() if len(stiffened) else 1.0:.3g}) → none; unstable strands left "
+                 f"{on.result[1].unstable} → {off.result[1].unstable}"])
+    log("invert: gravity 9.81 and 0 m/s^2, default solver settings")
+    weightless = dataclasses.replace(base, material=dataclasses.replace(base.material, gravity=0.0))
+    material0 = Material.from_settings(weightless.material, up)
+    on = median_time(lambda: invert(helices, contacts, material, base.solver), REPEATS)
+    off = median_time(lambda: invert(helices, contacts, material0, weightless.solver), REPEATS)
+    ron, roff = on.result[1], off.result[1]
+    left = np.abs(off.result[0].force).max() / ron.force_scale if roff.contacts else 0.0
+    rows.append(["invert", "gravity 0 (material.gravity = 0; stabilisation on in both)", _ms(on), _ms(off),
+                 _ratio(on, off), f"{ron.carrying} of {ron.contacts} contacts carrying force → {roff.carrying}; "
+                 f"largest force {np.abs(on.result[0].force).max():.2g} → {np.abs(off.result[0].force).max():.2g} N "
+                 f"({left:.2g} of the heaviest strand's weight under "
+                 f"9.81 m/s²); {_solved(ron.result)} → {_solved(roff.result)}; {_stiffened(ron)} strands "
+                 f"stiffened → {_stiffened(roff)}"])
 
     # ---- simulate (the still scene unless said)
     def model_group(settings, contacts):
@@ -110,18 +149,24 @@ def run() -> str:
         return lambda: run_scene(helices, group, contacts, scene.body, scene_, settings, seconds=SIM_SECONDS,
                                  fps=scene_.fps)
 
-    log("simulate: models with every feature, without hair-hair contact, frictionless")
+    log("simulate: models with every feature, without hair-hair contact, frictionless, without gravity")
     full = model_group(base, contacts)
     no_hair = _settings(hair_hair=False)
     body_only = model_group(no_hair, contacts.subset(contacts.strand[:, 1] < 0))
     smooth_settings = _settings(mu_body=0.0, mu_hair=0.0)
     frictionless = model_group(smooth_settings, smooth)
+    model0, _ = invert(helices, contacts, material0, weightless.solver)
+    no_gravity = model0.group({}, []), contacts
     simulate(base, *full)()  # compiled and warm
     on = median_time(simulate(base, *full), SIM_REPEATS)
+    weightless_ratio = None
     for what, settings, (group, c) in (("hair-hair contact off (its own model)", no_hair, body_only),
-                                       ("frictionless (its own model)", smooth_settings, frictionless)):
+                                       ("frictionless (its own model)", smooth_settings, frictionless),
+                                       ("gravity 0 (its own model)", weightless, no_gravity)):
         off = median_time(simulate(settings, group, c), SIM_REPEATS)
         moved = max(f.displacement for f in off.result.log)
+        if settings is weightless:
+            weightless_ratio = on.median / off.median
         rows.append([f"simulate {SIM_SECONDS:g} s still", what, _ms(on), _ms(off), _ratio(on, off),
                      f"largest displacement {1e3 * moved:.2g} mm (all on: "
                      f"{1e3 * max(f.displacement for f in on.result.log):.2g})"])
@@ -130,6 +175,18 @@ def run() -> str:
     rows.append([f"simulate {SIM_SECONDS:g} s", "body fixed (still) against keyframed (motion): the motion is the "
                  "feature", _ms(moving), _ms(on), _ratio(moving, on), "the still scene reuses detections while no "
                  "strand moves"])
+    log("simulate: the trim scene against the still one")
+    simulate(base, *full, name="trim")()  # compiled and warm
+    cut = median_time(simulate(base, *full, name="trim"), SIM_REPEATS)
+    trim_ratio = cut.median / on.median
+    trim = Scene.load("trim").trim
+    how = f"fraction {trim.fraction:g}" if trim.fraction is not None else f"length {trim.length:g} m"
+    rows.append([f"simulate {SIM_SECONDS:g} s", f"no trim (still) against trim ({how}, the `trim` scene): the cut "
+                 "is the feature", _ms(cut), _ms(on), _ratio(cut, on),
+                 f"{helices.n_elements} elements → {cut.result.helices.n_elements}; largest displacement "
+                 f"{1e3 * max(f.displacement for f in cut.result.log):.2g} mm (still: "
+                 f"{1e3 * max(f.displacement for f in on.result.log):.2g}); contacts at the end "
+                 f"{on.result.log[-1].contacts} → {cut.result.log[-1].contacts}"])
 
     header = ["stage", "feature switched off", "on (ms)", "off (ms)", "on / off", "what changed"]
     return "\n".join([
@@ -146,8 +203,29 @@ def run() -> str:
         "Detection without a body queries nothing (and `detect` and `invert` then build no search tree of "
         "the mesh, not timed here); without hair-hair contact it runs no pair search. The inversion without the stability check runs no eigen-decomposition and gives the "
         "same forces bit for bit. Frictionless contacts are solved for their normal force alone (one row of `H` "
-        "per contact in each sweep, tangential forces exactly 0); the number of sweeps is that problem's own. "
-        "A simulation's cost follows the contacts its model has.",
+        "per contact in each sweep, tangential forces exactly 0); the number of sweeps is that problem's own"
+        + ("; but with `solver.method = auto` the interior-point method solves both problems, and mu = 0 lies "
+           "outside the friction its steps take as it is, so the sweeps finish the frictionless one from its "
+           "forces" + ("" if frictionless_saves else ": there frictionless contacts save nothing") + ". "
+           if finished else ". ")
+        + "A simulation's cost follows the contacts its model has.",
+        "",
+        "Stiffening adds the margins taken again for the strands it stiffens and their rest shape taken again "
+        "(the forces are kept); without it those strands stay unstable and are only reported. Without gravity "
+        "the optimum holds no force at all (the input is its own rest shape), so the inversion has less to do "
+        "and stiffens nothing; the solver still stops at its tolerance with some force "
+        f"left on the contacts (at most {left:.2g} of the heaviest strand's weight under 9.81 m/s²), which the "
+        "count of contacts carrying force, a threshold relative to that weight, includes. "
+        + (f"A still simulation of the model inverted without gravity saves nothing: it takes "
+           f"{1 / weightless_ratio:.2f} times as long as the one with gravity."
+           if weightless_ratio is not None and weightless_ratio < 1.0 else
+           "A still simulation of the model inverted without gravity costs less than the one with it."),
+        "",
+        "The trimmed groom has fewer elements, but it starts unloaded from its own contacts and moves (the cut "
+        "ends no longer weigh on the rest), so its contacts are detected again where strands moved"
+        + (f", and the cut run takes {trim_ratio:.1f} times as long as the still one: like the motion, the trim "
+           "costs what the movement it causes costs, not what its elements cost."
+           if trim_ratio > 1.0 else f"; it takes {trim_ratio:.2f} times as long as the still one."),
     ]) + "\n"
 
 
