@@ -32,7 +32,7 @@ import numpy as np
 from .._dense import cholesky
 from .._jit import jit
 from .._parallel import run_chunks
-from ..config import ContactSettings, DynamicsSettings
+from ..config import ContactSettings, DynamicsSettings, MaterialSettings
 from ..contacts.body import REFINE_ITERATIONS, BodyMesh
 from ..contacts.detect import COINCIDENT, contact_frames, detect_contacts
 from ..rod.helix import chain, strand_points
@@ -160,6 +160,9 @@ class Motion:
 # A halved attempt is kept, although an element turns further than max_turn, when it turns more than
 # _HALVING_GAIN times as far as the attempt it replaces (a smooth motion turns half as far in half the
 # time) and no further than _FUTILE_CAP times max_turn
+#: m/s^2: the weight the velocity products are compared with in a scene without gravity (the solvers'
+#: tolerances' weight, :func:`hairinv.invert.tolerance_gravity`)
+_WEIGHTLESS_GRAVITY = MaterialSettings().gravity
 _HALVING_GAIN = 0.75
 _FUTILE_CAP = 4.0
 
@@ -178,7 +181,8 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
     ``hess`` (``hess`` holds the part of ``G`` the step used); otherwise the kept ones serve, and
     so does the kept factor ``chol`` if it was made for the same step (``factored_h == h``).
     The velocity-product forces are left out while they are below 1e-9 of the strand's weight
-    (bound: ``Omega^2 L`` against ``g``, ``Omega = sum |v_e| l_e`` the fastest frame's angular speed).
+    (bound: ``Omega^2 L`` against ``g``, ``Omega = sum |v_e| l_e`` the fastest frame's angular speed;
+    without gravity, the weight under 9.81 m/s^2, as the solvers' tolerances).
     The moving frame's forces act on the centerline only (the cross-sections'
     own rotational inertia, ~1e-9 of it for hair, is not driven by the frame).
     """
@@ -204,7 +208,7 @@ def strand_dynamics(root, frame0, q, v, q0, stiff, length, lam, rot, damping, ai
         spin += np.sqrt(v[e, 0] ** 2 + v[e, 1] ** 2 + v[e, 2] ** 2) * length[e]
         total += length[e]
     g_norm = np.sqrt(motion[0, 0] ** 2 + motion[0, 1] ** 2 + motion[0, 2] ** 2)
-    moving = spin * spin * total > 1e-9 * g_norm if g_norm > 0.0 else spin > 0.0
+    moving = spin * spin * total > 1e-9 * (g_norm if g_norm > 0.0 else _WEIGHTLESS_GRAVITY)
     force = np.zeros(nd)
     g = np.empty((n, 3))
     gravity_forces(root, frame0, q, length, lam, motion[0], g)
