@@ -681,8 +681,9 @@ def _check_equilibrium(path: Path, helices, contacts, model) -> None:
     if element >= 0:
         strand = int(np.searchsorted(helices.offsets, element, side="right") - 1)
         raise InputError(f"/model does not hold /helices in equilibrium with its forces: its rest shape is "
-                         f"{miss:.3g} 1/m from theirs at element {element} (strand {strand}), so the helices, "
-                         "contacts or material were changed after it was inverted; invert it again", path)
+                         f"{miss:.3g} 1/m from the one its forces give at element {element} (strand {strand}), so "
+                         "its helices, contacts, forces or material were changed after it was inverted (or it "
+                         "was written by another version); invert it again", path)
 
 
 def _simulation_features(run: dict, init: str):
@@ -714,7 +715,7 @@ def _run_simulation(obj, run: dict, init: str, seconds: float, fps: float, on_fr
                          settings, init=init, seconds=seconds, fps=fps, on_frame=on_frame, on_step=bar,
                          body_path=run["body"])
     except FloatingPointError as exc:
-        raise RunError(f"the simulation diverged ({exc}); no output was written; try a smaller "
+        raise RunError(f"the simulation diverged {exc}; no output was written; try a smaller "
                        "dynamics.time_step") from None
     finally:
         bar.close()

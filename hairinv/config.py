@@ -85,15 +85,16 @@ class FitSettings:
 
 #: The physical range of each material constant (SI), beyond which a value is a mistake (a unit slip,
 #: a stray exponent) rather than a material: Young's and shear moduli from soft gels to beyond diamond
-#: (1.2e12 Pa; a shear modulus down to E / 3), densities from aerogels to beyond osmium (22,590 kg/m^3), fibre radii from 0.1 um to a
-#: 1 cm rope, gravity up to 100 g. Values outside are refused where they are read (settings and
-#: /model), as hair far outside them makes the arithmetic overflow or underflow.
+#: (1.2e12 Pa; a shear modulus down to E / 3), densities from aerogels to beyond osmium (22,590 kg/m^3),
+#: fibre radii from 0.1 um to a 1 cm rope, gravity from 1e-3 m/s^2 (or none) to 100 g. Values outside are
+#: refused where they are read (settings and /model), as hair far outside them makes the arithmetic
+#: overflow or underflow.
 MATERIAL_RANGE = {
     "youngs_modulus": (1e3, 1e14, "Pa"),
     "shear_modulus": (1e2, 1e14, "Pa"),  # E / 3 at the least, for the least E
     "density": (1.0, 1e5, "kg/m^3"),
     "radius": (1e-7, 1e-2, "m"),
-    "gravity": (0.0, 1e3, "m/s^2"),
+    "gravity": (1e-3, 1e3, "m/s^2"),  # or 0: none
 }
 
 
@@ -112,7 +113,8 @@ def material_range_error(key: str, value: float, setting: bool = True) -> str | 
     if inside:
         return None
     return f"{key} is {value!r}; it must be a number from {lo:g} to {hi:g} {unit}" + (
-        " (or 0: from E and poisson_ratio)" if key == "shear_modulus" and setting else "")
+        " (or 0: from E and poisson_ratio)" if key == "shear_modulus" and setting else
+        " (or 0: no gravity)" if key == "gravity" else "")
 
 
 @dataclass(frozen=True)

@@ -768,8 +768,9 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
                 and not np.any(contacts.strand[:, 1] >= 0):
             r0 = _strands_at_once(rows, d, gammas, b, solved, settings.tolerance * force_scale)
         sweeps_cap = settings.max_sweeps
-        # friction coefficients outside the steps' range (0, inf) were held within it there: the sweeps
-        # then solve the problem as declared, from those forces; otherwise the forces are final and the
+        # friction coefficients outside the steps' range (0 < mu < 1e-3, mu > 1e3, inf) were held within it
+        # there: the sweeps then solve the problem as declared, from those forces; otherwise (mu = 0
+        # included, solved exactly by the steps) the forces are final and the
         # call below only measures their residual (and projects them onto the cones, a round-off move)
         if interior is not None and np.all(mu_in_range(mu)):
             sweeps_cap = 0

@@ -110,10 +110,11 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
     on the body is named with the option that does it. ``to_groom``: the body's transform in use, whose
     scale the suggested unit is computed from.
 
-    ``reach``: (S,) m, how far from its root each strand can touch the body (its length plus the contact
-    distance). When every root lies farther from the body than that, the body can carry no strand
-    whatever its shape, so it is not the body the groom rests on: an :class:`InputError` of the body file
-    says so, with the fix, before any work is done."""
+    ``reach``: (S,) m, how far from its root each strand can touch the body (its length plus the farthest
+    a contact is declared from the body). When the roots lie far from it (as above) and every root lies
+    outside the body, farther from it than that, the body can carry no strand whatever its shape, so it
+    is not the body the groom rests on: an :class:`InputError` of the body file says so, with the fix,
+    before any work is done."""
     if len(roots) == 0 or len(body_mesh.face_index) == 0:
         return []
     every_root = roots = np.ascontiguousarray(roots, dtype=np.float64)
@@ -129,11 +130,14 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
         return []
     fix = _body_fix(roots, median_distance, up, body_settings, to_groom)
     if reach is not None:
-        distance = np.abs(body_mesh.closest(every_root)[0])
-        if not np.any(distance <= reach):
-            raise InputError(f"no strand can reach this body: its nearest root lies {1e3 * distance.min():.4g} mm "
-                             f"from it, farther than any strand's length (at most {1e3 * float(np.max(reach)):.4g}"
-                             f" mm with the contact distance); {fix}, or run without a body", body)
+        # signed: a root inside the body is in contact with it, however deep
+        outside = body_mesh.closest(every_root)[0]
+        if not np.any(outside <= reach):
+            k = int(np.argmin(outside - reach))  # the strand that comes closest to reaching it
+            raise InputError(f"no strand can reach this body: every root lies outside it, farther from it than its "
+                             f"strand is long (the closest, strand {k}, {1e3 * outside[k]:.4g} mm away with "
+                             f"{1e3 * reach[k]:.4g} mm of strand and contact distance); {fix}, or run without a body",
+                             body)
     name = getattr(body, "name", str(body))
     return [f"warning: the strands' roots lie {1e3 * median:.4g} mm from the body {name} (median over "
             f"{len(roots)} strands; nearest {1e3 * nearest:.4g} mm), so few or no body contacts will be found; "
@@ -260,8 +264,9 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
             lengths = strand_lengths(groom.points, groom.offsets)
         else:
             lengths = np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements else np.zeros(0)
+        c = settings.contacts  # a contact is declared up to body_distance from the body, or on a hair layer
         lines += root_distance_lines(roots, body_mesh, body, up, settings.body, to_groom,
-                                     reach=lengths + settings.contacts.body_distance)
+                                     reach=lengths + max(c.body_distance, c.layer_max_gap if c.layer else 0.0))
     if helices is None:
         bar = progress("fit", groom.n_strands) if progress else None
         try:

@@ -831,7 +831,8 @@ def _check_attrs(path, name, attrs: dict) -> None:
                   and (kind == "vector0" or bool(np.any(v != 0))))
             want = "3 finite numbers" + (", not all 0" if kind == "vector" else "")
             if ok and key == "gravity" and material_range_error(key, float(np.linalg.norm(v))) is not None:
-                ok, want = False, want + f" of length at most {MATERIAL_RANGE['gravity'][1]:g} m/s^2"
+                lo, hi, _ = MATERIAL_RANGE["gravity"]
+                ok, want = False, want + f" of length 0 or from {lo:g} to {hi:g} m/s^2"
         elif kind == "str":
             ok, want = isinstance(value, str), "a string"
         elif kind == "bool":

@@ -187,3 +187,31 @@ def test_a_model_written_to_another_folder_finds_its_body(tmp_path):
             simulation_body(BodySettings(), None, stage, "m.h5", stage[stages.CURVES])
     finally:
         os.chdir(cwd)
+
+
+@pytest.mark.parametrize("case", ["one strand reaches", "none reaches", "roots deep inside"])
+def test_a_body_is_refused_only_when_no_strand_can_reach_it(case):
+    """A ball of radius 0.1 m; three roots straight above it at 0.3, 0.4 and 0.5 m from its surface. With
+    reaches of 0.35 m for the first (its strand is long enough) the roots only warn; with reaches of 0.25 m
+    each, none can touch it and the body is refused, naming the strand that comes closest (strand 0, 300 mm
+    away with 250 mm); roots 6 cm deep inside it, with 3 cm strands, are in contact: no refusal."""
+    from hairinv.contacts.body import BodyMesh
+    from hairinv.pipeline import root_distance_lines
+
+    ball = BodyMesh.from_mesh(trimesh.creation.icosphere(subdivisions=4, radius=0.1))
+    up = np.array([0.0, 1.0, 0.0])
+    heights = np.array([0.3, 0.4, 0.5])
+    roots = np.outer(0.1 + heights, up)
+    reach = {"one strand reaches": np.array([0.35, 0.25, 0.25]), "none reaches": np.full(3, 0.25)}.get(case)
+    if case == "roots deep inside":
+        roots, reach = np.outer(np.array([0.04, 0.035, 0.03]), up), np.full(3, 0.03)
+    run = lambda: root_distance_lines(roots, ball, "ball.obj", up, BodySettings(), np.eye(4), reach=reach)  # noqa: E731
+    if case == "none reaches":
+        with pytest.raises(InputError) as refused:
+            run()
+        message = str(refused.value)
+        assert message.startswith("ball.obj: no strand can reach this body") and "strand 0, 300 mm away" in message
+        assert "250 mm of strand" in message and "--body-units" in message, message
+    else:
+        lines = run()
+        assert len(lines) == 1 and "roots lie" in lines[0]  # far from it (median over 2 cm), so said

@@ -308,7 +308,7 @@ CASES = {
     "shear modulus of 0": ("model.h5", set_attr("model", "shear_modulus", 0.0), ["verify"],
                            ["attribute shear_modulus is 0.0", "from 100 to 1e+14 Pa"]),
     "gravity of 1e6 m/s^2": ("model.h5", set_attr("model", "gravity", np.array([0.0, -1e6, 0.0])), ["info"],
-                             ["attribute gravity", "of length at most 1000 m/s^2"]),
+                             ["attribute gravity", "of length 0 or from 0.001 to 1000 m/s^2"]),
     "gravity not finite": ("model.h5", set_attr("model", "gravity", np.array([0.0, np.nan, 0.0])), ["info"],
                            ["attribute gravity"]),
     "missing material": ("model.h5", _delete_attr("model", "shear_modulus"), ["simulate", "status"],
@@ -324,7 +324,7 @@ CASES = {
     # the inversion (checked by simulate and verify, which start from it, with the statics kernels)
     "helices changed after the model was inverted": (
         "model.h5", edit("helices/omega", lambda a: a * 1.01), ["simulate", "verify"],
-        ["/model does not hold /helices in equilibrium with its forces", "1/m from theirs at element",
+        ["/model does not hold /helices in equilibrium with its forces", "1/m from the one its forces give at element",
          "invert it again"]),
     "material changed after the model was inverted": (
         "model.h5", set_attr("model", "youngs_modulus", 7.0e9), ["verify"],

@@ -7,8 +7,9 @@ Checked against the mathematics, not against itself:
 - the rest shape against Clarabel's on the same SOCQP, and the duality-gap
   bound it reports against the distance it actually has from the optimum
   (computed here from a tight solve);
-- extremes: mu 0 and 1e6 (outside the range its steps take as they are: the
-  sweeps finish), gamma tiny and huge, a single contact;
+- extremes: mu 0 (solved exactly by the steps), 1e6 and inf (outside the range
+  its steps take as they are: the sweeps finish), gamma tiny and huge, a single
+  contact;
 - the two factorisations (CHOLMOD, SuperLU) give the same steps;
 - ``solver.method = auto`` takes it where its factorisation is affordable, the sweeps elsewhere.
 """

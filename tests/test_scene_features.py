@@ -216,7 +216,7 @@ def test_without_gravity_or_contacts_the_rest_shape_is_the_input(everything):
 def test_negative_gravity_is_refused_in_one_sentence():
     from hairinv.errors import InputError
 
-    with pytest.raises(InputError, match="material.gravity is .*; it must be a number from 0 to 1000 m/s"):
+    with pytest.raises(InputError, match="material.gravity is .*; it must be a number from 0.001 to 1000 m/s"):
         Material.from_settings(MaterialSettings(gravity=-1.0), (0.0, 1.0, 0.0))
 
 

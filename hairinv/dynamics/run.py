@@ -248,7 +248,7 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
             try:
                 reports.append(sim.step(motion, h))
             except FloatingPointError as exc:
-                raise FloatingPointError(f"{exc}, at t = {t:.4g} s") from None
+                raise FloatingPointError(f"in the step from t = {t:.4g} s: {exc}") from None
             t += h
             if on_step is not None:
                 on_step()

@@ -880,8 +880,8 @@ class Simulation:
                 correction = self._mass_solve(z_rows.rmatvec(result.r), factored=True)
                 del z_rows
             failed = result.status == NUMERICAL
-            reached = (f" ({result.status} after {result.sweeps} sweeps, relative residual "
-                       f"{result.relative_residual:.3g}, {found.n_contacts} contacts)")
+            reached = (f": {result.status} after {result.sweeps} sweeps, relative residual "
+                       f"{result.relative_residual:.3g}, {found.n_contacts} contacts")
             if not failed:
                 v_new = v_free + correction.reshape(-1, 3)
                 impulse = result.r
@@ -895,7 +895,7 @@ class Simulation:
             failed = True
         if failed and depth >= self.settings.max_substeps:
             what = "the contact solve failed" if reached and result.status == NUMERICAL else "the velocity is not finite"
-            raise FloatingPointError(f"{what}{reached} at a step of {h:.3g} s, halved {depth} times")
+            raise FloatingPointError(f"{what} at a step of {h:.3g} s, halved {depth} times{reached}")
         # a halved attempt that turns nearly as far as the attempt it replaces shows that halving does
         # not slow the motion down (a push asked within the step, whatever its length): it is kept
         futile = not failed and turn <= _FUTILE_CAP * self.settings.max_turn and turn > _HALVING_GAIN * parent_turn
