@@ -10,9 +10,10 @@ Each stage is run over a sweep of its knobs on the same grooms, and each point i
   wavy groom on the sample bust and 300 guides of ruby short on its head: time of ``invert`` against the
   rms distance of the rest shape ``q0`` from the exact optimum's (Clarabel, an interior-point solver, at
   a tight tolerance, polished by sweeps), 1/m over elements;
-* simulate: ``dynamics.time_step``, ``dynamics.max_turn`` and ``dynamics.tolerance`` on 40 inverted guides of
-  the wavy sample in the ``motion`` scene's first 0.5 s: wall time against the distance of the strands' points
-  at the end from a reference run at finer settings than ``final``;
+* simulate: ``dynamics.time_step``, ``dynamics.max_turn``, ``dynamics.max_sweeps``, ``dynamics.tolerance`` (at a
+  cap of sweeps that rarely stops it first) and ``dynamics.stall_rounds`` on 40 inverted guides of the wavy and
+  of the curly sample in the ``motion`` scene's first 0.5 s: wall time against the distance of the strands'
+  points at the end from a reference run at finer settings than ``final``;
 * detect: ``contacts.samples_per_element`` and ``contacts.max_hair_per_element`` on the wavy sample: time
   against the contacts declared.
 
@@ -20,12 +21,16 @@ The quality presets (``configs/quality/{draft,default,final}.toml``) are placed 
 
     .venv/bin/python bench/run.py trade      # rewrites this section of docs/benchmarks.md
     .venv/bin/python bench/trade_bench.py    # prints it
+    .venv/bin/python bench/trade_bench.py --stage simulate           # runs one stage, prints its subsection
+    .venv/bin/python bench/trade_bench.py --stage simulate --write   # and replaces that subsection alone
 """
 
 from __future__ import annotations
 
 import dataclasses
+import datetime
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -35,7 +40,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from common import DATA, IMG, ROOT, SMOKE, WORK, log, median_time, smoke, table  # noqa: E402
+from common import DATA, DOCS, IMG, ROOT, SMOKE, WORK, log, median_time, smoke, table  # noqa: E402
 
 sys.path.insert(0, str(ROOT))
 
@@ -72,11 +77,15 @@ REFERENCE_CLARABEL = 1e-10
 REFERENCE_POLISH = 1e-10  # relative residual the reference's forces are polished to by sweeps
 REFERENCE_POLISH_SWEEPS = smoke(20_000, 200)
 # simulate
+SIM_GROOMS = (("wavy", "wavy.h5"), ("curly", "curly.h5"))  # the samples' first SIM_GUIDES guides of each
 SIM_GUIDES = smoke(40, 4)
 SIM_SECONDS = smoke(0.5, 0.04)
 SIM_STEPS = smoke((0.02, 0.01, 0.005, 0.0025), (0.02, 0.01))
 SIM_TURNS = smoke((0.2, 0.1, 0.05, 0.025), (0.1,))
+SIM_SWEEPS = smoke((50, 200, 1000, 5000), (50, 200))  # at the default tolerance and stall_rounds
 SIM_TOLERANCES = smoke((1e-4, 1e-6, 1e-8), (1e-4,))
+SIM_TOLERANCE_CAP = smoke(20_000, 1000)  # sweeps a step for the tolerance rows: the cap rarely stops them first
+SIM_STALL_CAPS = smoke((200,), (200,))  # stall_rounds 0 (never stop on a stall) at these caps
 SIM_REFERENCE = dict(time_step=smoke(0.00125, 0.005), max_turn=0.0125, tolerance=1e-9, max_sweeps=smoke(2000, 100),
                      stall_rounds=0)
 STILL_SECONDS = smoke(0.5, 0.04)
@@ -95,6 +104,14 @@ def _preset(quality: str):
 
 # share of the machine's CPU other processes used during each timed run of the current stage (0-1)
 BACKGROUND: list[float] = []
+
+
+def _load():
+    """The 1, 5 and 15 minute load averages now, or None."""
+    try:
+        return tuple(os.getloadavg())
+    except OSError:
+        return None
 
 
 def _timed(fn, repeats: int = REPEATS):
@@ -444,120 +461,330 @@ def invert_section(result: dict) -> list[str]:
 # simulate
 
 
-def simulate_stage() -> dict:
-    from hairinv.dynamics.run import _samples, run_scene
-    from hairinv.dynamics.scene import Scene
+def _sim_groom(name: str, file: str):
+    """``file``'s first ``SIM_GUIDES`` guides on the sample bust, inverted with the default settings."""
     from hairinv.invert import Material, invert
     from hairinv.pipeline import prepare
 
     settings = config.apply(config.resolve(), {"import": {"guides": SIM_GUIDES}})
-    scene = prepare(SAMPLES / "wavy.h5", BODY, settings)
-    helices = scene.helices
+    scene = prepare(SAMPLES / file, BODY, settings)
     material = Material.from_settings(settings.material, scene.up)
-    model, _ = invert(helices, scene.contacts, material, settings.solver)
-    group = model.group({}, [])
-    out = {"strands": helices.n_strands, "elements": helices.n_elements, "contacts": scene.contacts.n_contacts,
-           "rows": [], "still": []}
+    model, _ = invert(scene.helices, scene.contacts, material, settings.solver)
+    return settings, scene, model.group({}, [])
 
-    def simulate(name, dynamics, seconds):
-        s = dataclasses.replace(settings, dynamics=dynamics)
-        sc = Scene.load(name)
-        return lambda: run_scene(helices, group, scene.contacts, scene.body, sc, s, seconds=seconds, fps=sc.fps)
 
-    def points(frames):
-        return _samples(helices, np.asarray(frames.omega[-1]))
-
-    simulate("motion", settings.dynamics, 2 * SIM_STEPS[0])()  # warm
-    log(f"simulate: the reference {SIM_REFERENCE}")
-    ref_dyn = dataclasses.replace(settings.dynamics, **SIM_REFERENCE)
-    started = time.perf_counter()
-    ref = simulate("motion", ref_dyn, SIM_SECONDS)()
-    out["reference_seconds"] = time.perf_counter() - started
-    ref_points = points(ref)
-    out["reference_moved"] = max(f.displacement for f in ref.log)
-    base = settings.dynamics
-    runs = ([dict(kind="time_step", dynamics=dataclasses.replace(base, time_step=h)) for h in SIM_STEPS]
-            + [dict(kind="max_turn", dynamics=dataclasses.replace(base, max_turn=t)) for t in SIM_TURNS]
-            + [dict(kind="tolerance", dynamics=dataclasses.replace(base, tolerance=t)) for t in SIM_TOLERANCES]
+def _sim_runs(base) -> list[dict]:
+    """The runs of one groom: each knob changed alone from ``base`` (the default dynamics), then the presets."""
+    rep = dataclasses.replace
+    return ([dict(kind="time_step", dynamics=rep(base, time_step=h)) for h in SIM_STEPS]
+            + [dict(kind="max_turn", dynamics=rep(base, max_turn=t)) for t in SIM_TURNS]
+            + [dict(kind="max_sweeps", dynamics=rep(base, max_sweeps=c)) for c in SIM_SWEEPS]
+            + [dict(kind="tolerance", dynamics=rep(base, tolerance=t, max_sweeps=SIM_TOLERANCE_CAP))
+               for t in SIM_TOLERANCES]
+            + [dict(kind="stall_rounds", dynamics=rep(base, stall_rounds=0, max_sweeps=c)) for c in SIM_STALL_CAPS]
             + [dict(kind="preset", preset=q, dynamics=_preset(q).dynamics) for q in QUALITIES])
-    for run in runs:
-        d = run["dynamics"]
-        log(f"simulate: {run['kind']} {run.get('preset') or ''} h {d.time_step} turn {d.max_turn} tol {d.tolerance}")
-        seconds, frames, n = _timed(simulate("motion", d, SIM_SECONDS))
-        dev = np.array([float(np.max(np.linalg.norm(a - b, axis=1))) for a, b in zip(points(frames), ref_points)])
-        out["rows"].append(dict(seconds=seconds, runs=n, max=float(dev.max()), mean=float(dev.mean()),
-                                halved=int(sum(f.halved for f in frames.log)),
-                                unconverged=int(sum(f.unconverged_steps for f in frames.log)),
-                                time_step=d.time_step, max_turn=d.max_turn, tolerance=d.tolerance,
-                                max_sweeps=d.max_sweeps, stall_rounds=d.stall_rounds,
-                                kind=run["kind"], preset=run.get("preset")))
-    for q in QUALITIES:
-        log(f"simulate: still, {q}")
-        seconds, frames, n = _timed(simulate("still", _preset(q).dynamics, STILL_SECONDS))
-        out["still"].append(dict(preset=q, seconds=seconds, runs=n, moved=max(f.displacement for f in frames.log)))
+
+
+def _frames_summary(frames) -> dict:
+    """What the contact solve did over a run: its steps that missed the tolerance, the most sweeps one step
+    took, the largest relative residual one step ended at, and the steps split by max_turn."""
+    log_ = frames.log
+    return dict(unconverged=int(sum(f.unconverged_steps for f in log_)), sweeps=int(max(f.sweeps for f in log_)),
+                residual=float(max(f.relative_residual for f in log_)), halved=int(sum(f.halved for f in log_)))
+
+
+def _distances(points, reference) -> np.ndarray:
+    """m: each strand's largest point distance from the same point of ``reference``."""
+    return np.array([float(np.max(np.linalg.norm(a - b, axis=1))) for a, b in zip(points, reference)])
+
+
+def simulate_stage() -> dict:
+    from hairinv.dynamics.run import _samples, run_scene
+    from hairinv.dynamics.scene import Scene
+
+    out = {"grooms": [], "load": _load()}
+    for name, file in SIM_GROOMS:
+        if not (SAMPLES / file).exists():
+            log(f"simulate: {file} not found, skipped")
+            continue
+        log(f"simulate: {name}, inverting {SIM_GUIDES} guides")
+        settings, scene, group = _sim_groom(name, file)
+        helices = scene.helices
+        g = {"groom": name, "file": file, "strands": helices.n_strands, "elements": helices.n_elements,
+             "contacts": scene.contacts.n_contacts, "body": scene.contacts.n_body, "rows": [], "still": []}
+
+        def simulate(scene_name, dynamics, seconds):
+            s = dataclasses.replace(settings, dynamics=dynamics)
+            sc = Scene.load(scene_name)
+            return lambda: run_scene(helices, group, scene.contacts, scene.body, sc, s, seconds=seconds, fps=sc.fps)
+
+        def points(frames):
+            return _samples(helices, np.asarray(frames.omega[-1]))
+
+        simulate("motion", settings.dynamics, 2 * SIM_STEPS[0])()  # warm
+        log(f"simulate: {name}, the reference {SIM_REFERENCE}")
+        started = time.perf_counter()
+        ref = simulate("motion", dataclasses.replace(settings.dynamics, **SIM_REFERENCE), SIM_SECONDS)()
+        g["reference_seconds"] = time.perf_counter() - started
+        g["reference"] = _frames_summary(ref)
+        g["reference_moved"] = max(f.displacement for f in ref.log)
+        ref_points = points(ref)
+        g["rows"].append(dict(kind="reference", seconds=g["reference_seconds"], runs=1, max=0.0, mean=0.0,
+                              **g["reference"], **SIM_REFERENCE, preset=None))
+        done, ends = {}, {}  # a setting met before (the default is a row of several knobs and a preset): run once
+        for run in _sim_runs(settings.dynamics):
+            d = run["dynamics"]
+            if d not in done:
+                log(f"simulate: {name}, {run['kind']} {run.get('preset') or ''} h {d.time_step} turn {d.max_turn} "
+                    f"tol {d.tolerance} sweeps {d.max_sweeps} stall {d.stall_rounds}")
+                seconds, frames, n = _timed(simulate("motion", d, SIM_SECONDS))
+                ends[d] = points(frames)
+                dev = _distances(ends[d], ref_points)
+                done[d] = dict(seconds=seconds, runs=n, max=float(dev.max()), mean=float(dev.mean()),
+                               **_frames_summary(frames))
+            g["rows"].append(dict(done[d], time_step=d.time_step, max_turn=d.max_turn, tolerance=d.tolerance,
+                                  max_sweeps=d.max_sweeps, stall_rounds=d.stall_rounds, kind=run["kind"],
+                                  preset=run.get("preset")))
+        # the contact solve's own error: the rows at the default step and max_turn against the tightest contact
+        # solve at that step (the tolerance row of the smallest tolerance), whose time-step error they share
+        base = settings.dynamics
+        tight = dataclasses.replace(base, tolerance=min(SIM_TOLERANCES), max_sweeps=SIM_TOLERANCE_CAP)
+        for r in g["rows"]:
+            if (r["kind"] != "reference" and (r["time_step"], r["max_turn"]) == (base.time_step, base.max_turn)
+                    and tight in ends):
+                d = dataclasses.replace(base, tolerance=r["tolerance"], max_sweeps=r["max_sweeps"],
+                                        stall_rounds=r["stall_rounds"])
+                r["contact_mean"] = float(_distances(ends[d], ends[tight]).mean())
+        for q in QUALITIES:
+            log(f"simulate: {name}, still, {q}")
+            seconds, frames, n = _timed(simulate("still", _preset(q).dynamics, STILL_SECONDS))
+            g["still"].append(dict(preset=q, seconds=seconds, runs=n, moved=max(f.displacement for f in frames.log),
+                                   steps=round(STILL_SECONDS / _preset(q).dynamics.time_step),
+                                   max_sweeps=_preset(q).dynamics.max_sweeps, tolerance=_preset(q).dynamics.tolerance,
+                                   **_frames_summary(frames)))
+        out["grooms"].append(g)
     return out
 
 
+SIM_LINES = (  # kind, colour, legend, label of a point, label offset
+    ("time_step", "tab:blue", "dynamics.time_step (s)", lambda r: f"{r['time_step']:g}", (4, 4)),
+    ("max_turn", "tab:red", "dynamics.max_turn (rad)", lambda r: f"{r['max_turn']:g}", (4, -11)),
+    ("max_sweeps", "tab:cyan", "dynamics.max_sweeps", lambda r: f"{r['max_sweeps']}", (4, 4)),
+    ("tolerance", "tab:gray", None, lambda r: f"{r['tolerance']:g}", (-30, 6)),
+    ("stall_rounds", "black", None, lambda r: f"{r['max_sweeps']}", (4, -11)),
+)
+
+
 def simulate_plot(result: dict, path: Path) -> None:
+    """Above: every row's distance from the reference against its time; below: the contact solve's rows (at the
+    default step) against the tightest contact solve at that step."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(7.5, 5.0))
+    grooms = result["grooms"]
+    fig, axes = plt.subplots(2, len(grooms), figsize=(6.4 * len(grooms), 9.4), squeeze=False)
     floor = 1e-7
-    for kind, colour, label, tag in (
-            ("time_step", "tab:blue", "dynamics.time_step (s)", lambda r: f"{r['time_step']:g}"),
-            ("max_turn", "tab:red", "dynamics.max_turn (rad)", lambda r: f"{r['max_turn']:g}"),
-            ("tolerance", "tab:gray", "dynamics.tolerance", lambda r: f"{r['tolerance']:g}")):
-        line = [r for r in result["rows"] if r["kind"] == kind]
-        ax.plot([r["seconds"] for r in line], [max(1e3 * r["mean"], floor) for r in line], "-o", ms=4,
-                color=colour, label=label)
-        for r in line:
-            ax.annotate(tag(r), (r["seconds"], max(1e3 * r["mean"], floor)), textcoords="offset points",
-                        xytext={"time_step": (4, 4), "max_turn": (4, -11), "tolerance": (-30, 6)}[kind], fontsize=7,
-                        color=colour)
-    _mark_presets(ax, [r for r in result["rows"] if r["kind"] == "preset"], lambda r: r["seconds"],
-                  lambda r: 1e3 * r["mean"], floor)
-    _log_axes(ax)
-    ax.set_xlabel(f"wall time of {SIM_SECONDS:g} s simulated (s)")
-    ax.set_ylabel("distance from the reference at the end (mm), mean over strands")
-    ax.set_title(f"simulate: {result['strands']} inverted wavy guides, the motion scene's first {SIM_SECONDS:g} s",
-                 fontsize=10)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="lower left")
+    contact_kinds = ("max_sweeps", "tolerance", "stall_rounds")
+    for col, g in enumerate(grooms):
+        top, bottom = axes[0][col], axes[1][col]
+        for kind, colour, label, tag, offset in SIM_LINES:
+            line = [r for r in g["rows"] if r["kind"] == kind]
+            if not line:
+                continue
+            label = label or {"tolerance": f"dynamics.tolerance, max_sweeps {SIM_TOLERANCE_CAP:,}",
+                              "stall_rounds": "stall_rounds 0, max_sweeps"}[kind]
+            style = "-o" if kind != "stall_rounds" else "s"
+            top.plot([r["seconds"] for r in line], [max(1e3 * r["mean"], floor) for r in line], style, ms=4,
+                     color=colour, label=label)
+            if kind not in contact_kinds:  # (their labels are on the plot below)
+                for r in line:
+                    top.annotate(tag(r), (r["seconds"], max(1e3 * r["mean"], floor)), textcoords="offset points",
+                                 xytext=offset, fontsize=7, color=colour)
+                continue
+            own = [r for r in line if r.get("contact_mean", 0.0) > 0.0]  # (the tightest solve itself: 0)
+            bottom.plot([r["seconds"] for r in own], [1e3 * r["contact_mean"] for r in own], style, ms=4,
+                        color=colour, label=label)
+            for r in own:
+                bottom.annotate(tag(r), (r["seconds"], 1e3 * r["contact_mean"]), textcoords="offset points",
+                                xytext=offset, fontsize=7, color=colour)
+        _mark_presets(top, [r for r in g["rows"] if r["kind"] == "preset"], lambda r: r["seconds"],
+                      lambda r: 1e3 * r["mean"], floor)
+        _mark_presets(bottom, [r for r in g["rows"] if r["kind"] == "preset" and r.get("contact_mean", 0) > 0],
+                      lambda r: r["seconds"], lambda r: 1e3 * r["contact_mean"])
+        for ax in (top, bottom):
+            _log_axes(ax)
+            ax.set_xlabel(f"wall time of {SIM_SECONDS:g} s simulated (s)")
+            ax.grid(True, which="both", alpha=0.3)
+        top.set_title(f"{g['strands']} inverted {g['groom']} guides ({g['contacts']} contacts): every knob",
+                      fontsize=10)
+        bottom.set_title(f"{g['groom']}: the contact solve alone, at the default time_step and max_turn",
+                         fontsize=10)
+    axes[0][0].set_ylabel("distance from the reference at the end (mm), mean over strands")
+    axes[1][0].set_ylabel(f"distance from the tolerance {min(SIM_TOLERANCES):g} run (mm), mean over strands")
+    axes[0][0].legend(fontsize=8, loc="lower left")
+    axes[1][0].legend(fontsize=8, loc="lower left")
+    fig.suptitle(f"simulate: the motion scene's first {SIM_SECONDS:g} s, each knob changed alone from the default",
+                 fontsize=11)
     _save(fig, path)
+
+
+def _sim_findings(result: dict) -> list[str]:
+    """What the rows show, groom by groom, read from the figures: which knob decides the accuracy, and what stops
+    each contact solve (the cap, the stall or the tolerance)."""
+    out = []
+    for g in result["grooms"]:
+        rows = g["rows"]
+
+        def by(kind):
+            return [r for r in rows if r["kind"] == kind]
+
+        base = next(r for r in by("preset") if r["preset"] == "default")
+        steps = by("time_step")
+        contact = [r for r in rows if "contact_mean" in r]
+        if not steps or not contact:
+            continue
+        fine = min(steps, key=lambda r: r["time_step"])
+        coarse = max(steps, key=lambda r: r["time_step"])
+        lo, hi = min(r["mean"] for r in contact), max(r["mean"] for r in contact)
+        tight = next(r for r in by("tolerance") if r["tolerance"] == min(SIM_TOLERANCES))
+        n = round(SIM_SECONDS / base["time_step"])
+
+        def cost(r):
+            return f"{r['seconds'] / base['seconds']:.1f}x the default's time"
+
+        def stop(r):
+            if r["unconverged"] == 0:
+                return "every step meets the tolerance"
+            why = (f"the cap stops some (a step takes all {r['max_sweeps']:,} sweeps)"
+                   if r["sweeps"] >= r["max_sweeps"]
+                   else f"the stall stops them (no step takes more than {r['sweeps']:,} sweeps)")
+            return f"{r['unconverged']} of {n} steps end above the tolerance (largest residual {r['residual']:.0e}); {why}"
+
+        decides = coarse["mean"] - fine["mean"] > 3 * (hi - lo)
+        text = [
+            f"**{g['groom']}**: " + ("the time step decides the accuracy" if decides else
+                                     "the contact settings move the result as much as the time step does")
+            + f": from the reference, {_mm(coarse['mean'], 2)} mm (mean over strands) at time_step "
+              f"{coarse['time_step']:g} s, {_mm(base['mean'], 2)} at the default {base['time_step']:g}, "
+              f"{_mm(fine['mean'], 2)} at {fine['time_step']:g} ({cost(fine)}), while every contact setting at the "
+              f"default step ends {_mm(lo, 2)}–{_mm(hi, 2)} mm from it.",
+            (f"The contact solve alone changes little: the default's strands end {_mm(base['contact_mean'], 3)} mm "
+             f"(mean) from the tightest solve at the same step, against {_mm(base['mean'], 2)} mm from the reference."
+             if base["contact_mean"] < 0.05 * base["mean"] else
+             f"The contact solve alone leaves the default's strands {_mm(base['contact_mean'], 2)} mm (mean) from the "
+             f"tightest solve at the same step, {100 * base['contact_mean'] / base['mean']:.0f} % of their distance "
+             f"from the reference, "
+             + (f"but the tighter solves end no closer to the reference ({_mm(tight['mean'], 2)} mm against "
+                f"{_mm(base['mean'], 2)}): they take another path, and the step's own error is the larger."
+                if tight["mean"] >= base["mean"] else
+                f"and the tightest solve ends {_mm(tight['mean'], 2)} mm from the reference against "
+                f"{_mm(base['mean'], 2)}.")),
+            "max_sweeps at the default tolerance: " + "; ".join(
+                f"{r['max_sweeps']:,}: {stop(r)}, {cost(r)}" for r in by("max_sweeps")) + ".",
+            f"tolerance at {SIM_TOLERANCE_CAP:,} sweeps: " + "; ".join(
+                f"{r['tolerance']:g}: {stop(r)}, {cost(r)}" for r in by("tolerance")) + ".",
+        ]
+        if by("stall_rounds"):
+            text.append("stall_rounds 0: " + "; ".join(
+                f"at {r['max_sweeps']:,} sweeps {stop(r)}, {cost(r)}" for r in by("stall_rounds")) + ".")
+        caps = by("max_sweeps")
+        worse = [(a, b) for a, b in zip(caps, caps[1:]) if b["unconverged"] > a["unconverged"]]
+        if worse:
+            a, b = worse[0]
+            text.append(
+                f"More sweeps do not always leave fewer steps unconverged ({a['max_sweeps']:,} → {b['max_sweeps']:,}: "
+                f"{a['unconverged']} → {b['unconverged']}): each round of the friction fixed point gets a tenth of "
+                "the cap until its inner tolerance is the final one, so the cap changes the rounds' path and "
+                "where the stall test stops them.")
+        ref = next(r for r in rows if r["kind"] == "reference")
+        others = [r["residual"] for r in rows if r["kind"] != "reference"]
+        ref_steps = round(SIM_SECONDS / ref["time_step"])
+        text.append(
+            f"The reference: {ref['unconverged']} of its {ref_steps} steps stop on its cap of {ref['max_sweeps']:,} "
+            f"sweeps short of its tolerance, " if ref["unconverged"] else "The reference meets its tolerance at "
+            "every step, ")
+        text[-1] += (f"and its largest residual ({ref['residual']:.0e}) is still the smallest of any run "
+                     f"(the next {min(others):.0e}), with the finest step: the tightest run."
+                     if ref["residual"] <= min(others) else
+                     f"and its largest residual ({ref['residual']:.0e}) is above another run's ({min(others):.0e}).")
+        out += [" ".join(text), ""]
+    return out
+
+
+def _still_note(g: dict) -> str:
+    """A sentence on a preset whose run at rest costs ten times the default's or more, and why, or ''."""
+    final = next((s for s in g["still"] if s["preset"] == "final"), None)
+    default = next((s for s in g["still"] if s["preset"] == "default"), None)
+    if not final or not default or final["seconds"] <= 10 * default["seconds"]:
+        return ""
+    return (f" On {g['groom']} the final preset takes {final['seconds'] / default['seconds']:.0f}x the default's time "
+            "at rest" + (f": {final['unconverged']} of its {final['steps']} steps end "
+                         f"{'just ' if final['residual'] < 10 * final['tolerance'] else ''}above its tolerance "
+                         f"{final['tolerance']:g} (largest residual {final['residual']:.1e}), and with stall_rounds "
+                         f"0 each runs to its cap of {final['max_sweeps']:,} sweeps, while the strands do not move."
+                         if "unconverged" in final and final["unconverged"] else "."))
 
 
 def simulate_section(result: dict) -> list[str]:
     rows = []
-    for r in result["rows"]:
-        what = {"time_step": f"time_step {r['time_step']:g} s", "max_turn": f"max_turn {r['max_turn']:g} rad",
-                "tolerance": f"tolerance {r['tolerance']:g}",
-                "preset": f"**{r['preset']}** (time_step {r['time_step']:g}, tolerance {r['tolerance']:g}, "
-                          f"max_sweeps {r['max_sweeps']}, stall_rounds {r['stall_rounds']})"}[r["kind"]]
-        rows.append([what, f"{r['seconds']:.2f}", _mm(r["max"]), _mm(r["mean"]), r["halved"], r["unconverged"]])
-    still = ", ".join(f"{s['preset']} {s['seconds']:.2f} s (largest displacement {1e3 * s['moved']:.1g} mm)"
-                      for s in result["still"])
+    for g in result["grooms"]:
+        for r in g["rows"]:
+            what = {"reference": f"reference (time_step {r['time_step']:g}, max_turn {r['max_turn']:g}, "
+                                 f"tolerance {r['tolerance']:g}, max_sweeps {r['max_sweeps']}, stall_rounds 0)",
+                    "time_step": f"time_step {r['time_step']:g} s", "max_turn": f"max_turn {r['max_turn']:g} rad",
+                    "max_sweeps": f"max_sweeps {r['max_sweeps']}",
+                    "tolerance": f"tolerance {r['tolerance']:g}, max_sweeps {r['max_sweeps']}",
+                    "stall_rounds": f"stall_rounds 0, max_sweeps {r['max_sweeps']}",
+                    "preset": f"**{r['preset']}** (time_step {r['time_step']:g}, tolerance {r['tolerance']:g}, "
+                              f"max_sweeps {r['max_sweeps']}, stall_rounds {r['stall_rounds']})"}[r["kind"]]
+            rows.append([g["groom"], what, f"{r['seconds']:.2f}", _mm(r["max"]), _mm(r["mean"]),
+                         _mm(r["contact_mean"]) if "contact_mean" in r else "–", r["halved"], r["unconverged"],
+                         r["sweeps"], f"{r['residual']:.1e}"])
     ref = SIM_REFERENCE
+    grooms = "; ".join(
+        f"{g['strands']} guides of the sample {g['groom']} groom ({g['elements']} elements, {g['contacts']} "
+        f"contacts, {g['body']} of them with the body)" for g in result["grooms"])
+    refs = ", ".join(f"{1e3 * g['reference_moved']:.1f} mm on {g['groom']}" for g in result["grooms"])
+    still = "; ".join(
+        f"{g['groom']}: " + ", ".join(f"{s['preset']} {s['seconds']:.2f} s (largest displacement "
+                                      f"{1e3 * s['moved']:.1g} mm)" for s in g["still"])
+        for g in result["grooms"])
+    steps = round(SIM_SECONDS / config.resolve().dynamics.time_step)
     return [
-        "### simulate: `dynamics.time_step`, `dynamics.max_turn`, `dynamics.tolerance`",
+        "### simulate: `dynamics.time_step`, `dynamics.max_turn`, `dynamics.max_sweeps`, `dynamics.tolerance`, "
+        "`dynamics.stall_rounds`",
         "",
-        f"`hairinv.dynamics.run.run_scene` on {result['strands']} guides of the sample wavy groom "
-        f"({result['elements']} elements, {result['contacts']} contacts), inverted once with the `default` "
-        f"settings, in the first {SIM_SECONDS:g} s of the `motion` scene (the head starts turning). Each run changes "
-        f"one knob of the `default` dynamics, or takes a preset's `[dynamics]` (the fit and the inversion stay the "
-        f"default's). The reference: time_step {ref['time_step']:g} s, max_turn {ref['max_turn']:g} rad, "
-        f"tolerance {ref['tolerance']:g}, {ref['max_sweeps']} sweeps a step, stall_rounds 0 "
-        f"({result['reference_seconds']:.1f} s; the strands move up to {1e3 * result['reference_moved']:.1f} mm). "
+        f"`hairinv.dynamics.run.run_scene` on {grooms}, each inverted once with the `default` settings, in the "
+        f"first {SIM_SECONDS:g} s of the `motion` scene (the head starts turning). Each run changes one knob of "
+        f"the `default` dynamics, or takes a preset's `[dynamics]` (the fit and the inversion stay the default's). "
+        f"The contact solve of a step stops at the first of: every contact within `tolerance` (a fraction of "
+        f"g h), `max_sweeps` sweeps, or `stall_rounds` rounds in a row that did not halve its residual (the "
+        f"default 3). The `max_sweeps` rows keep the default tolerance; the `tolerance` rows raise the cap to "
+        f"{SIM_TOLERANCE_CAP:,} sweeps, so that the tolerance or the stall, not the cap, stops them (a row whose "
+        f"most sweeps equal the cap says where a step still took all of them); the `stall_rounds 0` rows "
+        f"never stop on a stall. The reference (its own row): time_step {ref['time_step']:g} s, max_turn "
+        f"{ref['max_turn']:g} rad, tolerance {ref['tolerance']:g}, up to {ref['max_sweeps']:,} sweeps a step, "
+        f"stall_rounds 0 (in it the strands move up to {refs}). "
         "Error: each strand's largest point distance from the reference's at the end (points at the ends and "
-        "middle of every element), the largest and the mean over strands; the plot shows the mean (the largest is "
-        "one strand's, whose path through its contacts may fork). Time: wall clock of the run, median "
-        f"of {REPEATS} when under {QUICK:g} s. Halved: steps split by max_turn; unconverged: steps whose contact "
-        "solve stopped on its sweep cap or stall.",
+        "middle of every element), the largest and the mean over strands; the plot shows the mean above (the largest "
+        "is one strand's, whose path through its contacts may fork). Mean from the tightest solve: for the rows at "
+        f"the default time_step and max_turn, the same mean distance from the run of tolerance "
+        f"{min(SIM_TOLERANCES):g} at {SIM_TOLERANCE_CAP:,} sweeps, which shares their time-step error: what the "
+        "contact solve alone changes (the plot below). Time: wall clock of the run, median "
+        f"of {REPEATS} when under {QUICK:g} s; a setting met twice (the default is the row of time_step "
+        f"0.01, max_turn 0.05, max_sweeps 200 and the preset) is run once. Halved: steps split by max_turn; "
+        f"unconverged: steps (of {steps} at the default step) whose contact solve stopped above its tolerance, "
+        "on the cap or a stall; most sweeps: the most one step took (equal to the cap: the cap stopped it); "
+        "largest residual: the largest relative residual a step ended at, against the tolerance.",
         "",
-        "![simulate: time against the distance from the reference](img/bench_trade_simulate.png)",
+        "![simulate: time against the distance from the reference (above) and, for the contact solve's rows, from "
+        "the tightest contact solve at the same step (below)](img/bench_trade_simulate.png)",
         "",
-        table(["setting", "time (s)", "largest distance (mm)", "mean over strands (mm)", "halved", "unconverged"],
-              rows, ["l", "r", "r", "r", "r", "r"]),
+        table(["groom", "setting", "time (s)", "largest distance (mm)", "mean over strands (mm)",
+               "mean from the tightest solve (mm)", "halved", "unconverged", "most sweeps", "largest residual"],
+              rows, ["l", "l", "r", "r", "r", "r", "r", "r", "r", "r"]),
         "",
-        f"At rest (the `still` scene, {STILL_SECONDS:g} s, each preset's dynamics): {still}.",
+    ] + _sim_findings(result) + [
+        f"At rest (the `still` scene, {STILL_SECONDS:g} s, each preset's dynamics): {still}."
+        + "".join(_still_note(g) for g in result["grooms"]),
     ]
 
 
@@ -664,24 +891,38 @@ def _jsonable(value):
     return value
 
 
-def run() -> str:
-    started = time.perf_counter()
-    parts = []
-    for name, stage, plot, section in STAGES:
+def _stage(name: str, redraw: bool = False) -> list[str]:
+    """Run one stage (or, with ``redraw``, read its last run's figures from out/), draw its plot and return its
+    subsection, the ``### `` title first."""
+    _, stage, plot, section = next(s for s in STAGES if s[0] == name)
+    saved = WORK / f"bench_trade_{name}.json"
+    if redraw:
+        result = json.loads(saved.read_text())
+    else:
         log(f"trade: {name}")
         BACKGROUND.clear()
+        when = datetime.datetime.now(datetime.timezone.utc)
+        load = _load()
+        started = time.perf_counter()
         result = stage()
-        result["background"] = list(BACKGROUND)
+        result.update(background=list(BACKGROUND), started=f"{when:%Y-%m-%d %H:%M}", load=load,
+                      seconds=time.perf_counter() - started)
         # the figures of the run, kept beside its work files (out/), to read or redraw without running again
         WORK.mkdir(parents=True, exist_ok=True)
-        (WORK / f"bench_trade_{name}.json").write_text(json.dumps(_jsonable(result), indent=1))
-        plot(result, IMG / f"bench_trade_{name}.png")
-        shares = np.array(BACKGROUND) if BACKGROUND else np.zeros(1)
-        parts += section(result) + [
-            "", f"Other processes used a median of {100 * np.median(shares):.0f} % of the machine's CPU during this "
-                f"stage's timed runs ({100 * np.percentile(shares, 90):.0f} % at the 90th percentile, "
-                f"{len(BACKGROUND)} runs); its times are slower by about that share.", ""]
-        log(f"trade: {name} done, {time.perf_counter() - started:.0f} s")
+        saved.write_text(json.dumps(_jsonable(result), indent=1))
+        log(f"trade: {name} done, {result['seconds']:.0f} s")
+    plot(result, IMG / f"bench_trade_{name}.png")
+    shares = np.array(result["background"]) if result["background"] else np.zeros(1)
+    return section(result) + [
+        "", f"Other processes used a median of {100 * np.median(shares):.0f} % of the machine's CPU during this "
+            f"stage's timed runs ({100 * np.percentile(shares, 90):.0f} % at the 90th percentile, "
+            f"{len(result['background'])} runs); its times are slower by about that share.", ""]
+
+
+def run() -> str:
+    parts = []
+    for name, *_ in STAGES:
+        parts += _stage(name)
     return "\n".join([
         f"## {TITLE}",
         "",
@@ -694,5 +935,58 @@ def run() -> str:
     ] + parts).rstrip() + "\n"
 
 
+def replace_subsection(page: str, text: str) -> str:
+    """``page`` with the subsection of this section that ``text`` is (matched by its ``### stage:`` prefix)
+    replaced by ``text``; the rest of the page as it was."""
+    lines = page.split("\n")
+    head = lines.index(f"## {TITLE}")
+    prefix = text.split("\n", 1)[0].split(":", 1)[0] + ":"
+    start = next(i for i in range(head + 1, len(lines)) if lines[i].startswith(prefix))
+    if any(line.startswith("## ") for line in lines[head + 1:start]):
+        raise ValueError(f"no {prefix} subsection under ## {TITLE}")
+    end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith(("### ", "## "))), len(lines))
+    return "\n".join(lines[:start] + text.rstrip("\n").split("\n") + [""] + lines[end:])
+
+
+def stamp(text: list[str], name: str, result: dict) -> list[str]:
+    """A subsection rerun alone, with a line under its title saying when, for how long and at what load."""
+    load = result.get("load")
+    line = (f"_Rerun alone on {result['started']} (UTC), {result['seconds'] / 60:.1f} min"
+            + (", load average at its start " + " / ".join(f"{v:.2f}" for v in load) if load else "")
+            + f" (`bench/trade_bench.py --stage {name} --write`); the other subsections are from the run "
+              "above._")
+    return text[:1] + ["", line] + text[1:]
+
+
+def main(argv=None) -> int:
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--stage", action="append", choices=[s[0] for s in STAGES],
+                        help="run only this stage (repeatable) and print its subsection")
+    parser.add_argument("--write", action="store_true",
+                        help="with --stage: replace the stage's subsection in docs/benchmarks.md, the rest of the "
+                             "page as it was")
+    parser.add_argument("--redraw", action="store_true",
+                        help="with --stage: no runs; the plot and text from the last run's figures in out/")
+    args = parser.parse_args(argv)
+    if not args.stage:
+        if args.write or args.redraw:
+            parser.error("--write and --redraw need --stage (the whole section: bench/run.py trade)")
+        print(run())
+        return 0
+    page_path = DOCS / "benchmarks.md"
+    for name in args.stage:
+        text = _stage(name, redraw=args.redraw)
+        if args.write:
+            if SMOKE:
+                parser.error("a smoke run does not write docs/")
+            result = json.loads((WORK / f"bench_trade_{name}.json").read_text())
+            page_path.write_text(replace_subsection(page_path.read_text(), "\n".join(stamp(text, name, result))))
+            log(f"wrote the {name} subsection of {page_path}")
+        print("\n".join(text))
+    return 0
+
+
 if __name__ == "__main__":
-    print(run())
+    raise SystemExit(main())
