@@ -202,8 +202,9 @@ def run() -> str:
         "",
         "Detection without a body queries nothing (and `detect` and `invert` then build no search tree of "
         "the mesh, not timed here); without hair-hair contact it runs no pair search. The inversion without the stability check runs no eigen-decomposition and gives the "
-        "same forces bit for bit. Frictionless contacts are solved for their normal force alone (one row of `H` "
-        "per contact in each sweep, tangential forces exactly 0); the number of sweeps is that problem's own"
+        "same forces bit for bit. Frictionless contacts are solved for their normal force alone, tangential "
+        "forces exactly 0: by the sweeps on one row of `H` per contact, by the interior-point method with their "
+        "tangential rows of `H` taken as zero and no sweeps after its steps"
         + ("; but with `solver.method = auto` the interior-point method solves both problems, and mu = 0 lies "
            "outside the friction its steps take as it is, so the sweeps finish the frictionless one from its "
            "forces" + ("" if frictionless_saves else ": there frictionless contacts save nothing") + ". "
