@@ -259,11 +259,10 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
     with in_file(body):
         body_mesh = BodyMesh.from_mesh(mesh) if mesh is not None and settings.contacts.body and contacts else None
     if body_mesh is not None:
-        roots = groom.points[groom.offsets[:-1]] if helices is None else helices.root
         if helices is None:
-            lengths = strand_lengths(groom.points, groom.offsets)
-        else:
-            lengths = np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements else np.zeros(0)
+            roots, lengths = groom.points[groom.offsets[:-1]], strand_lengths(groom.points, groom.offsets)
+        else:  # every strand has an element (the stage file's checks)
+            roots, lengths = helices.root, np.add.reduceat(helices.length, helices.offsets[:-1])
         c = settings.contacts  # a contact is declared up to body_distance from the body, or on a hair layer
         lines += root_distance_lines(roots, body_mesh, body, up, settings.body, to_groom,
                                      reach=lengths + max(c.body_distance, c.layer_max_gap if c.layer else 0.0))
