@@ -30,8 +30,8 @@ from ._jit import jit
 from ._parallel import run_chunks
 from .config import MaterialSettings, SolverSettings
 from .errors import InputError, RunError
-from .model import (UNSTABLE_MARGIN, Contacts, Helices, Material, Model, material_from_group, stiffening_from_group,
-                    stiffness)
+from .model import (UNSTABLE_MARGIN, Contacts, Helices, Material, Model, material_from_group, rest_from_group,
+                    stiffening_from_group, stiffness)
 from .rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from .solver.blocks import _group_newton, strand_blocks
 from .solver.gauss_seidel import (CONVERGED, MAX_ITERS, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
@@ -109,15 +109,15 @@ def model_mismatch(helices: Helices, contacts: Contacts | None, group: stages.Gr
     contacts were changed after it was inverted (same sizes) shows here. The rest shape checked is the
     one a simulation takes: ``omega_rest_stiffened`` at the stiffened stiffness where the model has one."""
     material = material_from_group(group)
+    # the stiffened rest shape and its factors come together (the stage file's checks), or neither
     factor = stiffening_from_group(group, helices.n_strands)
-    name = "omega_rest_stiffened" if "omega_rest_stiffened" in group.datasets else "omega_rest"
-    stored = np.asarray(group[name], dtype=np.float64).reshape(-1)
+    stored = rest_from_group(group).reshape(-1)
     q = helices.omega.ravel()
     load = generalized_gravity(helices, material).ravel()
     force = np.asarray(group["force"], dtype=np.float64)
     if contacts is not None and contacts.n_contacts and np.any(force):
         load = load + contact_rows(helices, contacts).rmatvec(force)
-    change = load / stiffness(helices, material, factor if name == "omega_rest_stiffened" else None)
+    change = load / stiffness(helices, material, factor)
     miss = np.abs(stored - (q - change))
     allowed = MODEL_MISMATCH + MODEL_MISMATCH_RELATIVE * (np.abs(q) + np.abs(change))
     beyond = (miss - allowed).reshape(-1, 3).max(axis=1) if len(miss) else np.zeros(0)

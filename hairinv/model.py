@@ -190,7 +190,7 @@ class Material:
         if not -1.0 < settings.poisson_ratio <= 0.5:
             raise InputError(f"material.poisson_ratio must be in (-1, 0.5], got {settings.poisson_ratio}")
         lo, hi, _ = MATERIAL_RANGE["shear_modulus"]
-        if not lo <= settings.shear <= hi:
+        if settings.shear_modulus == 0 and not lo <= settings.shear <= hi:  # derived (a given one is checked above)
             raise InputError(f"the shear modulus E / (2 (1 + poisson_ratio)) is {settings.shear:g} Pa; it must be "
                              f"from {lo:g} to {hi:g} Pa: set material.shear_modulus")
         up = np.asarray(up, dtype=np.float64)
