@@ -463,9 +463,10 @@ def _floor(depth, x=0.3):
     return BodyMesh.from_mesh(floor)
 
 
-def _inverted_on_a_floor():
+def _inverted_on_a_floor(**dynamics):
     """A horizontal strand lying on a floor 1 mm below it, inverted with its contacts, and the
-    simulation started from that model: (helices, body, material, simulation)."""
+    simulation started from that model (``dynamics``: settings changed from the defaults):
+    (helices, body, material, simulation)."""
     from hairinv.contacts import detect_contacts
     from hairinv.invert import invert
 
@@ -476,8 +477,8 @@ def _inverted_on_a_floor():
     assert contacts.n_body >= 4
     mat = material()
     model, _ = invert(helices, contacts, mat, settings.solver)
-    sim = Simulation(helices, model.omega_rest, mat, body, settings.contacts, settings.dynamics, initial=contacts,
-                     initial_force=model.force)
+    sim = Simulation(helices, model.omega_rest, mat, body, settings.contacts,
+                     dataclasses.replace(settings.dynamics, **dynamics), initial=contacts, initial_force=model.force)
     return helices, body, mat, sim
 
 
@@ -514,6 +515,35 @@ def test_a_step_whose_warm_start_meets_the_tolerance_skips_the_solve_and_its_fac
     built.clear()
     report = quick.step(Motion.still(2.0 * mat.gravity))
     assert len(built) == 1 and report.sweeps > 0
+
+
+def test_a_still_groom_meeting_the_contact_law_skips_the_solve_below_the_floor_of_the_compliance():
+    """Each contact's compliance gamma (1e-9 of its W_ii) moves its velocity by gamma r, so the exact
+    forces of a still groom miss the regularised law by about 1e-9 of the loaded contacts' velocities;
+    asked for less, the sweeps cannot get there and spent every sweep of every step. The warm start
+    is accepted when it meets the law itself: the strand holds still with no sweep, its velocities
+    within the tolerance of the law's (zero), while its regularised residual is over the tolerance."""
+    from hairinv.dynamics.contact import factored_blocks
+    from hairinv.solver.rows import contact_rows
+
+    tolerance = 1e-12
+    helices, _, mat, sim = _inverted_on_a_floor(tolerance=tolerance)
+    start = _tip(helices, helices.omega)
+    sim.step(Motion.still(mat.gravity))  # the first step's impulses: the inversion's forces times h
+    h = sim.settings.time_step
+    scale = sim.velocity_scale * h
+    for _ in range(5):
+        report = sim.step(Motion.still(mat.gravity))
+        assert report.status == "CONVERGED" and report.sweeps == 0 and report.relative_residual <= tolerance
+    # the velocities the step ends with are the contacts' (H v): all within the tolerance of zero
+    rows = contact_rows(sim.current(), sim.contacts)
+    assert np.max(np.abs(rows.matvec(sim.v.ravel()))) <= tolerance * scale
+    assert np.linalg.norm(_tip(helices, sim.q) - start) < 1e-12
+    # and the regularised law alone would have refused it: its residual at these impulses is over the tolerance
+    r = sim._remember(sim.contacts, h)[2]  # the last impulses, in the contacts' order and frames
+    Wd = factored_blocks(rows, sim.contacts.strand, helices.offsets, sim.chol, sim.chol_ptr)
+    gamma = 1e-9 * np.trace(Wd, axis1=1, axis2=2) / 3.0
+    assert np.max(gamma[:, None] * np.abs(r)) > 10 * tolerance * scale
 
 
 def test_a_failed_contact_solve_halves_the_step_and_stops_the_run_only_at_the_last_halving(monkeypatch):
