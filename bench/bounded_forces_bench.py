@@ -45,9 +45,9 @@ else:
 
 from hairinv.config import SolverSettings  # noqa: E402
 from hairinv.invert import invert  # noqa: E402
-from hairinv.solver.gauss_seidel import solve_cone_qp  # noqa: E402
-from hairinv.solver.interior import solve_interior  # noqa: E402
-from hairinv.solver.rows import contact_rows  # noqa: E402
+from hairinv.solver import gauss_seidel, interior  # noqa: E402
+from hairinv.solver.problem import CONE, ConeProblem, InteriorSettings, SweepSettings  # noqa: E402
+from hairinv.contacts.rows import contact_rows  # noqa: E402
 
 TITLE = "Bounded forces: solver.gamma_relative"
 GUIDES = smoke(1000, 30)
@@ -92,15 +92,15 @@ def fractions(g: dict) -> list[dict]:
         log(f"  gamma_relative {fraction:g}")
         prob = ib.Problem.build(h, c, mat, dataclasses.replace(g["settings"].solver, gamma_relative=fraction))
         run = {"fraction": fraction}
-        res = solve_interior(rows, prob.d, prob.gamma, prob.b, c.mu, rest_tolerance=g["settings"].solver.rest_tolerance)
+        problem = ConeProblem.of(rows, prob.d, prob.gamma, prob.b, c.mu, c.strand, h.n_strands, weight, s=c.s)
+        res = interior.solve(problem, CONE, InteriorSettings(rest_tolerance=g["settings"].solver.rest_tolerance))
         run.update(ip_steps=res.iterations, ip_seconds=res.seconds, ip_status=res.status, ip_bound=res.rest_bound)
-        ref = solve_interior(rows, prob.d, prob.gamma, prob.b, c.mu, rest_tolerance=REFERENCE, max_iterations=150)
+        ref = interior.solve(problem, CONE, InteriorSettings(rest_tolerance=REFERENCE, max_iterations=150))
         r = ib.project_cones(ref.r, c.mu)
         rest = prob.rest(r)
         paper = rest if paper is None else paper
         t = time.perf_counter()
-        sw = solve_cone_qp(rows, prob.d, prob.gamma, prob.b, c.mu, c.strand, h.n_strands, weight, 1e-12, SWEEPS, 5,
-                           s=c.s)
+        sw = gauss_seidel.solve(problem, CONE, SweepSettings(1e-12, SWEEPS, 5))
         run.update(sw_seconds=time.perf_counter() - t, sw_distance=_rms(prob.rest(sw.r), rest),
                    ref_bound=ref.rest_bound, drift=prob.drift(r), from_paper=_rms(rest, paper))
         force = np.linalg.norm(r, axis=1) / weight

@@ -8,9 +8,9 @@ On ruby short (a seeded 1,000-guide subset and the whole groom), the SOCQP
 built as ``invert`` builds it (``invert_bench.Problem``), each solver is run
 to several accuracies in this process:
 
-* the sweeps (``solve_cone_qp``, momentum on, as ``invert`` runs them) at
+* the sweeps (``gauss_seidel.solve``, momentum on, as ``invert`` runs them) at
   several sweep caps;
-* the interior-point method (``solve_interior``) at the presets' rest-shape
+* the interior-point method (``interior.solve``) at the presets' rest-shape
   tolerances, with its own bound on the distance;
 * Clarabel at three tolerances (the subset only: on the whole groom a single
   run at its default tolerance took over 13 minutes).
@@ -42,10 +42,12 @@ else:
     from . import invert_bench as ib
     from .common import IMG, ROOT, WORK, log, smoke, table
 
-from hairinv.solver.gauss_seidel import solve_cone_qp, split_strands  # noqa: E402
-from hairinv.solver.interior import cholesky_backend, solve_interior  # noqa: E402
+from hairinv.solver import gauss_seidel, interior  # noqa: E402
+from hairinv.solver.gauss_seidel import split_strands  # noqa: E402
+from hairinv.solver.interior import cholesky_backend  # noqa: E402
+from hairinv.solver.problem import CONE, ConeProblem, InteriorSettings, SweepSettings  # noqa: E402
 from hairinv.solver.reference import solve_socqp_clarabel  # noqa: E402
-from hairinv.solver.rows import contact_rows  # noqa: E402
+from hairinv.contacts.rows import contact_rows  # noqa: E402
 
 TITLE = "The interior-point method: rest shape against time"
 GROOMS = smoke(((1000, True), (0, False)), ((30, True),))  # (guides, 0: all; run Clarabel)
@@ -72,26 +74,32 @@ def _case(guides: int) -> dict:
             "hair_hair": int(np.count_nonzero(c.strand[:, 1] >= 0))}
 
 
+def _problem(case: dict) -> ConeProblem:
+    """The inverse problem of ``case`` as the solvers take it, the residual relative to the heaviest strand's weight."""
+    p, rows, c, h = case["prob"], case["rows"], case["prob"].contacts, case["prob"].helices
+    return ConeProblem.of(rows, p.d, p.gamma, p.b, c.mu, c.strand, h.n_strands, case["weight"], s=c.s,
+                          part_of=split_strands(h.root, c.strand))
+
+
 def _runs(case: dict, clarabel: bool) -> list[dict]:
     p, rows, c, h = case["prob"], case["rows"], case["prob"].contacts, case["prob"].helices
+    problem = _problem(case)
     out = []
     for n in SWEEPS:
         log(f"  sweeps {n}")
         t = time.perf_counter()
-        res = solve_cone_qp(rows, p.d, p.gamma, p.b, c.mu, c.strand, h.n_strands, case["weight"], 1e-12, n, 5,
-                            s=c.s, part_of=split_strands(h.root, c.strand))
+        res = gauss_seidel.solve(problem, CONE, SweepSettings(1e-12, n, 5))
         out.append({"solver": "sweeps", "setting": f"{n} sweeps", "seconds": time.perf_counter() - t, "r": res.r,
                     "steps": res.sweeps, "bound": res.rest_bound, "status": res.status})
     for tol in REST:  # the sweeps stopped by their own bound (the residual tolerance out of reach)
         log(f"  sweeps, rest_tolerance {tol}")
         t = time.perf_counter()
-        res = solve_cone_qp(rows, p.d, p.gamma, p.b, c.mu, c.strand, h.n_strands, case["weight"], 1e-12,
-                            SWEEPS_CAP, 5, s=c.s, part_of=split_strands(h.root, c.strand), rest_tolerance=tol)
+        res = gauss_seidel.solve(problem, CONE, SweepSettings(1e-12, SWEEPS_CAP, 5, rest_tolerance=tol))
         out.append({"solver": "sweeps", "setting": f"rest_tolerance {tol:g}", "seconds": time.perf_counter() - t,
                     "r": res.r, "steps": res.sweeps, "bound": res.rest_bound, "status": res.status})
     for tol in REST:
         log(f"  interior point {tol}")
-        res = solve_interior(rows, p.d, p.gamma, p.b, c.mu, rest_tolerance=tol)
+        res = interior.solve(problem, CONE, InteriorSettings(rest_tolerance=tol))
         out.append({"solver": "interior point", "setting": f"rest_tolerance {tol:g}", "seconds": res.seconds,
                     "r": ib.project_cones(res.r, c.mu), "steps": res.iterations, "bound": res.rest_bound,
                     "status": res.status, "history": res.history})
@@ -202,10 +210,9 @@ def plot(results, path: Path) -> None:
 def warm_up() -> None:
     """Compile the kernels of every solver timed here on a small groom first, so that no timing includes it."""
     case = _case(ib.WARMUP_GUIDES)
-    p, rows, c, h = case["prob"], case["rows"], case["prob"].contacts, case["prob"].helices
-    solve_cone_qp(rows, p.d, p.gamma, p.b, c.mu, c.strand, h.n_strands, case["weight"], 1e-12, 10, 5, s=c.s,
-                  part_of=split_strands(h.root, c.strand), rest_tolerance=0.05)
-    solve_interior(rows, p.d, p.gamma, p.b, c.mu, rest_tolerance=0.05)
+    problem = _problem(case)
+    gauss_seidel.solve(problem, CONE, SweepSettings(1e-12, 10, 5, rest_tolerance=0.05))
+    interior.solve(problem, CONE, InteriorSettings(rest_tolerance=0.05))
 
 
 def run() -> str:

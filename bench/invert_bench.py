@@ -53,7 +53,7 @@ from hairinv.groom import Groom, hair_unit_transform, load_body, load_groom  # n
 from hairinv.invert import (Material, contact_diagonal, contact_gamma, generalized_gravity, invert,  # noqa: E402
                             stiffness, target_shape)
 from hairinv.solver.reference import solve_socqp_clarabel  # noqa: E402
-from hairinv.solver.rows import contact_rows  # noqa: E402
+from hairinv.contacts.rows import contact_rows  # noqa: E402
 
 TITLE = "Inverting a groom: contact forces and rest shapes"
 HERE = Path(__file__).resolve().parent

@@ -258,8 +258,10 @@ def _package_mb(names) -> float:
 def build_case(guides: int, body=None) -> dict:
     import invert_bench as ib
     from common import log, median_time
-    from hairinv.solver.gauss_seidel import solve_cone_qp, split_strands
-    from hairinv.solver.rows import contact_rows
+    from hairinv.solver import gauss_seidel
+    from hairinv.solver.gauss_seidel import split_strands
+    from hairinv.solver.problem import CONE, ConeProblem, SweepSettings
+    from hairinv.contacts.rows import contact_rows
 
     log(f"ipm: ruby short, {guides or 'all'} guides")
     g = ib.prepare_groom(guides, 1, body=body)
@@ -268,8 +270,9 @@ def build_case(guides: int, body=None) -> dict:
     length = np.add.reduceat(h.length, h.offsets[:-1])
     weight = g["material"].linear_density * np.linalg.norm(g["material"].gravity) * float(length.max())
     rows = contact_rows(h, c)
-    res = solve_cone_qp(rows, prob.d, prob.gamma, prob.b, c.mu, c.strand, h.n_strands, weight, 1e-12, SWEEPS, 5,
-                        s=c.s, part_of=split_strands(h.root, c.strand))
+    problem = ConeProblem.of(rows, prob.d, prob.gamma, prob.b, c.mu, c.strand, h.n_strands, weight, s=c.s,
+                             part_of=split_strands(h.root, c.strand))
+    res = gauss_seidel.solve(problem, CONE, SweepSettings(1e-12, SWEEPS, 5))
     r = res.r
     u = prob.W(r).reshape(-1, 3) + prob.b
     # shifts: SHIFT of a strand's weight on the forces, SHIFT of the median |u| on the velocities

@@ -35,8 +35,10 @@ else:
 
 sys.path.insert(0, str(ROOT))
 
-from hairinv.solver.interior import solve_interior  # noqa: E402
-from hairinv.solver.rows import ContactRows, contact_rows  # noqa: E402
+from hairinv.solver import interior  # noqa: E402
+from hairinv.solver.problem import CONE, ConeProblem, InteriorSettings  # noqa: E402
+from hairinv.contacts.rows import contact_rows  # noqa: E402
+from hairinv.solver.rows import ContactRows  # noqa: E402
 
 TITLE = "Multiplicative Schwarz over parts of the groom"
 GUIDES = smoke(1000, 40)
@@ -114,7 +116,8 @@ def schwarz(p, rows: ContactRows, part_of_contact: np.ndarray, sweeps: int, dist
             d = p.d[used]
             own = d * sub.rmatvec(r[idx])
             b = p.b[idx] + sub.matvec(np.ascontiguousarray(f[used] - own))
-            res = solve_interior(sub, d, gamma[idx], b, c.mu[idx], rest_tolerance=PART_TOLERANCE)
+            part = ConeProblem.of(sub, d, gamma[idx], b, c.mu[idx], c.strand[idx], p.helices.n_strands, 1.0)
+            res = interior.solve(part, CONE, InteriorSettings(rest_tolerance=PART_TOLERANCE))
             new = ib.project_cones(res.r, c.mu[idx])
             f[used] += d * sub.rmatvec(new - r[idx])
             r[idx] = new
@@ -132,8 +135,9 @@ def run() -> str:
     p = ib.Problem.build(g["helices"], g["contacts"], g["material"], g["settings"].solver)
     h, c = p.helices, p.contacts
     rows = contact_rows(h, c)
-    solve_interior(rows, p.d, p.gamma, p.b, c.mu, rest_tolerance=0.5)  # compiled and warm
-    exact = solve_interior(rows, p.d, p.gamma, p.b, c.mu, rest_tolerance=1e-4)
+    whole_problem = ConeProblem.of(rows, p.d, p.gamma, p.b, c.mu, c.strand, h.n_strands, 1.0)
+    interior.solve(whole_problem, CONE, InteriorSettings(rest_tolerance=0.5))  # compiled and warm
+    exact = interior.solve(whole_problem, CONE, InteriorSettings(rest_tolerance=1e-4))
     optimum = p.rest(ib.project_cones(exact.r, c.mu))
 
     def distance(r: np.ndarray) -> float:
@@ -141,7 +145,7 @@ def run() -> str:
 
     lines = []
     for tol in REST:
-        res = solve_interior(rows, p.d, p.gamma, p.b, c.mu, rest_tolerance=tol)
+        res = interior.solve(whole_problem, CONE, InteriorSettings(rest_tolerance=tol))
         lines.append(["interior point, whole problem", f"rest_tolerance {tol:g}", "", "",
                       f"{res.iterations} steps", f"{res.seconds:.2f}", f"{distance(ib.project_cones(res.r, c.mu)):.3g}"])
     whole, whole_distance = res.seconds, distance(ib.project_cones(res.r, c.mu))

@@ -34,9 +34,11 @@ else:
     from . import invert_bench as ib
     from .common import log, smoke, table
 
-from hairinv.solver.gauss_seidel import solve_cone_qp, split_strands  # noqa: E402
+from hairinv.solver import gauss_seidel  # noqa: E402
+from hairinv.solver.gauss_seidel import split_strands  # noqa: E402
+from hairinv.solver.problem import CONE, ConeProblem, SweepSettings  # noqa: E402
 from hairinv.solver.reference import solve_socqp_clarabel, solve_socqp_dense_clarabel  # noqa: E402
-from hairinv.solver.rows import contact_rows  # noqa: E402
+from hairinv.contacts.rows import contact_rows  # noqa: E402
 
 TITLE = "Why the inverse sweeps converge slowly"
 SMALL, LARGE = smoke((300, 1000), (10, 20))  # guide subsets of ruby short
@@ -86,9 +88,9 @@ class Case:
 
     def sweep(self, n: int, r0=None, tolerance: float = 1e-12):
         c, h = self.contacts, self.helices
-        return solve_cone_qp(self.rows, self.prob.d, self.prob.gamma, self.prob.b, c.mu, c.strand, h.n_strands,
-                             self.force_scale, tolerance, n, 5, r0=r0, s=c.s,
-                             part_of=split_strands(h.root, c.strand))
+        problem = ConeProblem.of(self.rows, self.prob.d, self.prob.gamma, self.prob.b, c.mu, c.strand, h.n_strands,
+                                 self.force_scale, s=c.s, part_of=split_strands(h.root, c.strand))
+        return gauss_seidel.solve(problem, CONE, SweepSettings(tolerance, n, 5), start=r0)
 
     def residuals(self, r: np.ndarray) -> np.ndarray:
         """Per-contact natural-map residual over the heaviest strand's weight (the solver's stop test)."""

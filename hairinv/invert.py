@@ -33,12 +33,14 @@ from .errors import InputError, RunError
 from .model import (UNSTABLE_MARGIN, Contacts, Helices, Material, Model, material_from_group, rest_from_group,
                     stiffening_from_group, stiffness)
 from .rod.statics import gravity_forces, gravity_hessian, point_load_hessian
-from .solver.blocks import _group_newton, strand_blocks
-from .solver.gauss_seidel import (CONVERGED, MAX_ITERS, SolverResult, diagonal_blocks, project_forces, solve_cone_qp,
-                                  split_strands)
-from .solver import interior as interior_module
-from .solver.interior import mu_in_range, solve_interior
-from .solver.rows import ContactRows, contact_rows, sides_by_strand
+from .solver.blocks import group_newton, strand_blocks
+from .solver import gauss_seidel, interior
+from .solver.gauss_seidel import SolverResult, diagonal_blocks, project_forces, split_strands
+from .solver.interior import mu_in_range
+from .solver.problem import CONE, ConeProblem, InteriorSettings, SweepSettings
+from .solver.status import Status
+from .contacts.rows import contact_rows, sides_by_strand
+from .solver.rows import ContactRows
 
 __all__ = ["TARGETS", "Material", "Model", "InvertReport", "invert", "stiffness", "generalized_gravity",
            "target_shape", "stability"]
@@ -624,9 +626,9 @@ def _strands_at_once(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, con
     r = np.zeros((n, 3))
     f = np.zeros(rows.n_dofs)
     done = np.zeros(len(group_ptr) - 1, dtype=np.bool_)
-    run_chunks(lambda lo, hi: _group_newton(scaled.ptr, scaled.cols, scaled.vals, gammas, b, contacts.mu, members,
+    run_chunks(lambda lo, hi: group_newton(scaled.ptr, scaled.cols, scaled.vals, gammas, b, contacts.mu, members,
                                             group_ptr, block_ptr, blocks, Wd, r, f, target, STRAND_NEWTON_ITERS,
-                                            False, False, lo, hi, done), len(done), 16)
+                                            CONE.desaxce, False, lo, hi, done), len(done), 16)
     return r
 
 
@@ -736,17 +738,16 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     notes: list[str] = []
     declined: list[float] = []
 
-    def steps(d: np.ndarray, b: np.ndarray, gammas: np.ndarray):
+    def steps(problem: ConeProblem):
         """The interior-point solve, or None where the method is the sweeps or the groom too costly for it."""
         if settings.method == "sweeps" or not contacts.n_contacts or declined:
             return None
-        interior = solve_interior(rows, d, gammas, b, mu, settings.rest_tolerance,
-                                  settings.max_iterations, settings.max_seconds,
-                                  max_gflop=None if settings.method == "interior-point" else AUTO_GFLOP,
-                                  progress=_interior_progress(progress, settings.max_iterations))
-        if interior.status != "TOO_LARGE":
-            return interior
-        cap = interior.gflop
+        found = interior.solve(problem, CONE, InteriorSettings.of(
+            settings, max_gflop=None if settings.method == "interior-point" else AUTO_GFLOP),
+            progress=_interior_progress(progress, settings.max_iterations))
+        if found.status != Status.TOO_LARGE:
+            return found
+        cap = found.gflop
         declined.append(cap)
         if settings.method == "interior-point":
             notes.append(f"the interior-point method's factorisation would cost over {cap:g} GFlop a step on this "
@@ -755,7 +756,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         else:
             notes.append(f"solver.method = auto: the sweeps solved this groom, whose interior-point factorisation "
                          f"would cost over {cap:g} GFlop a step (solver.method = interior-point takes up to "
-                         f"{interior_module.MAX_GFLOP:g}; docs/inverse.md)")
+                         f"{interior.MAX_GFLOP:g}; docs/inverse.md)")
         return None
 
     def solve(stiff: np.ndarray, r0: np.ndarray | None, first: bool):
@@ -763,8 +764,10 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         d = np.repeat(weight, 3) / stiff ** 2
         b = rows.matvec(d * (F_g - stiff * (q - target.ravel())))
         gammas = contact_gamma(rows, d, settings.gamma, settings.gamma_relative)
-        interior = steps(d, b, gammas)
-        if interior is None and first and r0 is None and contacts.n_contacts \
+        problem = ConeProblem.of(rows, d, gammas, b, mu, contacts.strand, S, force_scale, s=contacts.s,
+                                 part_of=split_strands(helices.root, contacts.strand))
+        stepped = steps(problem)
+        if stepped is None and first and r0 is None and contacts.n_contacts \
                 and not np.any(contacts.strand[:, 1] >= 0):
             r0 = _strands_at_once(rows, d, gammas, b, solved, settings.tolerance * force_scale)
         sweeps_cap = settings.max_sweeps
@@ -772,24 +775,21 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
         # there: the sweeps then solve the problem as declared, from those forces; otherwise (mu = 0
         # included, solved exactly by the steps) the forces are final and the
         # call below only measures their residual (and projects them onto the cones, a round-off move)
-        if interior is not None and np.all(mu_in_range(mu)):
+        if stepped is not None and np.all(mu_in_range(mu)):
             sweeps_cap = 0
-        result = solve_cone_qp(rows, d, gammas, b, mu, contacts.strand, S,
-                               force_scale, settings.tolerance, sweeps_cap, settings.check_every,
-                               r0=r0 if interior is None else interior.r,
-                               progress=progress if interior is None else None, s=contacts.s,
-                               accelerate=settings.accelerate,
-                               part_of=split_strands(helices.root, contacts.strand),
-                               max_seconds=settings.max_seconds, rest_tolerance=settings.rest_tolerance)
-        if interior is not None:
+        sweep_settings = dataclasses.replace(SweepSettings.of(settings), max_sweeps=sweeps_cap)
+        result = gauss_seidel.solve(problem, CONE, sweep_settings, start=r0 if stepped is None else stepped.r,
+                                    progress=progress if stepped is None else None)
+        if stepped is not None:
             result.method = "interior-point"
-            result.interior_steps = interior.iterations
-            result.seconds += interior.seconds
+            result.interior_steps = stepped.iterations
+            result.seconds += stepped.seconds
             if sweeps_cap == 0:
-                result.rest_bound = interior.rest_bound
+                # the interior point's statuses as the inversion reports them: its bound met, or not
+                result.rest_bound = stepped.rest_bound
                 result.bound_from = "interior-point"
-                result.status = CONVERGED if interior.status == CONVERGED else MAX_ITERS
-        if result.status not in (CONVERGED,) and not np.all(np.isfinite(result.r)):
+                result.status = Status.CONVERGED if stepped.status == Status.CONVERGED else Status.MAX_ITERS
+        if result.status != Status.CONVERGED and not np.all(np.isfinite(result.r)):
             raise RunError(f"the contact solver failed ({result.status}) after {result.sweeps} sweeps, "
                            f"residual {result.residual:.3g} N")
         carrying = result.r[:, 0] > settings.tolerance * force_scale if len(result.r) else np.zeros(0, bool)
@@ -918,13 +918,13 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
     elif newton_start:
         report.notes.append("no contact couples two strands: each strand's contacts were first solved together "
                             "(Newton on their block), and the sweeps started from those forces")
-    if result.status != CONVERGED and result.bound_from == "interior-point" and np.isfinite(result.rest_bound):
+    if result.status != Status.CONVERGED and result.bound_from == "interior-point" and np.isfinite(result.rest_bound):
         report.notes.append(
             f"warning: the interior-point method stopped at {result.status} with the rest shape within "
             f"{result.rest_bound:.2g} 1/m of the optimum (solver.rest_tolerance {settings.rest_tolerance:g}); the "
             "model is an exact equilibrium, but its forces are not yet the best ones: raise solver.max_iterations "
             "(or solver.max_seconds) or solver.rest_tolerance")
-    elif result.status != CONVERGED and np.isfinite(result.rest_bound):
+    elif result.status != Status.CONVERGED and np.isfinite(result.rest_bound):
         report.notes.append(
             f"warning: the sweeps stopped at {result.status} with the rest shape within {result.rest_bound:.2g} "
             f"1/m of the optimum (solver.rest_tolerance {settings.rest_tolerance:g}; relative residual "
@@ -932,7 +932,7 @@ def invert(helices: Helices, contacts: Contacts | None, material: Material, sett
             "equilibrium, but its forces may not yet be the best ones: invert this model again to continue from "
             "its forces, or raise solver.max_sweeps (or solver.max_seconds) or solver.rest_tolerance, or solve to "
             "the optimum with --set solver.method=interior-point (docs/inverse.md)")
-    elif result.status != CONVERGED:
+    elif result.status != Status.CONVERGED:
         report.notes.append(
             f"warning: the solver stopped at {result.status} with relative residual {result.relative_residual:.2g} "
             f"(tolerance {settings.tolerance:g}); the model is an exact equilibrium, but its forces are not yet the "

@@ -283,7 +283,7 @@ class Model:
         attrs = dict(self.material.attrs())
         attrs.update(gamma=self.gamma, target=self.target, iterations=self.result.sweeps,
                      residual=self.result.residual, seconds=self.result.seconds,
-                     status=self.result.status, relative_residual=self.result.relative_residual,
+                     status=str(self.result.status), relative_residual=self.result.relative_residual,
                      prior_sweeps=int(self.prior_sweeps), method=self.result.method)
         if self.result.method == "interior-point":
             attrs["interior_steps"] = int(self.result.interior_steps)

@@ -19,7 +19,7 @@ from hairinv.dynamics.contact import (back_substitute, contact_keys, delassus_bl
 from hairinv.dynamics.inertia import gauss_nodes, inertia_terms, strand_nodes
 from hairinv.dynamics.simulate import Motion, Simulation, _free_chunk
 from hairinv.invert import generalized_gravity, stiffness
-from hairinv.solver.rows import contact_rows
+from hairinv.contacts.rows import contact_rows
 
 from test_invert import material, two_strand_scene
 

@@ -12,7 +12,9 @@ from scipy.integrate import solve_ivp
 
 from hairinv.config import DynamicsSettings, Settings
 from hairinv.dynamics import contact
-from hairinv.dynamics.contact import REACH, contact_velocities, desaxce_residual, reachable, solve_coulomb
+from hairinv.dynamics.contact import (REACH, CoulombSettings, contact_velocities, coulomb_problem, desaxce_residual,
+                                      reachable)
+from hairinv.dynamics.contact import solve_coulomb as _solve_coulomb
 from hairinv.dynamics.inertia import inertia_terms
 from hairinv.dynamics.simulate import Motion, Simulation
 from hairinv.rod.helix import points_at
@@ -22,6 +24,13 @@ from hairinv.solver.rows import ContactRows
 from test_invert import horizontal_strand, material, strands
 
 NO_CONTACTS = dataclasses.replace(Settings().contacts, body=False, hair_hair=False)
+
+
+def solve_coulomb(rows, gamma, b, mu, strand, n_strands, velocity_scale, tolerance, max_sweeps, r0, s=None,
+                  part_of=None, max_rounds=20, stall_rounds=3, Wd=None):
+    """:func:`hairinv.dynamics.contact.solve_coulomb` of the problem and settings these arguments give."""
+    problem = coulomb_problem(rows, gamma, b, mu, strand, n_strands, velocity_scale, s=s, part_of=part_of)
+    return _solve_coulomb(problem, CoulombSettings(tolerance, max_sweeps, max_rounds, stall_rounds), r0, Wd=Wd)
 
 
 # ---------------------------------------------------------------- one and two contacts, closed forms
@@ -91,20 +100,20 @@ def test_a_contact_solve_that_stops_improving_stops_there_and_keeps_its_best_ite
     exact = np.array([[2.0, -0.1, 0.0], [1.0, 0.0, -0.2]])  # test_two_contacts_one_sticking_one_sliding
     rows = _isotropic_rows(weights)
     strand = np.array([[0, 1], [1, 2]], np.int64)  # hair-hair: no strand-by-strand blocks
-    real = contact.solve_cone_qp
+    real = contact.gauss_seidel.solve
     rounds, iterates = [], []
 
-    def stalled(*args, **kwargs):
+    def stalled(problem, law, *args, **kwargs):
         # every convex round lands at the same distance from the answer, as a stalled Gauss-Seidel
         # does; the direct De Saxce fail-safe is left as it is
-        result = real(*args, **kwargs)
-        if kwargs.get("desaxce"):
+        result = real(problem, law, *args, **kwargs)
+        if law.desaxce:
             return result
         rounds.append(result.sweeps)
         iterates.append(1.5 * result.r)
         return dataclasses.replace(result, r=iterates[-1])
 
-    monkeypatch.setattr(contact, "solve_cone_qp", stalled)
+    monkeypatch.setattr(contact.gauss_seidel, "solve", stalled)
 
     def solve(stall_rounds):
         rounds.clear()
@@ -222,13 +231,13 @@ def _strand_contacts(rng, counts, n_dofs=24, spread=0.05):
 def _strands_by_newton(rows, strand, b, gamma, mus, target, iterations):
     """Each strand's body contacts from zero by the strands' Newton kernel: ``(r, f, done, Wd)``."""
     from hairinv.dynamics.contact import strand_groups
-    from hairinv.solver.blocks import _group_newton
+    from hairinv.solver.blocks import group_newton
 
     members, group_ptr, block_ptr, blocks, Wd = strand_groups(rows, gamma, strand)
     r = np.zeros((rows.n_contacts, 3))
     f = np.zeros(rows.n_dofs)
     done = np.zeros(len(group_ptr) - 1, np.bool_)
-    _group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mus, members, group_ptr, block_ptr, blocks, Wd, r, f,
+    group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mus, members, group_ptr, block_ptr, blocks, Wd, r, f,
                   target, iterations, True, True, 0, len(done), done)
     return r, f, done, Wd
 
@@ -292,7 +301,7 @@ def test_a_strands_body_contacts_solved_together_meet_the_de_saxce_law(mu):
     """Each strand's body contacts solved at once (Newton on the stacked De Saxce FB function): the
     forces are in the cones, the De Saxce velocities in the dual cones and complementary, checked on
     the dense W; and a strand it does not finish is finished by the rounds that follow."""
-    from hairinv.solver.gauss_seidel import _accumulate_f
+    from hairinv.solver.gauss_seidel import accumulate_f
 
     rng = np.random.default_rng(5)
     rows, strand, b = _strand_contacts(rng, [1, 2, 3, 4, 5, 3, 2, 4])
@@ -304,7 +313,7 @@ def test_a_strands_body_contacts_solved_together_meet_the_de_saxce_law(mu):
     assert desaxce_residual(rows, gamma, b, mus, r, Wd) <= target  # the solver's own stop test agrees
     ones = np.ones(rows.n_dofs)
     expected_f = np.empty(rows.n_dofs)
-    _accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, expected_f)
+    accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, expected_f)
     np.testing.assert_allclose(f, expected_f, atol=1e-12 * np.abs(f).max())  # f kept up to date
     assert np.abs(r).max() > 0 and (r[:, 0] > 0).sum() < n, "no mix of touching and separating contacts"
 
@@ -533,7 +542,7 @@ def test_a_still_groom_meeting_the_contact_law_skips_the_solve_below_the_floor_o
     from hairinv.invert import Material, invert
     from hairinv.pipeline import prepare
     from hairinv.solver.gauss_seidel import natural_residuals
-    from hairinv.solver.rows import contact_rows
+    from hairinv.contacts.rows import contact_rows
 
     tolerance, sweeps, steps = 1e-8, 100, 3
     settings = config.apply(config.resolve(), {"import": {"guides": 40}})

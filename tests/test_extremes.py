@@ -37,7 +37,7 @@ from hairinv.model import Helices, Material
 from hairinv.rod.helix import chain, element_derivatives, element_step, frames_at, points_at
 from hairinv.rod.statics import gravity_forces, point_jacobian
 from hairinv.solver.interior import mu_in_range
-from hairinv.solver.local import OK, solve_contact
+from hairinv.solver.local import CODE_OK, solve_contact
 from test_invert import (UP, dense_problem, energy_gradient, horizontal_strand, make_contacts, material, strands,
                          three_strands_on_the_body, two_strand_scene)
 
@@ -430,7 +430,7 @@ def test_a_block_singular_to_working_precision_is_solved_not_refused():
                 b = Z.T @ (Z @ b) / 1e10  # a load the point can feel (in the range of W, as H D (...) is)
                 r = np.zeros(3)
                 status, res = solve_contact(W, b, mu, r, 1e-12, 50, False)
-                assert status == OK and np.isfinite(res) and np.all(np.isfinite(r))
+                assert status == CODE_OK and np.isfinite(res) and np.all(np.isfinite(r))
                 u = W @ r + b
                 size_u = np.abs(b).max()
                 size_r = max(np.abs(r).max(), 1e-300)

@@ -25,11 +25,21 @@ import scipy.sparse
 from hairinv.errors import InputError
 from hairinv.invert import generalized_gravity, invert, stiffness
 from hairinv.config import SolverSettings
-from hairinv.solver.interior import solve_interior
-from hairinv.solver.rows import contact_rows
+from hairinv.contacts.rows import contact_rows
+from hairinv.solver import interior as interior_method
+from hairinv.solver.problem import CONE, ConeProblem, InteriorSettings
 
 from test_invert import (UP, check_optimality, dense_problem, make_contacts, material, resting_scene, solve,
                          three_strands_on_the_body, two_strand_scene)
+
+
+def solve_interior(rows, d, gamma, b, mu, rest_tolerance=1e-3, max_iterations=80, max_seconds=0.0, backend=None,
+                   progress=None, max_gflop=None):
+    """:func:`hairinv.solver.interior.solve` of the problem and settings these arguments give."""
+    strand = np.zeros((rows.n_contacts, 2), dtype=np.int64)
+    problem = ConeProblem.of(rows, d, gamma, b, mu, strand, 1, 1.0)
+    settings = InteriorSettings(rest_tolerance, max_iterations, max_seconds, backend, max_gflop)
+    return interior_method.solve(problem, CONE, settings, progress=progress)
 
 
 def sag(helices, mat) -> float:

@@ -29,7 +29,7 @@ from hairinv.fit import Helices
 from hairinv.invert import Material, generalized_gravity, invert, stiffness, target_shape
 from hairinv.rod.helix import points_at
 from hairinv.rod.statics import gravity_potential
-from hairinv.solver.rows import contact_rows
+from hairinv.contacts.rows import contact_rows
 
 UP = np.array([0.0, 1.0, 0.0])
 # the solver's stopping tolerance in these tests, relative to a strand's weight
@@ -655,7 +655,8 @@ def test_rest_gap(scene, mu):
     lower bound of the optimum at any multiplier; the distance of any forces' rest shape from the optimum is
     within the bound; the bound vanishes at the optimum; and with a loose ``rest_tolerance`` the sweeps stop
     on it (CONVERGED while the residual is far above its tolerance), report it and write it to the model."""
-    from hairinv.solver.gauss_seidel import solve_cone_qp
+    from hairinv.solver import gauss_seidel
+    from hairinv.solver.problem import CONE, ConeProblem, SweepSettings
 
     helices, contacts = scene(mu=mu)
     mat = material()
@@ -671,8 +672,9 @@ def test_rest_gap(scene, mu):
     rng = np.random.default_rng(1)
 
     def kernel_bound(r):
-        return solve_cone_qp(rows, d, gammas, b.reshape(-1, 3), contacts.mu, contacts.strand, helices.n_strands,
-                             1.0, TIGHT, max_sweeps=0, r0=r).rest_bound
+        problem = ConeProblem.of(rows, d, gammas, b.reshape(-1, 3), contacts.mu, contacts.strand, helices.n_strands,
+                                 1.0)
+        return gauss_seidel.solve(problem, CONE, SweepSettings(TIGHT, max_sweeps=0), start=r).rest_bound
 
     big = np.abs(best.force).max()
     for k in range(5):

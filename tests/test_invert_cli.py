@@ -5,7 +5,7 @@ recomputed here from the file alone: stiffness from the material attributes,
 the generalized gravity force and the contact Jacobians from the kernels
 (both verified against finite differences of an independent energy and of
 positions in tests/test_statics.py), assembled here contact by contact rather
-than through hairinv.solver.rows.
+than through hairinv.contacts.rows.
 
 Runtime: about 30-60 s warm (three inversions of small grooms, one on sintel).
 """

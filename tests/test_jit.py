@@ -15,7 +15,7 @@ import pytest
 
 from hairinv import _jit
 from hairinv.rod.statics import gravity_hessian
-from hairinv.solver.rows import _fill
+from hairinv.contacts.rows import _fill
 
 
 @pytest.mark.skipif(numba.config.DISABLE_JIT, reason="NUMBA_DISABLE_JIT: the kernels are plain Python, nothing is cached")

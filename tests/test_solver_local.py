@@ -19,9 +19,9 @@ from hypothesis import strategies as st
 from conftest import FINITE_DIFFERENCE, ROUNDOFF
 from hairinv.solver.local import (
     LOCAL_TOL,
-    NOT_CONVERGED,
-    NUMERICAL_ERROR,
-    OK,
+    CODE_NOT_CONVERGED,
+    CODE_NUMERICAL,
+    CODE_OK,
     fb_function,
     fb_jacobian,
     natural_residual,
@@ -266,7 +266,7 @@ def test_take_off(mu, desaxce, rng):
         t *= 0.5 / (mu * np.linalg.norm(t))  # |b_T| = b_N / (2 mu)
     b = np.array([1.0, *t])  # in K*_mu
     status, res, r = solve(W, b, mu, r0=[5.0, 1.0, 1.0], desaxce=desaxce)
-    assert status == OK and res == 0.0
+    assert status == CODE_OK and res == 0.0
     np.testing.assert_array_equal(r, 0.0)
 
 
@@ -275,10 +275,10 @@ def test_desaxce_take_off_ignores_the_tangent(rng):
     W = random_spd(rng, 10.0)
     b = np.array([0.1, 3.0, -2.0])
     status, _, r = solve(W, b, 0.3, desaxce=True)
-    assert status == OK
+    assert status == CODE_OK
     np.testing.assert_array_equal(r, 0.0)
     status, _, r = solve(W, b, 0.3, desaxce=False)  # statics: b is not in K*, contact is kept
-    assert status == OK and r[0] > 0
+    assert status == CODE_OK and r[0] > 0
     assert_ccp(W, b, 0.3, r, OPTIMALITY)
 
 
@@ -292,7 +292,7 @@ def test_sticking_is_minus_w_inverse_b(mu, desaxce, rng):
         r_star = rng.uniform(0.1, 2.0) * np.array([1.0, slope * np.cos(a), slope * np.sin(a)])
         b = -W @ r_star
         status, res, r = solve(W, b, mu, desaxce=desaxce)
-        assert status == OK and res <= LOCAL_TOL
+        assert status == CODE_OK and res <= LOCAL_TOL
         if desaxce and mu < np.inf and b[0] >= 0.0:
             # the De Saxce problem is not convex: r = 0 solves it too, and take-off is tried first
             np.testing.assert_array_equal(r, 0.0)
@@ -307,7 +307,7 @@ def test_frictionless(desaxce, rng):
         W = random_spd(rng, 1e3)
         b = rng.normal(size=3)
         status, _, r = solve(W, b, 0.0, r0=rng.normal(size=3), desaxce=desaxce)
-        assert status == OK
+        assert status == CODE_OK
         np.testing.assert_allclose(r, [max(0.0, -b[0] / W[0, 0]), 0.0, 0.0], rtol=ROUNDOFF, atol=0)
         assert_ccp(W, b, 0.0, r, OPTIMALITY)
 
@@ -325,7 +325,7 @@ def test_identity_w_slides_onto_the_projection_of_minus_b(mu, rng):
         alpha = (x[0] + mu * t) / (1.0 + mu * mu)
         expected = alpha * np.array([1.0, mu * x[1] / t, mu * x[2] / t])
         status, res, r = solve(np.eye(3), -x, mu)
-        assert status == OK and res <= LOCAL_TOL
+        assert status == CODE_OK and res <= LOCAL_TOL
         np.testing.assert_allclose(r, expected, rtol=1e-10, atol=1e-12 * np.linalg.norm(x))
 
 
@@ -337,7 +337,7 @@ def test_random_sliding_problems_against_clarabel(mu, rng):
     for _ in range(15):
         W, b = sliding_problem(rng, mu, cond=1e3)
         status, res, r = solve(W, b, mu)
-        assert status == OK and res <= LOCAL_TOL
+        assert status == CODE_OK and res <= LOCAL_TOL
         assert_ccp(W, b, mu, r, OPTIMALITY)
         rc, info = solve_socqp_dense_clarabel(W, b, mu)
         assert info["status"] == "Solved"
@@ -367,7 +367,7 @@ def test_random_problems_meet_the_optimality_conditions(seed, mu, log_cond, log_
     W = random_spd(rng, 10**log_cond, 10**log_w)
     b = rng.normal(size=3) * 10**log_b
     status, res, r = solve(W, b, mu, r0=rng.normal(size=3) * 10**log_b / 10**log_w, desaxce=desaxce)
-    assert status == OK and res <= LOCAL_TOL
+    assert status == CODE_OK and res <= LOCAL_TOL
     assert relative_residual(W, b, mu, r, desaxce) == pytest.approx(res, rel=1e-6, abs=1e-13)
     assert_ccp(W, b, mu, r, OPTIMALITY if log_cond < 4 else OPTIMALITY_ILL, desaxce)
 
@@ -384,7 +384,7 @@ def test_extremes(mu, cond, b_scale, rng):
         b = b * b_scale
         for desaxce in (False, True):
             status, res, r = solve(W, b, mu, desaxce=desaxce)
-            assert status == OK and res <= LOCAL_TOL
+            assert status == CODE_OK and res <= LOCAL_TOL
             assert np.all(np.isfinite(r))
             assert_ccp(W, b, mu, r, OPTIMALITY if cond < 1e4 else OPTIMALITY_ILL, desaxce)
 
@@ -402,10 +402,10 @@ def test_warm_start_from_the_answer_returns_it_unchanged(desaxce, rng):
     for _ in range(10):
         W, b = sliding_problem(rng, 0.4)
         status, _, r = solve(W, b, 0.4, desaxce=desaxce)
-        assert status == OK
+        assert status == CODE_OK
         again = r.copy()
         status, res, out = solve(W, b, 0.4, r0=again, desaxce=desaxce, max_iter=0)
-        assert status == OK and res <= LOCAL_TOL
+        assert status == CODE_OK and res <= LOCAL_TOL
         np.testing.assert_array_equal(out, r)  # bit for bit: no Newton step was taken
 
 
@@ -418,11 +418,11 @@ def test_a_warm_start_with_the_wrong_slip_angle_still_finds_the_sliding_answer(t
     for _ in range(20):
         W, b = sliding_problem(rng, 0.4, cond=1e2)
         status, _, r = solve(W, b, 0.4)
-        assert status == OK
+        assert status == CODE_OK
         c, s = np.cos(turn), np.sin(turn)
         warm = 2.0 * np.array([r[0], c * r[1] - s * r[2], s * r[1] + c * r[2]])
         status, res, out = solve(W, b, 0.4, r0=warm)
-        assert status == OK and res <= LOCAL_TOL
+        assert status == CODE_OK and res <= LOCAL_TOL
         assert_ccp(W, b, 0.4, out, OPTIMALITY)
         np.testing.assert_allclose(out, r, rtol=1e-9, atol=1e-9 * np.linalg.norm(r))
 
@@ -430,11 +430,11 @@ def test_a_warm_start_with_the_wrong_slip_angle_still_finds_the_sliding_answer(t
 def test_not_converged_returns_the_best_point(rng):
     W, b = sliding_problem(rng, 0.3, cond=1e2)
     status, res, r = solve(W, b, 0.3, max_iter=0)  # no Newton step; the fail-safe still runs
-    assert status in (OK, NOT_CONVERGED)
+    assert status in (CODE_OK, CODE_NOT_CONVERGED)
     assert res == pytest.approx(relative_residual(W, b, 0.3, r), rel=1e-6, abs=1e-13)
     r = np.zeros(3)
     status, res = solve_contact(W, b, 0.3, r, -1.0, 0, False)  # an unreachable tolerance
-    assert status == NOT_CONVERGED and np.isfinite(res)
+    assert status == CODE_NOT_CONVERGED and np.isfinite(res)
     assert_ccp(W, b, 0.3, r, OPTIMALITY)  # the best point is still the fail-safe's solution
 
 
@@ -452,20 +452,20 @@ def test_numerical_errors_leave_r_untouched():
     for Wc, bc, mu in cases:
         r = np.array([7.0, 8.0, 9.0])
         status, res = solve_contact(Wc, bc, mu, r, LOCAL_TOL, 50, False)
-        assert status == NUMERICAL_ERROR and res == np.inf
+        assert status == CODE_NUMERICAL and res == np.inf
         np.testing.assert_array_equal(r, [7.0, 8.0, 9.0])
 
 
 def test_non_finite_warm_start_is_ignored(rng):
     W, b = sliding_problem(rng, 0.3)
     status, _, r = solve(W, b, 0.3, r0=[np.nan, 0.0, np.inf])
-    assert status == OK
+    assert status == CODE_OK
     assert_ccp(W, b, 0.3, r, OPTIMALITY)
 
 
 def test_zero_b_gives_zero_force():
     status, res, r = solve(np.eye(3), np.zeros(3), 0.3, r0=[1.0, 2.0, 3.0])
-    assert status == OK and res == 0.0
+    assert status == CODE_OK and res == 0.0
     np.testing.assert_array_equal(r, 0.0)
 
 
@@ -489,7 +489,7 @@ def test_desaxce_sliding_by_construction(W, mu):
         s = -np.linalg.solve(W, b)
         assert not (s[0] >= 0 and np.hypot(s[1], s[2]) <= mu * s[0])  # no sticking
         status, res, r = solve(W, b, mu, desaxce=True)
-        assert status == OK and res <= LOCAL_TOL
+        assert status == CODE_OK and res <= LOCAL_TOL
         assert_ccp(W, b, mu, r, OPTIMALITY, desaxce=True)
         np.testing.assert_allclose(r, r_star, rtol=1e-9, atol=1e-12)
         u = W @ r + b

@@ -18,7 +18,7 @@ from hairinv import stages
 from hairinv.config import FitSettings, SolverSettings
 from hairinv.invert import generalized_gravity, invert, stability_margins
 from hairinv.model import rest_from_group, stiffening_from_group, stiffness
-from hairinv.solver.rows import contact_rows
+from hairinv.contacts.rows import contact_rows
 from test_invert import UP, make_contacts, material, strands
 
 TIGHT = 1e-10

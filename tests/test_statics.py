@@ -130,7 +130,7 @@ def test_assembled_contact_rows_match_finite_differences_of_contact_gaps(rng):
     contact's relative position ``x_A(s_A) - x_B(s_B)`` along its frame."""
     from hairinv.contacts.detect import Contacts, contact_frames
     from hairinv.fit import Helices
-    from hairinv.solver.rows import contact_rows
+    from hairinv.contacts.rows import contact_rows
 
     specs = [random_strand(rng, n, 8.0) for n in (4, 6, 3)]
     offsets = np.cumsum([0] + [len(sp[2]) for sp in specs])

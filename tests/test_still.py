@@ -27,7 +27,7 @@ from hairinv.contacts import Contacts
 from hairinv.fit import Helices
 from hairinv.invert import generalized_gravity, stability_margins
 from hairinv.model import material_from_group, rest_from_group, stiffening_from_group, stiffness
-from hairinv.solver.rows import contact_rows
+from hairinv.contacts.rows import contact_rows
 from test_cli import hairinv
 
 

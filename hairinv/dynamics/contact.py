@@ -19,13 +19,16 @@ import numpy as np
 
 from .._jit import jit
 from .._parallel import run_chunks
-from ..solver.gauss_seidel import (CONVERGED, MAX_ITERS, NUMERICAL, SolverResult, _accumulate_f, diagonal_blocks,
-                                   natural_residuals, solve_cone_qp, sweep_order)
-from ..solver.blocks import _group_fixed_point, _group_newton, strand_blocks
+from ..solver import gauss_seidel
+from ..solver.blocks import group_fixed_point, group_newton, strand_blocks
+from ..solver.gauss_seidel import SolverResult, accumulate_f, diagonal_blocks, sweep_order
+from ..solver.problem import CONE, COULOMB, ConeProblem, SweepSettings
 from ..solver.rows import ContactRows
+from ..solver.status import Status
 
-__all__ = ["REACH", "back_substitute", "contact_keys", "contact_velocities", "delassus_blocks", "desaxce_residual",
-           "factored_blocks", "factored_rows", "forward_substitute", "reachable", "solve_coulomb", "strand_groups"]
+__all__ = ["REACH", "CoulombSettings", "back_substitute", "contact_keys", "contact_velocities", "coulomb_problem",
+           "delassus_blocks", "desaxce_residual", "factored_blocks", "factored_rows", "forward_substitute", "reachable",
+           "solve_coulomb", "strand_groups"]
 
 #: a contact is not asked to move its point along a direction that a unit impulse moves it less than
 #: this fraction as fast as along the easiest one (eigenvalues of ``W_ii``; see :func:`reachable`)
@@ -271,20 +274,25 @@ def delassus_blocks(rows: ContactRows, gamma: np.ndarray) -> np.ndarray:
     return Wd
 
 
+def coulomb_problem(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, strand: np.ndarray,
+                    n_strands: int, velocity_scale: float, s: np.ndarray | None = None,
+                    part_of: np.ndarray | None = None) -> ConeProblem:
+    """A step's contact problem on the factored rows ``Z_i^T`` (:func:`factored_rows`, so ``D = I``): impulses,
+    their residual measured as a velocity relative to ``velocity_scale`` (m/s)."""
+    return ConeProblem.of(rows, np.ones(rows.n_dofs), gamma, b, mu, strand, n_strands, velocity_scale, velocity=True,
+                          s=s, part_of=part_of)
+
+
 def desaxce_residual(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, r: np.ndarray,
                      Wd: np.ndarray | None = None) -> float:
     """Largest natural-map residual of the De Saxce problem, in velocity units (:func:`natural_residuals`).
 
     ``Wd``: the diagonal blocks, if already at hand.
     """
-    n = rows.n_contacts
-    if n == 0:
+    if rows.n_contacts == 0:
         return 0.0
-    Wd = delassus_blocks(rows, gamma) if Wd is None else Wd
-    f = np.empty(rows.n_dofs)
-    _accumulate_f(rows.ptr, rows.cols, rows.vals, np.ones(rows.n_dofs), r, f)
-    per = np.empty(n)
-    return float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, r, True, True, per))
+    problem = coulomb_problem(rows, gamma, b, mu, np.zeros((rows.n_contacts, 2), dtype=np.int64), 0, 1.0)
+    return gauss_seidel.residual(problem, COULOMB, r, delassus_blocks(rows, gamma) if Wd is None else Wd)
 
 
 def strand_groups(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray, Wd: np.ndarray | None = None) -> tuple:
@@ -296,10 +304,22 @@ def strand_groups(rows: ContactRows, gamma: np.ndarray, strand: np.ndarray, Wd: 
     return (*strand_blocks(rows, gamma, strand), delassus_blocks(rows, gamma) if Wd is None else Wd)
 
 
-def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.ndarray, strand: np.ndarray,
-                  n_strands: int, velocity_scale: float, tolerance: float, max_sweeps: int, r0: np.ndarray,
-                  s: np.ndarray | None = None, part_of: np.ndarray | None = None, max_rounds: int = 20,
-                  stall_rounds: int = 3, Wd: np.ndarray | None = None) -> SolverResult:
+@dataclasses.dataclass(frozen=True)
+class CoulombSettings:
+    """How long the contact solve of one step (:func:`solve_coulomb`) runs."""
+
+    tolerance: float
+    """on the De Saxce residual in velocity units, relative to the problem's ``scale``"""
+    max_sweeps: int
+    """sweeps over all contacts in all (a round of the fixed point counts its sweeps)"""
+    max_rounds: int = 20
+    """rounds of the fixed point of convex problems"""
+    stall_rounds: int = 3
+    """stop once this many rounds in a row (after the first) have not halved the best residual (0: never)"""
+
+
+def solve_coulomb(problem: ConeProblem, settings: CoulombSettings, start: np.ndarray,
+                  Wd: np.ndarray | None = None) -> SolverResult:
     """Coulomb friction of one step: the De Saxce problem ``K ∋ r ⟂ u + mu |u_T| e_N ∈ K*``.
 
     As a fixed point of convex problems (Acary, Cadoux et al.): with the
@@ -321,20 +341,22 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
 
     Body contacts only (no hair-hair contact): the strands do not interact,
     so the rounds run strand by strand, in the kernel, on each strand's dense
-    block (:func:`hairinv.solver.blocks._group_fixed_point`), after Newton on
+    block (:func:`hairinv.solver.blocks.group_fixed_point`), after Newton on
     the De Saxce problem itself has solved most strands at once; a round
     counts as one sweep, a strand stops after ``FIXED_POINT_PATIENCE`` rounds
     without a new best (with ``stall_rounds`` 0: once the sweeps are spent),
     and the fail-safe runs only where every strand met the tolerance by its
     own count and the whole does not (round-off), or with ``stall_rounds`` 0.
 
-    ``rows`` are the factored rows ``Z_i^T`` (:func:`factored_rows`); the
-    tolerance is on the De Saxce residual in velocity units, relative to
-    ``velocity_scale``; ``Wd``: the blocks ``W_ii`` (:func:`delassus_blocks`,
-    ``gamma`` included), if already at hand. Returns the best iterate;
-    ``sweeps`` counts all rounds.
+    ``problem`` is :func:`coulomb_problem` of the factored rows ``Z_i^T``
+    (:func:`factored_rows`); ``start`` the warm start (C, 3); ``Wd``: the blocks
+    ``W_ii`` (:func:`delassus_blocks`, ``gamma`` included), if already at hand.
+    Returns the best iterate; ``sweeps`` counts all rounds.
     """
     started = time.perf_counter()
+    rows, gamma, b, mu, strand = problem.rows, problem.gamma, problem.b, problem.mu, problem.strand
+    velocity_scale, tolerance, max_sweeps = problem.scale, settings.tolerance, settings.max_sweeps
+    max_rounds, stall_rounds = settings.max_rounds, settings.stall_rounds
     ones = np.ones(rows.n_dofs)
     target = tolerance * velocity_scale
     # body contacts only: strand by strand on dense blocks (Newton, then each strand's own fixed point);
@@ -344,15 +366,16 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
     # solved to the final tolerance at once (no rounds of loose tolerances chasing a shift)
     frictionless = not np.any(mu > 0.0)
     stalled = False
-    r = np.array(r0, dtype=np.float64, copy=True)
+    r = np.array(start, dtype=np.float64, copy=True)
     if Wd is None and rows.n_contacts:
         Wd = delassus_blocks(rows, gamma)
     best_r, best = r.copy(), desaxce_residual(rows, gamma, b, mu, r, Wd)
     history = [(0, best)]
     if not np.isfinite(best):  # non-finite data (b, W or the warm start): nothing to solve
-        return SolverResult(r, NUMERICAL, 0, best, best / velocity_scale, history, time.perf_counter() - started)
+        return SolverResult(r, Status.NUMERICAL_ERROR, 0, best, best / velocity_scale, history,
+                            time.perf_counter() - started)
     sweeps = 0
-    status = CONVERGED if best <= target else MAX_ITERS
+    status = Status.CONVERGED if best <= target else Status.MAX_ITERS
     rounds = 0
 
     def record(point: np.ndarray) -> float:
@@ -363,10 +386,10 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         if residual < best:
             best, best_r = residual, point.copy()
         if residual <= target:
-            status = CONVERGED
+            status = Status.CONVERGED
         return residual
 
-    if blocks and status == MAX_ITERS and max_sweeps > 0:
+    if blocks and status == Status.MAX_ITERS and max_sweeps > 0:
         # first each strand's contacts at once by Newton on the De Saxce problem itself (the strands do
         # not interact): it nearly always meets the tolerance; the few strands it leaves (a contact near
         # the root, whose W_ii is 1e-4 of the others', beside contacts along the strand) are solved as a
@@ -374,18 +397,18 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         groups = strand_groups(rows, gamma, strand, Wd)
         members, group_ptr, block_ptr, blocks_g, _ = groups
         f = np.empty(rows.n_dofs)
-        _accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, f)
+        accumulate_f(rows.ptr, rows.cols, rows.vals, ones, r, f)
         n_groups = len(group_ptr) - 1
         done = np.zeros(n_groups, dtype=np.bool_)
         chunk = max(16, -(-n_groups // 8))
-        run_chunks(lambda lo, hi: _group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members, group_ptr,
+        run_chunks(lambda lo, hi: group_newton(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members, group_ptr,
                                                 block_ptr, blocks_g, Wd, r, f, target, GROUP_NEWTON_ITERS, True, True,
                                                 lo, hi, done), n_groups, chunk)
         sweeps += 1
         if not done.all() and max_sweeps > 1:
             taken = np.zeros(n_groups, dtype=np.int64)
             patience = FIXED_POINT_PATIENCE if stall_rounds else 0  # (0: every round the sweeps allow)
-            run_chunks(lambda lo, hi: _group_fixed_point(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members,
+            run_chunks(lambda lo, hi: group_fixed_point(rows.ptr, rows.cols, rows.vals, gamma, b, mu, members,
                                                          group_ptr, block_ptr, blocks_g, Wd, r, f, target,
                                                          FIXED_POINT_NEWTON_ITERS, max_sweeps - 1, patience,
                                                          lo, hi, done, taken), n_groups, chunk)
@@ -398,9 +421,9 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         stalled = bool(stall_rounds) and not done.all()
     # the rounds solve problems of the same rows and contacts: their update order is made once
     order = None
-    if not blocks and status == MAX_ITERS and sweeps < max_sweeps:
-        order = sweep_order(rows, ones, gamma, strand, n_strands, s, part_of)
-    while not blocks and status == MAX_ITERS and sweeps < max_sweeps and rounds < max_rounds:
+    if not blocks and status == Status.MAX_ITERS and sweeps < max_sweeps:
+        order = sweep_order(problem)
+    while not blocks and status == Status.MAX_ITERS and sweeps < max_sweeps and rounds < max_rounds:
         u = contact_velocities(rows, gamma, b, r)
         shifted = b.copy()
         shifted[:, 0] += np.where(mu < np.inf, mu, 0.0) * np.hypot(u[:, 1], u[:, 2])  # (inf: no De Saxce term)
@@ -411,10 +434,10 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
         # groom at 0.35 g h for good
         budget = max_sweeps - sweeps if inner_tol <= tolerance else min(max(20, max_sweeps // 10),
                                                                         max_sweeps - sweeps)
-        inner = solve_cone_qp(rows, ones, gamma, shifted, mu, strand, n_strands, velocity_scale, inner_tol,
-                              budget, 5, r0=r, s=s, part_of=part_of, velocity=True, order=order)
-        if inner.status == NUMERICAL:
-            return dataclasses.replace(inner, r=best_r, status=NUMERICAL, sweeps=sweeps + inner.sweeps)
+        inner = gauss_seidel.solve(dataclasses.replace(problem, b=shifted), CONE,
+                                   SweepSettings(inner_tol, budget, check_every=5), start=r, order=order)
+        if inner.status == Status.NUMERICAL_ERROR:
+            return dataclasses.replace(inner, r=best_r, sweeps=sweeps + inner.sweeps)
         sweeps += inner.sweeps
         rounds += 1
         r = inner.r
@@ -427,13 +450,12 @@ def solve_coulomb(rows: ContactRows, gamma: np.ndarray, b: np.ndarray, mu: np.nd
             stalled = True  # rounds without halving the residual: keep the best (see the docstring)
             break
     failsafe = 0
-    if status != CONVERGED and sweeps < max_sweeps and not stalled:
-        direct = solve_cone_qp(rows, ones, gamma, b, mu, strand, n_strands, velocity_scale, tolerance,
-                               max_sweeps - sweeps, 5, r0=best_r, desaxce=True, s=s, part_of=part_of,
-                               velocity=True, order=order)
+    if status != Status.CONVERGED and sweeps < max_sweeps and not stalled:
+        direct = gauss_seidel.solve(problem, COULOMB, SweepSettings(tolerance, max_sweeps - sweeps, check_every=5),
+                                    start=best_r, order=order)
         sweeps += direct.sweeps
         failsafe = direct.local_failures
-        if direct.status != NUMERICAL:
+        if direct.status != Status.NUMERICAL_ERROR:
             record(direct.r)
     return SolverResult(best_r, status, sweeps, best, best / velocity_scale, history,
                         time.perf_counter() - started, 0, failsafe, rounds)

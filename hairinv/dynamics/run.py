@@ -23,6 +23,7 @@ from ..errors import InputError, in_file
 from ..invert import generalized_gravity
 from ..model import (Contacts, Helices, Material, material_from_group, rest_from_group, stiffening_from_group,
                      stiffness)
+from ..solver.status import Status
 from .scene import Scene, trim_helices
 from .simulate import Motion, Simulation, StepReport, points_on
 
@@ -229,7 +230,7 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
                        reports[-1].n_body if reports else sim.contacts.n_body,
                        max((r.sweeps for r in reports), default=0),
                        max((r.relative_residual for r in reports), default=0.0),
-                       sum(r.status != "CONVERGED" for r in reports),
+                       sum(r.status != Status.CONVERGED for r in reports),
                        sim.kinetic_energy(), sim.elastic_energy(), moved, seconds_used,
                        sum(r.substeps - 1 for r in reports),
                        next((r.turned for r in reversed(reports) if r.turned >= 0), -1), per_strand)

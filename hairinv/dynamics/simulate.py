@@ -40,10 +40,12 @@ from ..errors import InputError
 from ..invert import tolerance_gravity
 from ..model import Contacts, Helices, Material, stiffness
 from ..rod.statics import gravity_forces, gravity_hessian, point_load_hessian
-from ..solver.gauss_seidel import CONVERGED, NUMERICAL, SolverResult, natural_residuals, split_strands
-from ..solver.rows import contact_rows
-from .contact import (back_substitute, contact_keys, factored_blocks, factored_rows, forward_substitute, reachable,
-                      solve_coulomb)
+from ..solver.gauss_seidel import SolverResult, natural_residuals, split_strands
+from ..solver.problem import COULOMB
+from ..solver.status import Status
+from ..contacts.rows import contact_rows
+from .contact import (CoulombSettings, back_substitute, contact_keys, coulomb_problem, factored_blocks, factored_rows,
+                      forward_substitute, reachable, solve_coulomb)
 from .inertia import strand_mass, strand_velocity_forces
 
 __all__ = ["Motion", "Simulation", "StepReport", "strand_dynamics", "validate_settings"]
@@ -116,7 +118,7 @@ def _joined(first: StepReport, second: StepReport) -> StepReport:
     """Two consecutive substeps as one report: the second's contacts, the worse of their solves."""
     second.sweeps = max(first.sweeps, second.sweeps)
     second.relative_residual = max(first.relative_residual, second.relative_residual)
-    if second.status == "CONVERGED":
+    if second.status == Status.CONVERGED:
         second.status = first.status
     second.local_failures = first.local_failures + second.local_failures
     second.substeps = first.substeps + second.substeps
@@ -864,7 +866,7 @@ class Simulation:
         found = self._detect()
         found, anchors = self._persist(found, h)
         keys, thickness, impulse = self._remember(found, h)
-        report = StepReport(found.n_contacts, found.n_body, 0, 0.0, "CONVERGED", 0, 0.0, depth=depth, last_depth=depth)
+        report = StepReport(found.n_contacts, found.n_body, 0, 0.0, Status.CONVERGED, 0, 0.0, depth=depth, last_depth=depth)
         v_new = v_free
         reached = ""  # what the contact solve reached, for the message of a step that fails at every length
         if found.n_contacts:
@@ -882,13 +884,15 @@ class Simulation:
             result, correction = self._warm_start(rows, gamma, b, found.mu, Wd, impulse, h)
             if result is None:
                 z_rows = factored_rows(rows, found.strand, offsets, self.chol, self.chol_ptr, run=contact_run)
-                result = solve_coulomb(z_rows, gamma, b, found.mu, found.strand, helices.n_strands,
-                                       self.velocity_scale * h, self.settings.tolerance, self.settings.max_sweeps,
-                                       impulse, s=found.s, part_of=split_strands(helices.root, found.strand),
-                                       stall_rounds=self.settings.stall_rounds, Wd=Wd)
+                problem = coulomb_problem(z_rows, gamma, b, found.mu, found.strand, helices.n_strands,
+                                          self.velocity_scale * h, s=found.s,
+                                          part_of=split_strands(helices.root, found.strand))
+                settings = CoulombSettings(self.settings.tolerance, self.settings.max_sweeps,
+                                           stall_rounds=self.settings.stall_rounds)
+                result = solve_coulomb(problem, settings, impulse, Wd=Wd)
                 correction = self._mass_solve(z_rows.rmatvec(result.r), factored=True)
                 del z_rows
-            failed = result.status == NUMERICAL
+            failed = result.status == Status.NUMERICAL_ERROR
             reached = (f": {result.status} after {result.sweeps} sweeps, relative residual "
                        f"{result.relative_residual:.3g}, {found.n_contacts} contacts")
             if not failed:
@@ -903,7 +907,7 @@ class Simulation:
         if not np.isfinite(turn):
             failed = True
         if failed and depth >= self.settings.max_substeps:
-            what = "the contact solve failed" if reached and result.status == NUMERICAL else "the velocity is not finite"
+            what = "the contact solve failed" if reached and result.status == Status.NUMERICAL_ERROR else "the velocity is not finite"
             raise FloatingPointError(f"{what} at a step of {h:.3g} s, halved {depth} times{reached}")
         # a halved attempt that turns nearly as far as the attempt it replaces shows that halving does
         # not slow the motion down (a push asked within the step, whatever its length): it is kept
@@ -966,17 +970,18 @@ class Simulation:
         """
         f = self._mass_solve(rows.rmatvec(impulse))
         per = np.empty(rows.n_contacts)
-        residual = float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, impulse, True,
-                                           True, per))
+        # the De Saxce residual in velocity units, f = M^-1 H^T r from the strands' factors
+        residual = float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, gamma, Wd, b, mu, impulse,
+                                           COULOMB.desaxce, True, per))
         scale = self.velocity_scale * h
         tolerance = self.settings.tolerance * scale
         if tolerance < residual <= max(tolerance, _COMPLIANCE_SLACK * scale):
             residual = min(residual, float(natural_residuals(rows.ptr, rows.cols, rows.vals, f,
-                                                             np.zeros_like(gamma), Wd, b, mu, impulse, True,
-                                                             True, per)))
+                                                             np.zeros_like(gamma), Wd, b, mu, impulse,
+                                                             COULOMB.desaxce, True, per)))
         if not residual <= tolerance:  # (NaN included: solve_coulomb reports it)
             return None, None
-        return SolverResult(impulse.copy(), CONVERGED, 0, residual, residual / scale, [(0, residual)], 0.0), f
+        return SolverResult(impulse.copy(), Status.CONVERGED, 0, residual, residual / scale, [(0, residual)], 0.0), f
 
     # ------------------------------------------------------------------ measures
     def kinetic_energy(self) -> float:

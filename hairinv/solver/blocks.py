@@ -15,10 +15,10 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit
-from .local import LOCAL_TOL, NUMERICAL_ERROR, _fb_coulomb, _nat, _proj, solve_contact
+from .local import CODE_NUMERICAL, LOCAL_TOL, fb_coulomb, natural_scalars, project_scalars, solve_contact
 from .rows import ContactRows
 
-__all__ = ["strand_blocks"]
+__all__ = ["group_fixed_point", "group_newton", "strand_blocks"]
 
 #: Gauss-Seidel sweeps on a group's block where Newton leaves a round's convex problem unsolved
 GS_SWEEPS = 200
@@ -157,12 +157,12 @@ def _group_merit(W, n, q, rho, mu, x, u, phi, G, Jr, Ju, jac, desaxce, velocity)
         ds = desaxce and mk > 0.0 and mk < np.inf
         nt = np.sqrt(u1 * u1 + u2 * u2)
         v0 = u0 + mk * nt if ds else u0
-        e = _nat(x[k], x[k + 1], x[k + 2], u0, u1, u2, mk, desaxce)
+        e = natural_scalars(x[k], x[k + 1], x[k + 2], u0, u1, u2, mk, desaxce)
         if not velocity:
             e /= rho[a]
         if not (e <= worst):
             worst = e
-        _fb_coulomb(x[k], x[k + 1], x[k + 2], v0, u1, u2, mk, phi[k:k + 3], Jr, Ju, jac)
+        fb_coulomb(x[k], x[k + 1], x[k + 2], v0, u1, u2, mk, phi[k:k + 3], Jr, Ju, jac)
         merit += 0.5 * (phi[k] ** 2 + phi[k + 1] ** 2 + phi[k + 2] ** 2)
         if jac:
             # d u~_a / d x_c = T_a W_ac / rho_c, T_a = I + e_N (mu u_T / |u_T|)' (0 at u_T = 0)
@@ -188,7 +188,7 @@ def _projected_worst(W, n, q, rho, mu, x, xp, u, phi, G, Jr, Ju, desaxce, veloci
     limit, and what is stored, and measured against the target, is the admissible point."""
     for a in range(n // 3):
         k = 3 * a
-        xp[k], xp[k + 1], xp[k + 2] = _proj(x[k], x[k + 1], x[k + 2], mu[a])
+        xp[k], xp[k + 1], xp[k + 2] = project_scalars(x[k], x[k + 1], x[k + 2], mu[a])
     _, worst = _group_merit(W, n, q, rho, mu, xp, u, phi, G, Jr, Ju, False, desaxce, velocity)
     return worst
 
@@ -204,7 +204,7 @@ def _newton_scratch(big):
 
 @jit(error_model="numpy")
 def _block_newton(W, n, q, rho, mug, x, xbest, target, max_iter, desaxce, velocity, scratch):
-    """Nonsmooth Newton on one group's dense block (see :func:`_group_newton`) from the scaled forces
+    """Nonsmooth Newton on one group's dense block (see :func:`group_newton`) from the scaled forces
     ``x`` (overwritten). ``xbest`` receives the projection onto the cones of the iterate with the
     smallest largest natural-map residual, the start included. Returns that residual and whether
     ``xbest`` differs from the start."""
@@ -293,7 +293,7 @@ def _block_gauss_seidel(W, n, q, rho, mug, x, max_sweeps, desaxce, scratch):
                 for rc in range(3):
                     Wk[ra, rc] = W[k + ra, k + rc]
             status, _ = solve_contact(Wk, bl, mug[a], rk, LOCAL_TOL, 50, desaxce)
-            if status == NUMERICAL_ERROR:
+            if status == CODE_NUMERICAL:
                 continue
             for ra in range(3):
                 value = rho[a] * rk[ra]
@@ -307,7 +307,7 @@ def _block_gauss_seidel(W, n, q, rho, mug, x, max_sweeps, desaxce, scratch):
 @jit(error_model="numpy")
 def _group_setup(ptr, cols, vals, gamma, b, mu, members, lo, m, blocks, base, Wd, r, f, W, rho, mug, q, x):
     """One group's dense block ``W``, scales ``rho``, friction ``mug``, what it sees of the rest ``q`` and
-    its scaled forces ``x`` (see :func:`_group_newton`); False if a contact has no finite positive scale."""
+    its scaled forces ``x`` (see :func:`group_newton`); False if a contact has no finite positive scale."""
     n = 3 * m
     for a in range(n):
         for c in range(n):
@@ -332,7 +332,7 @@ def _group_setup(ptr, cols, vals, gamma, b, mu, members, lo, m, blocks, base, Wd
 
 
 @jit(error_model="numpy")
-def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, Wd, r, f, target,
+def group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, Wd, r, f, target,
                   max_iter, desaxce, velocity, g_lo, g_hi, done):
     """Each group's cone problem ``K ∋ r_g ⟂ u_g`` (with ``desaxce`` the De Saxce one, ``u~_g``) solved
     at once, the other groups frozen: nonsmooth Newton on the stacked FB function of the scaled forces
@@ -368,7 +368,7 @@ def _group_newton(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, 
 
 
 @jit(error_model="numpy")
-def _group_fixed_point(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, Wd, r, f, target,
+def group_fixed_point(ptr, cols, vals, gamma, b, mu, members, group_ptr, block_ptr, blocks, Wd, r, f, target,
                        max_iter, max_rounds, patience, g_lo, g_hi, done, rounds):
     """The De Saxce problem of each group not yet ``done`` as a fixed point of convex ones, group by
     group (the other groups frozen): with the shift ``s_i = mu_i |u_T,i|`` of the current forces held,

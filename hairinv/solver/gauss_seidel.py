@@ -39,15 +39,13 @@ from .._jit import jit
 
 
 from .._parallel import blas_pinned, executor, in_worker, worker_count
-from .local import NUMERICAL_ERROR, project_cone, solve_contact_with
+from .local import CODE_NUMERICAL, project_cone, solve_contact_with
+from .problem import ConeProblem, Law, SweepSettings
 from .rows import ContactRows
+from .status import Status
 
-__all__ = ["CONVERGED", "MAX_ITERS", "NUMERICAL", "SolverResult", "colour_contacts", "project_forces",
-           "solve_cone_qp", "split_strands", "sweep_plan"]
-
-CONVERGED = "CONVERGED"
-MAX_ITERS = "MAX_ITERS"
-NUMERICAL = "NUMERICAL_ERROR"
+__all__ = ["SolverResult", "SweepOrder", "accumulate_f", "colour_contacts", "diagonal_blocks", "natural_residuals",
+           "project_forces", "residual", "rest_gap", "solve", "split_strands", "sweep_order", "sweep_plan"]
 
 # Colours with fewer contacts than this run on one thread: handing a small
 # colour to the thread pool costs more than it saves.
@@ -68,7 +66,7 @@ class SolverResult:
     Attributes
     ----------
     r : (C, 3) float64, N, forces in the contact frames (the last iterate)
-    status : CONVERGED, MAX_ITERS or NUMERICAL_ERROR
+    status : Status, CONVERGED, MAX_ITERS or NUMERICAL_ERROR
     sweeps : int, Gauss-Seidel sweeps done
     residual : float, N, largest natural-map residual over the contacts
     relative_residual : float, ``residual / force_scale``
@@ -84,7 +82,7 @@ class SolverResult:
     """
 
     r: np.ndarray
-    status: str
+    status: Status
     sweeps: int
     residual: float
     relative_residual: float
@@ -117,7 +115,7 @@ def diagonal_blocks(ptr, cols, vals, d, gamma, out):
 
 
 @jit
-def _accumulate_f(ptr, cols, vals, d, r, f):
+def accumulate_f(ptr, cols, vals, d, r, f):
     """``f = D H^T r`` from scratch."""
     f[:] = 0.0
     _add_f(ptr, cols, vals, r, f, 0, ptr.shape[0] - 1)
@@ -182,7 +180,7 @@ def _sweep(lo, hi, ptr, cols, vals, d, gamma, Wd, b, mu, r, f, local_tol, desaxc
             bl[a] = u[a] - (Wd[i, a, 0] * r[i, 0] + Wd[i, a, 1] * r[i, 1] + Wd[i, a, 2] * r[i, 2])
             rn[a] = r[i, a]
         status, _ = solve_contact_with(Wd[i], bl, mu[i], rn, local_tol, _LOCAL_ITERATIONS, desaxce, M, V)
-        if status == NUMERICAL_ERROR:
+        if status == CODE_NUMERICAL:
             numerical += 1
             continue
         if status != 0:
@@ -434,75 +432,68 @@ class SweepOrder:
     """(C, 3, 3) float64, the blocks ``W_ii`` in update order"""
 
 
-def sweep_order(rows: ContactRows, d: np.ndarray, gamma, strand: np.ndarray, n_strands: int,
-                s: np.ndarray | None = None, part_of: np.ndarray | None = None) -> SweepOrder:
-    """The update order of :func:`solve_cone_qp` for these arguments (the same meaning), with what it stores in it.
+def sweep_order(problem: ConeProblem) -> SweepOrder:
+    """The update order of :func:`solve` for this problem, with what it stores in it (made once for
+    several solves of the same rows, ``D``, ``gamma``, strands and contacts, such as the rounds of one step).
 
     Every contact's rows and data are stored in update order, so that a sweep reads them front to back: on a
     30,000-strand head (780,199 contacts) a sweep took 0.84 s on one thread in the order detection wrote them,
     0.42 s so (the same updates, bit for bit; sums over all contacts, such as f, round differently)."""
-    d = np.ascontiguousarray(d, dtype=np.float64)
-    gamma = np.broadcast_to(np.asarray(gamma, dtype=np.float64), (rows.n_contacts,))
-    plan, halves, bounds = sweep_plan(strand, n_strands, s, part_of)
-    rows = rows.take(plan)
-    gamma = np.ascontiguousarray(gamma[plan])
+    plan, halves, bounds = sweep_plan(problem.strand, problem.n_strands, problem.s, problem.part_of)
+    rows = problem.rows.take(plan)
+    gamma = np.ascontiguousarray(problem.gamma[plan])
     Wd = np.empty((rows.n_contacts, 3, 3))
-    diagonal_blocks(rows.ptr, rows.cols, rows.vals, d, gamma, Wd)
+    diagonal_blocks(rows.ptr, rows.cols, rows.vals, problem.d, gamma, Wd)
     return SweepOrder(plan, halves, bounds, rows, gamma, Wd)
 
 
-def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np.ndarray,
-                  strand: np.ndarray, n_strands: int, force_scale: float, tolerance: float = 1e-6,
-                  max_sweeps: int = 2000, check_every: int = 5, r0: np.ndarray | None = None,
-                  desaxce: bool = False, progress=None, s: np.ndarray | None = None,
-                  accelerate: bool = True, part_of: np.ndarray | None = None,
-                  max_seconds: float = 0.0, velocity: bool = False, rest_tolerance: float = 0.0,
-                  order: SweepOrder | None = None) -> SolverResult:
-    """Solve the cone complementarity problem of ``W = H D H^T + gamma I`` and ``b``.
+def residual(problem: ConeProblem, law: Law, r: np.ndarray, Wd: np.ndarray | None = None) -> float:
+    """The largest natural-map residual of forces ``r`` (C, 3) for ``problem`` under ``law``
+    (:func:`natural_residuals`; in velocity units for a ``velocity`` problem). ``Wd``: the blocks ``W_ii``,
+    if already at hand. 0 without contacts; NaN if any contact's residual is not finite."""
+    rows = problem.rows
+    if rows.n_contacts == 0:
+        return 0.0
+    if Wd is None:
+        Wd = np.empty((rows.n_contacts, 3, 3))
+        diagonal_blocks(rows.ptr, rows.cols, rows.vals, problem.d, problem.gamma, Wd)
+    r = np.ascontiguousarray(r, dtype=np.float64)
+    f = np.empty(rows.n_dofs)
+    accumulate_f(rows.ptr, rows.cols, rows.vals, problem.d, r, f)
+    per = np.empty(rows.n_contacts)
+    return float(natural_residuals(rows.ptr, rows.cols, rows.vals, f, problem.gamma, Wd, problem.b, problem.mu, r,
+                                   law.desaxce, problem.velocity, per))
+
+
+def solve(problem: ConeProblem, law: Law, settings: SweepSettings = SweepSettings(), start: np.ndarray | None = None,
+          progress=None, order: SweepOrder | None = None) -> SolverResult:
+    """Solve ``problem`` under ``law`` by accelerated block Gauss-Seidel over the contacts (module docstring).
 
     Parameters
     ----------
-    rows : ContactRows, the contact Jacobian ``H`` (3C x n)
-    d : (n,) float64, the diagonal operator ``D`` (positive)
-    gamma : float or (C,) float64, the regularisation added to ``W``'s diagonal (one per contact)
-    b : (C, 3) float64
-    mu : (C,) float64, friction coefficients
-    strand : (C, 2) int64, the strands each contact touches (-1: none), for the colouring
-    s : (C, 2) float64, optional, the contacts' arc lengths: sweeps then run from the tips to the roots
-    part_of : (S,) int64, optional, two halves of the strands (:func:`split_strands`) swept at once
-    max_seconds : float, stop (MAX_ITERS) once this much time has passed, checked with the residual; 0: no limit
-    force_scale : float, N, the force the tolerance is relative to (with ``velocity``: a velocity, m/s)
-    velocity : bool, measure the residual in velocity units (see :func:`natural_residuals`)
-    tolerance : float, stop when the largest natural-map residual is below ``tolerance * force_scale``
-    rest_tolerance : float, 1/m, stop too when the rest-shape bound ``sqrt(2 gap / elements)`` (:func:`rest_gap`,
-        elements = a third of ``H``'s columns) is below it; 0: the residual alone (the bound is then measured
-        once, at the forces returned, or at every check with ``progress``; never for the De Saxce problem,
-        which has no objective)
-    r0 : (C, 3) float64, optional warm start
-    desaxce : bool, solve the De Saxce-modified (dynamic) problem instead of the convex one
+    problem : ConeProblem, ``W = H D H^T + diag(gamma)``, ``b``, ``mu``, the strands' layout and the residual's scale
+    law : Law, :data:`hairinv.solver.problem.CONE` (the convex problem) or ``COULOMB`` (De Saxce's)
+    settings : SweepSettings, the stopping rule and the momentum
+    start : (C, 3) float64, optional warm start (projected onto the cones first)
     progress : callable(sweeps, relative residual, rest-shape bound in 1/m), optional, called at every residual
-        check (the bound NaN for the De Saxce problem)
-    accelerate : bool
-        Nesterov momentum over sweeps with an adaptive restart (O'Donoghue and
-        Candes 2015): each sweep starts from ``P_K(x_k + beta_k (x_k - x_{k-1}))``
-        and the momentum is dropped whenever a sweep raises the objective, so
-        the iterates' objective never increases. Each sweep then costs about
-        twice as much (``f`` is rebuilt for the extrapolated point) and far
-        fewer are needed on real grooms (docs/benchmarks.md).
-    order : SweepOrder, optional, :func:`sweep_order` of these ``rows``, ``d``, ``gamma``, ``strand``,
-        ``n_strands``, ``s`` and ``part_of`` (made here if not given)
+        check (the bound NaN for a law that is not convex)
+    order : SweepOrder, optional, :func:`sweep_order` of this problem (made here if not given)
+
+    Returns the forces the last residual check measured (the iterate projected onto the cones), with the status
+    (:class:`Status`) and residual of those forces.
     """
+    rows, d, b, mu = problem.rows, problem.d, problem.b, problem.mu
+    force_scale, velocity, desaxce = problem.scale, problem.velocity, law.desaxce
+    tolerance, max_sweeps, check_every = settings.tolerance, settings.max_sweeps, settings.check_every
+    max_seconds, rest_tolerance = settings.max_seconds, settings.rest_tolerance
     started = time.perf_counter()
     n_contacts = rows.n_contacts
-    r = np.zeros((n_contacts, 3)) if r0 is None else np.array(r0, dtype=np.float64, copy=True)
-    d = np.ascontiguousarray(d, dtype=np.float64)
-    b = np.ascontiguousarray(b, dtype=np.float64)
-    mu = np.ascontiguousarray(mu, dtype=np.float64)
+    r = np.zeros((n_contacts, 3)) if start is None else np.array(start, dtype=np.float64, copy=True)
     if n_contacts == 0:
-        return SolverResult(r, CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started,
+        return SolverResult(r, Status.CONVERGED, 0, 0.0, 0.0, [(0, 0.0)], time.perf_counter() - started,
                             rest_bound=float("nan") if desaxce else 0.0)
     if order is None:
-        order = sweep_order(rows, d, gamma, strand, n_strands, s, part_of)
+        order = sweep_order(problem)
     plan, halves, bounds, rows, gamma, Wd = order.plan, order.halves, order.bounds, order.rows, order.gamma, order.Wd
     r, b, mu = r[plan], b[plan], mu[plan]
     # the start in the cones, as every point whose residual is measured: the local solves meet the cones
@@ -536,7 +527,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     local_tol = np.finfo(float).eps ** 0.75
     target = tolerance * force_scale
     history = []
-    status = MAX_ITERS
+    status = Status.MAX_ITERS
     sweeps = 0
     failures = 0
 
@@ -552,7 +543,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     every_check = rest_tolerance > 0.0 or progress is not None
 
     def _measure_bound() -> None:
-        if not desaxce and elements:
+        if law.convex and elements:
             gap = sum(by_pieces(lambda lo, hi: rest_gap(rows.ptr[lo:hi + 1], rows.cols, rows.vals, f_check,
                                                         gamma[lo:hi], b[lo:hi], mu[lo:hi], checked[lo:hi])))
             bound[0] = float(np.sqrt(2.0 * max(gap, 0.0) / elements))
@@ -577,9 +568,9 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     residual = _check(r)
     history.append((0, float(residual)))
     if np.isfinite(residual) and _met(residual):  # (a NaN residual is found NUMERICAL at the next check)
-        status = CONVERGED
+        status = Status.CONVERGED
     # momentum state: x the last accepted iterate, r the point the next sweep starts from
-    accelerate = accelerate and not desaxce  # the De Saxce problem has no objective to guard the momentum
+    accelerate = settings.accelerate and law.convex  # the De Saxce problem has no objective to guard the momentum
     x = r.copy()
     x_prev = r.copy()
     fx = _objective(f, d, gamma, b, r)
@@ -587,7 +578,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
     restarts = 0
     from_x = True
     with blas_pinned():  # the kernels' own threads, not BLAS's
-        while status == MAX_ITERS and sweeps < max_sweeps:
+        while status == Status.MAX_ITERS and sweeps < max_sweeps:
             failures = 0
             numerical = 0
             if len(halves) == 2 and pool is not None:
@@ -616,7 +607,7 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
                     numerical += nc
             sweeps += 1
             if numerical:
-                status = NUMERICAL
+                status = Status.NUMERICAL_ERROR
                 break
             if accelerate:
                 fz = _objective(f, d, gamma, b, r)
@@ -643,9 +634,9 @@ def solve_cone_qp(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np
                 if progress is not None:
                     progress(sweeps, residual / force_scale, bound[0])
                 if not np.isfinite(residual) or not np.all(np.isfinite(r)):
-                    status = NUMERICAL
+                    status = Status.NUMERICAL_ERROR
                 elif _met(residual):
-                    status = CONVERGED
+                    status = Status.CONVERGED
                 elif max_seconds > 0 and time.perf_counter() - started > max_seconds:
                     break
     if accelerate:

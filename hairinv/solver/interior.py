@@ -2,7 +2,7 @@
 
 Solves ``min 1/2 r'W r + b'r`` over the Coulomb cones, ``W = G'G + gamma I``
 with ``G = D^1/2 H'`` (one row per coordinate of ``q``), the problem
-:func:`hairinv.solver.gauss_seidel.solve_cone_qp` solves by sweeps. Where
+:func:`hairinv.solver.gauss_seidel.solve` solves by sweeps. Where
 the sweeps make slow progress on the part of the error spread over whole
 strands and clusters of strands, each step here corrects every force at
 once, and 30 to 50 steps reach the optimum.
@@ -63,15 +63,17 @@ import scipy.sparse.linalg
 from .._jit import jit
 from .._parallel import blas_pinned
 from .blocked import BlockedSystem, EntriesOver
-from .rows import ContactRows, _rows_matvec, _rows_rmatvec
+from .problem import CONE, ConeProblem, InteriorSettings, Law
+from .rows import rows_matvec, rows_rmatvec
+from .status import Status
 from .supernodal import SupernodalCholesky, etree, expanded_flops, permuted_pattern
 from .supernodal import column_counts as supernodal_counts
 
-__all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "column_counts", "mu_in_range", "solve_interior"]
+__all__ = ["MAX_GFLOP", "InteriorResult", "cholesky_backend", "column_counts", "mu_in_range", "solve"]
 
 # The cone is scaled by mu: friction coefficients are held within these bounds in the interior-point
 # steps only (mu = inf has no interior in this scaling); the sweeps that follow use mu itself. A frictionless
-# contact (mu = 0) is solved exactly instead (solve_interior).
+# contact (mu = 0) is solved exactly instead (solve).
 _MU_RANGE = (1e-3, 1e3)
 _STEP_FRACTION = 0.99
 _REFINEMENT = 1
@@ -107,9 +109,9 @@ class InteriorResult:
     ----------
     r : (C, 3) float64, forces in the cones (the last iterate, which is strictly inside them)
     iterations : int
-    status : str, "CONVERGED" (the rest-shape bound met), "MAX_ITERS", "TIME" (max_seconds),
-        "STALLED" (a step made no progress or the factorisation broke down: the best iterate) or
-        "TOO_LARGE" (the factorisation would cost more than ``max_gflop``: nothing solved, ``r`` zero)
+    status : Status, CONVERGED (the rest-shape bound met), MAX_ITERS, TIME (max_seconds),
+        STALLED (a step made no progress or the factorisation broke down: the best iterate) or
+        TOO_LARGE (the factorisation would cost more than ``max_gflop``: nothing solved, ``r`` zero)
     rest_bound : float, 1/m, rms over elements, see the module docstring
     relative_gap : float, ``x'z / max(1, |f|)``
     dual_residual : float, ``|rd| / max(1, |q|)`` in the scaled variables
@@ -121,7 +123,7 @@ class InteriorResult:
 
     r: np.ndarray
     iterations: int
-    status: str
+    status: Status
     rest_bound: float
     relative_gap: float
     dual_residual: float
@@ -421,33 +423,36 @@ class _Factor:
         return self.lu.solve(w)
 
 
-def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: np.ndarray,
-                   rest_tolerance: float = 1e-3, max_iterations: int = 80, max_seconds: float = 0.0,
-                   backend: str | None = None, progress=None, max_gflop: float | None = None) -> InteriorResult:
-    """Minimise ``1/2 r'W r + b'r`` over the cones, ``W = H diag(d) H' + gamma I``, by interior point.
+def solve(problem: ConeProblem, law: Law = CONE, settings: InteriorSettings = InteriorSettings(),
+          start: np.ndarray | None = None, progress=None) -> InteriorResult:
+    """Minimise ``1/2 r'W r + b'r`` over the cones, ``W = H diag(d) H' + diag(gamma)``, by interior point.
 
     Parameters
     ----------
-    rows : ContactRows, ``H`` (3C x n)
-    d : (n,) float64, positive (``K^-2``)
-    gamma : float or (C,) float64
-    b : (C, 3) float64
-    mu : (C,) float64, friction coefficients (0 and inf allowed, see ``_MU_RANGE``)
-    rest_tolerance : float, 1/m, stop once the rest-shape bound (module docstring) is below it
-    max_iterations : int
-    max_seconds : float, stop at the next iteration after this much time (0: no limit)
-    backend : "supernodal", "cholmod" or "superlu", default :func:`cholesky_backend`
+    problem : ConeProblem (its strands' layout and scale are not used: the steps treat every contact at once,
+        and stop on the rest-shape bound, in 1/m)
+    law : Law, :data:`hairinv.solver.problem.CONE` only (the De Saxce problem is not convex)
+    settings : InteriorSettings, the rest-shape tolerance, the steps and time allowed, the factorisation
+    start : None: the method starts from the centre of the cones (it takes no warm start)
     progress : callable(iteration, rest_bound), optional
-    max_gflop : float, the most a factorisation may cost (counted first, from the ordering's elimination
-        tree; default ``MAX_GFLOP``); above it nothing is solved, the status is "TOO_LARGE" and ``gflop``
-        is that cap
+
+    Friction coefficients 0 and inf are allowed (see ``_MU_RANGE``). Above ``settings.max_gflop`` (counted first,
+    from the ordering's elimination tree; default ``MAX_GFLOP``) nothing is solved, the status is TOO_LARGE and
+    ``gflop`` is that cap.
     """
+    if law.desaxce:
+        raise ValueError("the interior-point method solves the convex cone problem only, not De Saxce's")
+    if start is not None:
+        raise ValueError("the interior-point method takes no warm start: it starts from the centre of the cones")
+    rows, d, gamma, b, mu = problem.rows, problem.d, problem.gamma, problem.b, problem.mu
+    rest_tolerance, max_iterations, max_seconds = settings.rest_tolerance, settings.max_iterations, settings.max_seconds
+    backend, max_gflop = settings.backend, settings.max_gflop
     started = time.perf_counter()
     C = rows.n_contacts
     n = rows.n_dofs
     backend = backend or cholesky_backend()
     if C == 0:
-        return InteriorResult(np.zeros((0, 3)), 0, "CONVERGED", 0.0, 0.0, 0.0, 0.0, [], backend, 0.0)
+        return InteriorResult(np.zeros((0, 3)), 0, Status.CONVERGED, 0.0, 0.0, 0.0, 0.0, [], backend, 0.0)
     d = np.asarray(d, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64).reshape(C, 3)
     gamma = np.broadcast_to(np.asarray(gamma, dtype=np.float64), (C,))
@@ -479,7 +484,7 @@ def solve_interior(rows: ContactRows, d: np.ndarray, gamma, b: np.ndarray, mu: n
     try:
         factor = _Factor(ptr, cols, n, backend, max_gflop * 1e9)
     except TooLarge:
-        return InteriorResult(np.zeros((C, 3)), 0, "TOO_LARGE", np.nan, np.nan, np.nan,
+        return InteriorResult(np.zeros((C, 3)), 0, Status.TOO_LARGE, np.nan, np.nan, np.nan,
                               time.perf_counter() - started, [], backend, max_gflop)
     problem = _Scaled(ptr, cols, g, gam, q, n, factor)
     start = max(1.0, float(np.sqrt(np.mean(q ** 2))))
@@ -514,12 +519,12 @@ class _Scaled:
     def _G(self, x: np.ndarray) -> np.ndarray:
         """``G x`` (n,) for scaled forces ``x`` (C, 3): the rows' transposed product (:mod:`.rows`)."""
         self._y[:] = 0.0
-        _rows_rmatvec(self.ptr, self.cols, self.g, x, self._y)
+        rows_rmatvec(self.ptr, self.cols, self.g, x, self._y)
         return self._y
 
     def _Gt(self, y: np.ndarray, out: np.ndarray) -> np.ndarray:
         """``G' y`` (C, 3) into ``out``."""
-        _rows_matvec(self.ptr, self.cols, self.g, y, out)
+        rows_matvec(self.ptr, self.cols, self.g, y, out)
         return out
 
     def P(self, x: np.ndarray) -> np.ndarray:
@@ -547,7 +552,7 @@ def _iterate(problem: _Scaled, x, z, rest_tolerance, max_iterations, max_seconds
     C, q, gam = problem.C, problem.q, problem.gam
     e = np.zeros((C, 3))
     e[:, 0] = 1.0
-    status = "MAX_ITERS"
+    status = Status.MAX_ITERS
     best = (np.inf, x, 0.0, np.inf, 0)
     it = 0
     for it in range(max_iterations + 1):
@@ -562,7 +567,7 @@ def _iterate(problem: _Scaled, x, z, rest_tolerance, max_iterations, max_seconds
         slack = abs(float(np.sum(rd * x))) if dres > _ROUND_OFF else 0.0
         bound = float(np.sqrt(2.0 * max(gap + slack, 0.0) / problem.elements))
         if not np.isfinite(bound):
-            status = "STALLED"
+            status = Status.STALLED
             break
         history.append((it, time.perf_counter() - started, bound))
         if bound < best[0]:
@@ -570,20 +575,20 @@ def _iterate(problem: _Scaled, x, z, rest_tolerance, max_iterations, max_seconds
         if progress is not None:
             progress(it, bound)
         if bound <= rest_tolerance:
-            status = "CONVERGED"
+            status = Status.CONVERGED
             break
         if it == max_iterations:
             break
         if it - best[4] >= _PATIENCE:
             # no new best for that many steps: the steps wander along forces the rest shape barely feels
             # (fixed by gamma alone, below round-off of the Newton systems); keep the best iterate
-            status = "STALLED"
+            status = Status.STALLED
             break
         if not (np.all(_jdet(x) > 0.0) and np.all(_jdet(z) > 0.0) and np.all(x[:, 0] > 0.0) and np.all(z[:, 0] > 0.0)):
-            status = "STALLED"  # round-off put an iterate on a cone's boundary: no scaling exists there
+            status = Status.STALLED  # round-off put an iterate on a cone's boundary: no scaling exists there
             break
         if max_seconds and time.perf_counter() - started > max_seconds:
-            status = "TIME"
+            status = Status.TIME
             break
         Wm, Wi = _nt_scaling(x, z)
         lam = _mv(Wm, z)
@@ -595,7 +600,7 @@ def _iterate(problem: _Scaled, x, z, rest_tolerance, max_iterations, max_seconds
         try:
             problem.factor_step(Binv)
         except (ArithmeticError, RuntimeError):
-            status = "STALLED"
+            status = Status.STALLED
             break
 
         def direction(t: np.ndarray, refine: int = _REFINEMENT):
@@ -611,7 +616,7 @@ def _iterate(problem: _Scaled, x, z, rest_tolerance, max_iterations, max_seconds
         dx, dz = direction(_jdiv(lam, rc))
         a = min(1.0, _STEP_FRACTION * min(_max_step(x, dx), _max_step(z, dz)))
         if not (a > 0.0) or not np.all(np.isfinite(dx)) or not np.all(np.isfinite(dz)):
-            status = "STALLED"
+            status = Status.STALLED
             break
         x = x + a * dx
         z = z + a * dz

@@ -12,8 +12,8 @@ convex). Dynamics uses the De Saxce-modified velocity
 ``u~ = u + mu |u_T| e_N`` in place of ``u`` (``desaxce=True``; not convex).
 
 Kernels take float64 arrays the caller allocated and never raise: the local
-solve returns one of the status codes ``OK``, ``NOT_CONVERGED``,
-``NUMERICAL_ERROR``. ``mu`` may be ``0`` (normal force only) or ``inf`` (the
+solve returns one of the status codes ``CODE_OK``, ``CODE_NOT_CONVERGED``,
+``CODE_NUMERICAL``. ``mu`` may be ``0`` (normal force only) or ``inf`` (the
 half-space ``r_N >= 0``; its dual is the ray ``u_T = 0, u_N >= 0``, and the
 De Saxce term vanishes on it, so ``desaxce`` changes nothing there).
 
@@ -58,23 +58,30 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit
+from .status import Status
 
 __all__ = [
+    "CODE_NOT_CONVERGED",
+    "CODE_NUMERICAL",
+    "CODE_OK",
     "LOCAL_TOL",
-    "NOT_CONVERGED",
-    "NUMERICAL_ERROR",
-    "OK",
+    "STATUS_MAP",
+    "fb_coulomb",
     "fb_function",
     "fb_jacobian",
     "natural_residual",
+    "natural_scalars",
     "project_cone",
+    "project_scalars",
     "relative_residual",
     "solve_contact",
 ]
 
-OK = 0
-NOT_CONVERGED = 1  # r holds the best iterate found (smallest natural-map residual)
-NUMERICAL_ERROR = 2  # NaN/inf in W, b or mu, mu < 0, or W not positive definite; r untouched
+CODE_OK = 0
+CODE_NOT_CONVERGED = 1  # r holds the best iterate found (smallest natural-map residual)
+CODE_NUMERICAL = 2  # NaN/inf in W, b or mu, mu < 0, or W not positive definite; r untouched
+#: the local solve's codes as the solver's statuses
+STATUS_MAP = {CODE_OK: Status.CONVERGED, CODE_NOT_CONVERGED: Status.MAX_ITERS, CODE_NUMERICAL: Status.NUMERICAL_ERROR}
 
 # Default local tolerance: eps^(3/4), relative (see ``relative_residual``).
 LOCAL_TOL = float(np.finfo(np.float64).eps ** 0.75)
@@ -95,7 +102,7 @@ _SHIFT = 64.0 * float(np.finfo(np.float64).eps)
 
 
 @jit(error_model="numpy")
-def _proj(x0, x1, x2, mu):
+def project_scalars(x0, x1, x2, mu):
     """Projection of ``(x0, x1, x2)`` onto ``K_mu``, as a tuple."""
     if mu == np.inf:
         return max(x0, 0.0), x1, x2
@@ -124,7 +131,7 @@ def project_cone(x, mu, out):
         ``inf`` the half-space ``r_N >= 0``
     out : (3,) float64, written; may be ``x`` itself
     """
-    p0, p1, p2 = _proj(x[0], x[1], x[2], mu)
+    p0, p1, p2 = project_scalars(x[0], x[1], x[2], mu)
     out[0] = p0
     out[1] = p1
     out[2] = p2
@@ -139,10 +146,10 @@ def _desaxce_normal(u0, u1, u2, mu, desaxce):
 
 
 @jit(error_model="numpy")
-def _nat(r0, r1, r2, u0, u1, u2, mu, desaxce):
+def natural_scalars(r0, r1, r2, u0, u1, u2, mu, desaxce):
     """``|r - P_K(r - u~)|``."""
     v0 = _desaxce_normal(u0, u1, u2, mu, desaxce)
-    p0, p1, p2 = _proj(r0 - v0, r1 - u1, r2 - u2, mu)
+    p0, p1, p2 = project_scalars(r0 - v0, r1 - u1, r2 - u2, mu)
     return np.sqrt((r0 - p0) ** 2 + (r1 - p1) ** 2 + (r2 - p2) ** 2)
 
 
@@ -153,7 +160,7 @@ def natural_residual(r, u, mu, desaxce=False):
     With ``desaxce`` the De Saxce velocity ``u~ = u + mu |u_T| e_N`` replaces ``u``.
     Units mix those of ``r`` and ``u``: scale ``u`` (e.g. by ``3 / trace W``) first for a force.
     """
-    return _nat(r[0], r[1], r[2], u[0], u[1], u[2], mu, desaxce)
+    return natural_scalars(r[0], r[1], r[2], u[0], u[1], u[2], mu, desaxce)
 
 
 @jit(error_model="numpy", inline="always")
@@ -179,7 +186,7 @@ def relative_residual(W, b, mu, r, desaxce=False):
     u0 = W[0, 0] * r[0] + W[0, 1] * r[1] + W[0, 2] * r[2] + b[0]
     u1 = W[1, 0] * r[0] + W[1, 1] * r[1] + W[1, 2] * r[2] + b[1]
     u2 = W[2, 0] * r[0] + W[2, 1] * r[1] + W[2, 2] * r[2] + b[2]
-    num = _nat(rho * r[0], rho * r[1], rho * r[2], u0, u1, u2, mu, desaxce)
+    num = natural_scalars(rho * r[0], rho * r[1], rho * r[2], u0, u1, u2, mu, desaxce)
     den = np.sqrt(b[0] ** 2 + b[1] ** 2 + b[2] ** 2) + rho * np.sqrt(r[0] ** 2 + r[1] ** 2 + r[2] ** 2)
     den *= _amplification(mu, desaxce)
     if den == 0.0:
@@ -270,7 +277,7 @@ def _fb_lorentz(x0, x1, x2, y0, y1, y2, phi, Jx, Jy, jac):
 
 
 @jit(error_model="numpy", inline="always")
-def _fb_coulomb(r0, r1, r2, u0, u1, u2, mu, phi, Jr, Ju, jac):
+def fb_coulomb(r0, r1, r2, u0, u1, u2, mu, phi, Jr, Ju, jac):
     """FB function of the Coulomb pair ``(r, u)``; with ``jac`` also ``dphi/dr`` and ``dphi/du``."""
     if mu == 0.0 or mu == np.inf:
         # mu = 0:  (fb(r_N, u_N), r_T);   mu = inf:  (fb(r_N, u_N), u_T)
@@ -328,7 +335,7 @@ def fb_function(r, u, mu, out):
     Entries must stay below ~1e75 in magnitude (squares are formed unscaled).
     """
     unused = np.empty((1, 1))
-    _fb_coulomb(r[0], r[1], r[2], u[0], u[1], u[2], mu, out, unused, unused, False)
+    fb_coulomb(r[0], r[1], r[2], u[0], u[1], u[2], mu, out, unused, unused, False)
 
 
 @jit(error_model="numpy")
@@ -337,7 +344,7 @@ def fb_jacobian(r, u, mu, phi, Jr, Ju):
 
     Writes ``phi`` (3,), ``Jr = dphi/dr`` (3, 3) and ``Ju = dphi/du`` (3, 3).
     """
-    _fb_coulomb(r[0], r[1], r[2], u[0], u[1], u[2], mu, phi, Jr, Ju, True)
+    fb_coulomb(r[0], r[1], r[2], u[0], u[1], u[2], mu, phi, Jr, Ju, True)
 
 
 # ------------------------------------------------------------------- local solve
@@ -386,7 +393,7 @@ def _rel(W, b, bnorm, mu, desaxce, r0, r1, r2):
     u1 = W[1, 0] * r0 + W[1, 1] * r1 + W[1, 2] * r2 + b[1]
     u2 = W[2, 0] * r0 + W[2, 1] * r1 + W[2, 2] * r2 + b[2]
     den = (bnorm + np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)) * _amplification(mu, desaxce)
-    return _nat(r0, r1, r2, u0, u1, u2, mu, desaxce) / den
+    return natural_scalars(r0, r1, r2, u0, u1, u2, mu, desaxce) / den
 
 
 @jit(error_model="numpy", inline="always")
@@ -398,7 +405,7 @@ def _merit(W, b, mu, desaxce, r, phi, G, Jr, Ju, jac):
     ds = desaxce and mu > 0.0 and mu < np.inf
     nt = np.sqrt(u1 * u1 + u2 * u2)
     v0 = u0 + mu * nt if ds else u0
-    _fb_coulomb(r[0], r[1], r[2], v0, u1, u2, mu, phi, Jr, Ju, jac)
+    fb_coulomb(r[0], r[1], r[2], v0, u1, u2, mu, phi, Jr, Ju, jac)
     if jac:
         # du~/dr = W (+ mu e_N (u_T / |u_T|)' W_T for De Saxce; 0 subgradient at u_T = 0)
         t1 = 0.0
@@ -774,7 +781,7 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
     b : (3,) float64
     mu : float64 >= 0, ``inf`` allowed
     r : (3,) float64, in: warm start (ignored if not finite); out: the solution
-        (left untouched on ``NUMERICAL_ERROR``, and bit for bit when the warm start
+        (left untouched on ``CODE_NUMERICAL``, and bit for bit when the warm start
         already meets the tolerance)
     tol : float64, on the relative residual (see ``relative_residual``); ``LOCAL_TOL``
         (eps^(3/4)) is the intended value
@@ -783,7 +790,7 @@ def solve_contact(W, b, mu, r, tol, max_iter, desaxce):
 
     Returns
     -------
-    status : int, ``OK``, ``NOT_CONVERGED`` (r is the best point found) or ``NUMERICAL_ERROR``
+    status : int, ``CODE_OK``, ``CODE_NOT_CONVERGED`` (r is the best point found) or ``CODE_NUMERICAL``
     residual : float64, the relative residual of the returned ``r`` (inf on error)
     """
     return solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, np.empty((6, 3, 3)), np.empty((8, 3)))
@@ -796,17 +803,17 @@ def solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, M, V):
     # ---- validate
     for i in range(3):
         if not np.isfinite(b[i]):
-            return NUMERICAL_ERROR, np.inf
+            return CODE_NUMERICAL, np.inf
         for j in range(3):
             if not np.isfinite(W[i, j]):
-                return NUMERICAL_ERROR, np.inf
+                return CODE_NUMERICAL, np.inf
     if not (mu >= 0.0):  # also NaN
-        return NUMERICAL_ERROR, np.inf
+        return CODE_NUMERICAL, np.inf
     if not (W[0, 0] > 0.0 and W[1, 1] > 0.0 and W[2, 2] > 0.0):
-        return NUMERICAL_ERROR, np.inf
+        return CODE_NUMERICAL, np.inf
     rho = (W[0, 0] + W[1, 1] + W[2, 2]) / 3.0
     if rho == np.inf:
-        return NUMERICAL_ERROR, np.inf
+        return CODE_NUMERICAL, np.inf
     # ---- scaled problem: Wh = W / rho, bh = b / sb, rh = r rho / sb
     sb = max(abs(b[0]), max(abs(b[1]), abs(b[2])))
     ds = desaxce and mu < np.inf
@@ -819,11 +826,11 @@ def solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, M, V):
         # raised to _SHIFT; a W indefinite beyond round-off is an error
         lam = np.linalg.eigvalsh(_scaled_lower(W, rho))[0]
         if not (lam >= -_SEMIDEFINITE):
-            return NUMERICAL_ERROR, np.inf
+            return CODE_NUMERICAL, np.inf
         shift = _SHIFT - lam
         ok, l00, l10, l20, l11, l21, l22 = _cholesky3(W, rho, shift)
         if not ok:
-            return NUMERICAL_ERROR, np.inf
+            return CODE_NUMERICAL, np.inf
     # take-off: b in the dual cone (De Saxce: b~ in K* iff b_N >= 0; mu = inf: the ray b_T = 0)
     bt = np.hypot(b[1], b[2])
     if mu == np.inf:
@@ -836,7 +843,7 @@ def solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, M, V):
         r[0] = 0.0
         r[1] = 0.0
         r[2] = 0.0
-        return OK, 0.0
+        return CODE_OK, 0.0
     # scratch: M[0:5], V[0:5] for Newton; Wh = M[5]; bh, rh, best = V[5], V[6], V[7]
     Wh = M[5]
     for i in range(3):
@@ -853,7 +860,7 @@ def solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, M, V):
         r[0] = back * rn if rn > 0.0 else 0.0
         r[1] = 0.0
         r[2] = 0.0
-        return OK, _rel(Wh, bh, bnorm, mu, desaxce, max(rn, 0.0), 0.0, 0.0)
+        return CODE_OK, _rel(Wh, bh, bnorm, mu, desaxce, max(rn, 0.0), 0.0, 0.0)
     # sticking candidate -Wh^-1 bh
     y0 = -bh[0] / l00
     y1 = (-bh[1] - l10 * y0) / l11
@@ -871,16 +878,16 @@ def solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, M, V):
         r[0] = back * s0
         r[1] = back * s1
         r[2] = back * s2
-        return OK, _rel(Wh, bh, bnorm, mu, desaxce, s0, s1, s2)
+        return CODE_OK, _rel(Wh, bh, bnorm, mu, desaxce, s0, s1, s2)
     if s0 >= 0.0 and np.hypot(s1, s2) <= mu * s0:
         r[0] = back * s0
         r[1] = back * s1
         r[2] = back * s2
-        return OK, _rel(Wh, bh, bnorm, mu, desaxce, s0, s1, s2)
+        return CODE_OK, _rel(Wh, bh, bnorm, mu, desaxce, s0, s1, s2)
     # ---- sliding: Newton from the better of the warm start and P_K(stick)
     rh = V[6]
     best = V[7]
-    p0, p1, p2 = _proj(s0, s1, s2, mu)
+    p0, p1, p2 = project_scalars(s0, s1, s2, mu)
     res_p = _rel(Wh, bh, bnorm, mu, desaxce, p0, p1, p2)
     warm = np.isfinite(r[0]) and np.isfinite(r[1]) and np.isfinite(r[2])
     if warm:
@@ -889,7 +896,7 @@ def solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, M, V):
         w2 = r[2] / back
         res_w = _rel(Wh, bh, bnorm, mu, desaxce, w0, w1, w2)
         if res_w <= tol:
-            return OK, res_w  # r untouched
+            return CODE_OK, res_w  # r untouched
         if not (res_w <= res_p):
             warm = False
     if warm:
@@ -934,8 +941,8 @@ def solve_contact_with(W, b, mu, r, tol, max_iter, desaxce, M, V):
                     best[1] = fs[1]
                     best[2] = fs[2]
     if not (res < np.inf):
-        return NOT_CONVERGED, res
+        return CODE_NOT_CONVERGED, res
     r[0] = back * best[0]
     r[1] = back * best[1]
     r[2] = back * best[2]
-    return (OK if res <= tol else NOT_CONVERGED), res
+    return (CODE_OK if res <= tol else CODE_NOT_CONVERGED), res
