@@ -70,7 +70,8 @@ def run() -> str:
     from hairinv.contacts.detect import detect_contacts
     from hairinv.dynamics.run import run_scene
     from hairinv.dynamics.scene import Scene
-    from hairinv.invert import Material, invert
+    from hairinv.invert import invert
+    from hairinv.model import Material
     from hairinv.pipeline import prepare
 
     base = _settings()

@@ -41,8 +41,7 @@ sys.path.insert(0, str(ROOT))
 
 from hairinv import stages  # noqa: E402
 from hairinv.dynamics.simulate import points_on  # noqa: E402
-from hairinv.fit import Helices  # noqa: E402
-from hairinv.model import stiffening_from_group  # noqa: E402
+from hairinv.model import Helices, stiffening_from_group  # noqa: E402
 
 TITLE = "Stiffened strands in motion"
 HAIRINV = ROOT / ".venv" / "bin" / "hairinv"

@@ -283,7 +283,7 @@ def fit_section(result: dict) -> list[str]:
 
 
 def _invert_problems():
-    from hairinv.invert import Material
+    from hairinv.model import Material
     from hairinv.pipeline import prepare
 
     out = []
@@ -463,7 +463,8 @@ def invert_section(result: dict) -> list[str]:
 
 def _sim_groom(name: str, file: str):
     """``file``'s first ``SIM_GUIDES`` guides on the sample bust, inverted with the default settings."""
-    from hairinv.invert import Material, invert
+    from hairinv.invert import invert
+    from hairinv.model import Material
     from hairinv.pipeline import prepare
 
     settings = config.apply(config.resolve(), {"import": {"guides": SIM_GUIDES}})

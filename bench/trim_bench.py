@@ -35,7 +35,8 @@ sys.path.insert(0, str(ROOT))
 from hairinv import config  # noqa: E402
 from hairinv.dynamics.run import _samples, run_scene  # noqa: E402
 from hairinv.dynamics.scene import Scene  # noqa: E402
-from hairinv.invert import Material, invert  # noqa: E402
+from hairinv.invert import invert  # noqa: E402
+from hairinv.model import Material  # noqa: E402
 from hairinv.pipeline import prepare  # noqa: E402
 
 TITLE = "Trimming a drawn groom: which strands rise"

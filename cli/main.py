@@ -522,8 +522,9 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
     from hairinv import config, stages
     from hairinv.errors import RunError
     from hairinv.features import invert_features
-    from hairinv.invert import Material, settings_dict, validate_settings, warm_start
     from hairinv.invert import invert as run_invert
+    from hairinv.invert import settings_dict, validate_settings, warm_start
+    from hairinv.model import Material
     from hairinv.pipeline import prepare
 
     settings = config.resolve(quality, config_file, sets)
@@ -585,7 +586,7 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
                        f"(residual {model.result.residual:.3g} N); no output was written")
     groups = dict(scene.groups)
     if stages.CONTACTS not in groups:  # gravity-only: the model declares no contact
-        from hairinv.contacts import Contacts
+        from hairinv.model import Contacts
 
         groups[stages.CONTACTS] = Contacts.empty().group(settings.contacts, scene.inputs)
     groups.pop(stages.MODEL, None)
@@ -629,11 +630,10 @@ def _load_simulation(say, model: Path, body: Path | None, output: Path | None, s
         if name not in stage:
             raise InputError(f"has no /{name} group: run `hairinv invert` on it first", model)
 
-    from hairinv.contacts import Contacts
     from hairinv.dynamics.scene import Scene
     from hairinv.dynamics.simulate import validate_settings
-    from hairinv.fit import Helices
     from hairinv.groom import load_body, simulation_body
+    from hairinv.model import Contacts, Helices
 
     scene = Scene.load(scene_name)
     if output is not None:

@@ -20,7 +20,7 @@ from .model import Helices
 from .rod import fitting
 from .rod.fitting import FIT_TOLERANCE_NOT_MET, closest_distances, element_caps, fit_batch, sampling_figures
 
-__all__ = ["Helices", "FitReport", "fit_groom"]
+__all__ = ["FitReport", "fit_groom"]
 
 # A fitted strand longer than this times the smooth curve through its vertices (their chords lengthened
 # by their turning, hairinv.rod.fitting.sampling_figures) winds between vertices: a shape they do not show.

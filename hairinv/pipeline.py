@@ -19,13 +19,13 @@ import numpy as np
 
 from . import formats, stages
 from .config import BodySettings, UNITS, ImportSettings, Settings
-from .contacts import Contacts, detect_contacts
+from .contacts import detect_contacts
 from .contacts.body import BodyMesh
 from .errors import InputError, in_file
 from .features import Features, detect_features
-from .fit import Helices, fit_groom
+from .fit import fit_groom
 from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto, strand_lengths
-from .model import BODY
+from .model import BODY, Contacts, Helices
 
 __all__ = ["Scene", "prepare"]
 

@@ -17,11 +17,12 @@ import trimesh
 from conftest import SAMPLES, real_path
 from hairinv import stages
 from hairinv.config import ContactSettings, FitSettings, ImportSettings
-from hairinv.contacts import BODY, BodyMesh, Contacts, DetectReport, detect_contacts
+from hairinv.contacts import BodyMesh, DetectReport, detect_contacts
 from hairinv.contacts.hair import hair_pairs
 from hairinv.errors import InputError
-from hairinv.fit import Helices, fit_groom
+from hairinv.fit import fit_groom
 from hairinv.groom import hair_unit_transform, load_body, load_groom
+from hairinv.model import BODY, Contacts, Helices
 from hairinv.rod.helix import frames_at, points_at
 
 # Refined contact positions: golden-section / Gauss-Newton on float64 geometry of size ~0.1 m;
@@ -695,8 +696,9 @@ def test_a_strand_resting_on_another_beyond_the_fixed_radius_is_supported():
     to hold against gravity), nor without the up axis or with the rule off. Inverted on a floor the
     upper strand does rest on the lower one: its contacts carry its weight."""
     from hairinv.config import SolverSettings
-    from hairinv.invert import Material, invert
+    from hairinv.invert import invert
     from hairinv.config import MaterialSettings
+    from hairinv.model import Material
 
     up = np.array([0.0, 1.0, 0.0])
     settings = dataclasses.replace(SETTINGS, body_distance=0.0025, root_clearance=0.005, layer=False)

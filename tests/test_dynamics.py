@@ -18,8 +18,9 @@ from hairinv.dynamics.contact import (back_substitute, contact_keys, delassus_bl
                                       forward_substitute)
 from hairinv.dynamics.inertia import gauss_nodes, inertia_terms, strand_nodes
 from hairinv.dynamics.simulate import Motion, Simulation, _free_chunk
-from hairinv.invert import generalized_gravity, stiffness
+from hairinv.invert import generalized_gravity
 from hairinv.contacts.rows import contact_rows
+from hairinv.model import stiffness
 
 from test_invert import material, two_strand_scene
 
@@ -195,7 +196,8 @@ def test_one_step_from_an_inverted_equilibrium_keeps_the_groom_still():
     from conftest import SAMPLES
     from hairinv import config
     from hairinv.contacts.body import BodyMesh
-    from hairinv.invert import Material, invert
+    from hairinv.invert import invert
+    from hairinv.model import Material
     from hairinv.pipeline import prepare
 
     settings = config.apply(config.resolve(), {"import": {"guides": 20}, "solver": {"max_sweeps": 100}})
@@ -225,7 +227,8 @@ def test_persisting_body_gaps_stay_within_the_bound_of_an_exact_measurement(monk
     from conftest import SAMPLES
     from hairinv import config
     from hairinv.contacts.body import BodyMesh
-    from hairinv.invert import Material, invert
+    from hairinv.invert import invert
+    from hairinv.model import Material
     from hairinv.pipeline import prepare
 
     settings = config.apply(config.resolve(), {"import": {"guides": 20}, "solver": {"max_sweeps": 100}})
@@ -336,7 +339,8 @@ def test_the_step_stiffness_holds_the_contact_forces_share():
     from test_statics import point_load_potential
 
     from hairinv import config
-    from hairinv.invert import Material, invert
+    from hairinv.invert import invert
+    from hairinv.model import Material
     from hairinv.pipeline import prepare
 
     settings = config.apply(config.resolve(), {"import": {"guides": 20}, "solver": {"max_sweeps": 100}})

@@ -539,7 +539,8 @@ def test_a_still_groom_meeting_the_contact_law_skips_the_solve_below_the_floor_o
     from hairinv.dynamics import simulate
     from hairinv.dynamics.contact import factored_blocks
     from hairinv.dynamics.run import _samples
-    from hairinv.invert import Material, invert
+    from hairinv.invert import invert
+    from hairinv.model import Material
     from hairinv.pipeline import prepare
     from hairinv.solver.gauss_seidel import natural_residuals
     from hairinv.contacts.rows import contact_rows

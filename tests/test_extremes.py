@@ -31,9 +31,8 @@ from hypothesis import strategies as st
 
 from conftest import FINITE_DIFFERENCE
 from hairinv.config import MATERIAL_RANGE, MaterialSettings, SolverSettings
-from hairinv.contacts import Contacts
-from hairinv.invert import generalized_gravity, invert, stiffness
-from hairinv.model import Helices, Material
+from hairinv.invert import generalized_gravity, invert
+from hairinv.model import Contacts, Helices, Material, stiffness
 from hairinv.rod.helix import chain, element_derivatives, element_step, frames_at, points_at
 from hairinv.rod.statics import gravity_forces, point_jacobian
 from hairinv.solver.interior import mu_in_range

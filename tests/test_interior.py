@@ -23,9 +23,10 @@ import pytest
 import scipy.sparse
 
 from hairinv.errors import InputError
-from hairinv.invert import generalized_gravity, invert, stiffness
+from hairinv.invert import generalized_gravity, invert
 from hairinv.config import SolverSettings
 from hairinv.contacts.rows import contact_rows
+from hairinv.model import stiffness
 from hairinv.solver import interior as interior_method
 from hairinv.solver.problem import CONE, ConeProblem, InteriorSettings
 

@@ -23,10 +23,9 @@ import pytest
 
 from conftest import FINITE_DIFFERENCE
 from hairinv.config import MaterialSettings, SolverSettings
-from hairinv.contacts import Contacts
 from hairinv.errors import InputError
-from hairinv.fit import Helices
-from hairinv.invert import Material, generalized_gravity, invert, stiffness, target_shape
+from hairinv.invert import generalized_gravity, invert, target_shape
+from hairinv.model import Contacts, Helices, Material, stiffness
 from hairinv.rod.helix import points_at
 from hairinv.rod.statics import gravity_potential
 from hairinv.contacts.rows import contact_rows

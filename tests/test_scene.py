@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 from conftest import FINITE_DIFFERENCE, ROUNDOFF
 from hairinv.dynamics.scene import SCENE_DIR, Keyframe, Scene, Trim, scene_names, trim_helices
 from hairinv.errors import InputError
-from hairinv.fit import Helices
+from hairinv.model import Helices
 from hairinv.rod.helix import points_at
 
 # Central difference step for the body motion, s: truncation h^2 |f'''| ~ 1e-12 * 6 / T^3

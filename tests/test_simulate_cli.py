@@ -127,12 +127,11 @@ def test_the_first_step_takes_the_stored_contacts_when_their_elements_are_stored
     first step without detecting again (a whole detection, the dearest part of a step on a dense groom);
     a file without it, whose contact at an element's end is ambiguous, is detected afresh and still holds."""
     from hairinv import config
-    from hairinv.contacts import Contacts
     from hairinv.dynamics import simulate as simulate_module
     from hairinv.dynamics.run import run_scene
     from hairinv.dynamics.scene import Scene
-    from hairinv.fit import Helices
     from hairinv.groom import load_body
+    from hairinv.model import Contacts, Helices
 
     stage = stages.read_stage(model / "model.h5")
     helices = Helices.from_group(stage[stages.HELICES])

@@ -128,8 +128,8 @@ def test_assembled_contact_rows_match_finite_differences_of_contact_gaps(rng):
     """``H`` as assembled for many contacts at once (several on one strand, in any order, sharing the
     strand's chain, and hair-hair pairs acting on two strands): each row is the derivative of the
     contact's relative position ``x_A(s_A) - x_B(s_B)`` along its frame."""
-    from hairinv.contacts.detect import Contacts, contact_frames
-    from hairinv.fit import Helices
+    from hairinv.contacts.detect import contact_frames
+    from hairinv.model import Contacts, Helices
     from hairinv.contacts.rows import contact_rows
 
     specs = [random_strand(rng, n, 8.0) for n in (4, 6, 3)]
@@ -247,7 +247,7 @@ def test_the_groom_sample_points_are_each_strands_points_evenly_spaced_in_arc_le
     """``hairinv.dynamics.run._sample_points`` (all strands in one pass) against each strand's own
     ``points_at`` at ``per_element`` points per element and the tip, evenly spaced from root to tip."""
     from hairinv.dynamics.run import _sample_points, _samples
-    from hairinv.fit import Helices
+    from hairinv.model import Helices
 
     specs = [random_strand(rng, n, 8.0) for n in (4, 1, 7, 3)]
     offsets = np.cumsum([0] + [len(sp[2]) for sp in specs])

@@ -23,10 +23,8 @@ import pytest
 
 from conftest import ROOT
 from hairinv import stages
-from hairinv.contacts import Contacts
-from hairinv.fit import Helices
 from hairinv.invert import generalized_gravity, stability_margins
-from hairinv.model import material_from_group, rest_from_group, stiffening_from_group, stiffness
+from hairinv.model import Contacts, Helices, material_from_group, rest_from_group, stiffening_from_group, stiffness
 from hairinv.contacts.rows import contact_rows
 from test_cli import hairinv
 

@@ -33,7 +33,7 @@ from ._curve import element_starts, sample_elements
 from .body import REFINE_ITERATIONS, BodyMesh, element_body_contacts
 from .hair import _grow, element_sag, hair_pairs, pair_points, polyline_slack, refine_pairs
 
-__all__ = ["Contacts", "DetectReport", "detect_contacts", "validate_settings", "contact_frames"]
+__all__ = ["DetectReport", "detect_contacts", "validate_settings", "contact_frames"]
 
 # Below this fraction of the contact distance the two closest points are taken as coincident and the
 # normal comes from the geometry instead (the body's pseudo-normal, or the two hair tangents).
