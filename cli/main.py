@@ -472,13 +472,13 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
     record = _pipeline_record("detect", style, body, settings, ("import", "body", "fit", "contacts"))
     if _up_to_date(obj, if_stale, output, record):
         return
-    scene = prepare(style, body, settings, contacts=True, progress=_stage_progress(obj["progress"]))
-    for line in scene.lines:
+    prepared = prepare(style, body, settings, contacts=True, progress=_stage_progress(obj["progress"]))
+    for line in prepared.lines:
         _say(obj, line)
-    _say(obj, scene.features.line())
-    stages.write_stage(output, list(scene.groups.values()), "detect", record)
+    _say(obj, prepared.features.line())
+    stages.write_stage(output, list(prepared.groups.values()), "detect", record)
     _say(obj, f"wrote {output}")
-    _say_timings(obj, scene.timings)
+    _say_timings(obj, prepared.timings)
 
 
 @main.command()
@@ -555,14 +555,14 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
     Material.from_settings(settings.material, (0.0, 1.0, 0.0))
     validate_settings(settings.solver)
     gravity_only = settings.solver.target == "gravity-only"
-    scene = prepare(style, body, settings, contacts=not gravity_only, progress=_stage_progress(obj["progress"]))
-    for line in scene.lines:
+    prepared = prepare(style, body, settings, contacts=not gravity_only, progress=_stage_progress(obj["progress"]))
+    for line in prepared.lines:
         _say(obj, line)
-    material = Material.from_settings(settings.material, scene.up)
+    material = Material.from_settings(settings.material, prepared.up)
     start, prior, factor = None, 0, None
-    if scene.model is not None:
-        start, prior, line, factor = warm_start(scene.model, material, settings.solver, Path(style).name,
-                                                scene.helices.n_strands)
+    if prepared.model is not None:
+        start, prior, line, factor = warm_start(prepared.model, material, settings.solver, Path(style).name,
+                                                prepared.helices.n_strands)
         if line:
             _say(obj, line)
     if settings.solver.method == "interior-point":
@@ -570,7 +570,7 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
     else:
         bar = SolverProgress(settings.solver.max_sweeps, obj["progress"])
     try:
-        model, report = run_invert(scene.helices, scene.contacts, material, settings.solver, progress=bar,
+        model, report = run_invert(prepared.helices, prepared.contacts, material, settings.solver, progress=bar,
                                    start=start, prior_sweeps=prior, stiffening=factor)
     finally:
         bar.close()
@@ -578,24 +578,24 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
         _say(obj, line)
     # body contact as the contacts in use model it (reused from the file, they may have been found against a body
     # not given now)
-    body = "body_contact" in scene.features.modelled if scene.features is not None else scene.body is not None
+    body = "body_contact" in prepared.features.modelled if prepared.features is not None else prepared.body is not None
     features = invert_features(settings.contacts, settings.solver, material.gravity, body)
     _say(obj, features.line())
     if model.result.status == "NUMERICAL_ERROR":
         raise RunError(f"the contact solver met a numerical error after {model.result.sweeps} sweeps "
                        f"(residual {model.result.residual:.3g} N); no output was written")
-    groups = dict(scene.groups)
+    groups = dict(prepared.groups)
     if stages.CONTACTS not in groups:  # gravity-only: the model declares no contact
         from hairinv.model import Contacts
 
-        groups[stages.CONTACTS] = Contacts.empty().group(settings.contacts, scene.inputs)
+        groups[stages.CONTACTS] = Contacts.empty().group(settings.contacts, prepared.inputs)
     groups.pop(stages.MODEL, None)
     groups.pop(stages.FRAMES, None)
-    groups[stages.MODEL] = model.group(settings_dict(settings.material, settings.solver), scene.inputs)
+    groups[stages.MODEL] = model.group(settings_dict(settings.material, settings.solver), prepared.inputs)
     groups[stages.MODEL].attrs["features"] = features.attr()
     stages.write_stage(output, list(groups.values()), "invert", record)
     _say(obj, f"wrote {output}")
-    _say_timings(obj, {**scene.timings, "invert": report.seconds})
+    _say_timings(obj, {**prepared.timings, "invert": report.seconds})
 
 
 def _init_option(fn):

@@ -41,8 +41,8 @@ _OPTION_OF = {"units": "--units", "scale": "--scale", "up": "--up", "flip": "--f
 
 
 @dataclass
-class Groom:
-    """One groom of a manifest, its paths resolved against the manifest's folder."""
+class BatchItem:
+    """One groom of a manifest (a ``[[groom]]`` table), its paths resolved against the manifest's folder."""
 
     name: str
     hair: str
@@ -54,7 +54,7 @@ class Groom:
     verify_seconds: float | None = None
 
 
-def read_manifest(path) -> tuple[list[Groom], dict]:
+def read_manifest(path) -> tuple[list[BatchItem], dict]:
     """The grooms of a manifest and its ``[tls]`` table (empty when absent).
 
     Raises
@@ -110,8 +110,8 @@ def read_manifest(path) -> tuple[list[Groom], dict]:
                              f"{', '.join(EXPORT_SUFFIXES)}", path)
         if exports and "export" not in wanted:
             wanted.append("export")
-        grooms.append(Groom(name, str(hair), None if body is None else str(body), options, wanted, exports,
-                            merged.get("verify_seconds")))
+        grooms.append(BatchItem(name, str(hair), None if body is None else str(body), options, wanted, exports,
+                                merged.get("verify_seconds")))
     return grooms, data.get("tls", {})
 
 
@@ -119,7 +119,7 @@ def _hairinv() -> list[str]:
     return [sys.executable, "-m", "hairinv_cli.main"]
 
 
-def run_groom(groom: Groom, outdir: str, threads: int) -> dict:
+def run_groom(groom: BatchItem, outdir: str, threads: int) -> dict:
     """One groom's commands, run where this task runs; the summary row. Never raises: a failure is a row."""
     out = Path(outdir)
     log_path = out / f"{groom.name}.log"
@@ -184,7 +184,7 @@ def _describe(model: Path, row: dict) -> None:
     row["solver"] = str(stage[stages.MODEL].attrs.get("status", ""))
 
 
-def verify_row(groom: Groom, model: Path, out: Path, run, row: dict) -> None:
+def verify_row(groom: BatchItem, model: Path, out: Path, run, row: dict) -> None:
     """``hairinv verify`` of the model, kept in ``<name>.verify.json`` while the model is unchanged."""
     record = out / f"{groom.name}.verify.json"
     digest = stages.sha256_file(model)
@@ -227,7 +227,7 @@ def security_from(tls: dict, ca_file=None, cert=None, key=None):
                     require_encryption=True)
 
 
-def run_batch(grooms: list[Groom], outdir, scheduler: str | None = None, workers: int | None = None,
+def run_batch(grooms: list[BatchItem], outdir, scheduler: str | None = None, workers: int | None = None,
               security=None, on_row=None) -> list[dict]:
     """Every groom as one task on a Dask cluster; the rows in manifest order.
 

@@ -27,12 +27,13 @@ from .fit import fit_groom
 from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto, strand_lengths
 from .model import BODY, Contacts, Helices
 
-__all__ = ["Scene", "prepare"]
+__all__ = ["Prepared", "prepare"]
 
 
 @dataclass
-class Scene:
-    """A groom ready for the later stages.
+class Prepared:
+    """The prepared inputs of a stage: a groom fitted (and, when asked, its contacts declared), ready for
+    the later stages.
 
     Attributes
     ----------
@@ -181,7 +182,7 @@ def _body_fix(roots: np.ndarray, median_distance, up, body_settings: BodySetting
             + (f" (try {' '.join(fixes)})" if fixes else ""))
 
 
-def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Scene:
+def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Prepared:
     """Read ``style`` (raw curves or a stage file) and ``body`` and bring them to the contact stage.
 
     Parameters
@@ -275,28 +276,28 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
                 bar.close()
         lines += fit_report.lines()
         groups[stages.HELICES] = helices.group(settings.fit, inputs[:1], {"seconds": fit_report.seconds})
-    scene = Scene(groups, helices, up, None, mesh, inputs, lines)
+    prepared = Prepared(groups, helices, up, None, mesh, inputs, lines)
     if refitted:
-        scene.timings["fit"] = fit_report.seconds
+        prepared.timings["fit"] = fit_report.seconds
     if not contacts:
-        return scene
-    scene.features = detect_features(settings.contacts, mesh is not None)
+        return prepared
+    prepared.features = detect_features(settings.contacts, mesh is not None)
     wanted = {"contacts": dataclasses.asdict(settings.contacts)}
     stale = _stale_contacts(stored_contacts, stored_model, wanted, inputs[1] if body is not None else None,
                             refitted=refitted, hair_unit=(scale, flip))
     if stored_contacts is not None and stale is None:
-        scene.contacts = Contacts.from_group(stored_contacts)
+        prepared.contacts = Contacts.from_group(stored_contacts)
         groups[stages.CONTACTS] = stored_contacts
-        lines.append(f"using the {scene.contacts.n_contacts} contacts in {style.name}")
+        lines.append(f"using the {prepared.contacts.n_contacts} contacts in {style.name}")
         # what they model is what their detection modelled (with or without a body given now); a file
         # that does not record it models body contact where it has some
         stored = Features.from_attr(stored_contacts.attrs.get("features"))
-        scene.features = stored if stored is not None else detect_features(
-            settings.contacts, bool(np.any(scene.contacts.strand[:, 1] == BODY)))
-        if (stored_model is not None and scene.contacts.n_contacts
-                and np.shape(stored_model["force"]) == (scene.contacts.n_contacts, 3)):
-            scene.model = stored_model
-        return scene
+        prepared.features = stored if stored is not None else detect_features(
+            settings.contacts, bool(np.any(prepared.contacts.strand[:, 1] == BODY)))
+        if (stored_model is not None and prepared.contacts.n_contacts
+                and np.shape(stored_model["force"]) == (prepared.contacts.n_contacts, 3)):
+            prepared.model = stored_model
+        return prepared
     if stored_contacts is not None:
         lines.append(f"the contacts in {style.name} {stale}; detecting them again")
     if mesh is None and settings.contacts.body:
@@ -305,8 +306,8 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         lines.append("contacts.body is off: the body mesh is ignored (no body queries)")
     found, detect_report = detect_contacts(helices, body_mesh, settings.contacts, up=up)
     lines += detect_report.lines()
-    scene.timings["detect"] = detect_report.seconds
-    scene.contacts = found
+    prepared.timings["detect"] = detect_report.seconds
+    prepared.contacts = found
     groups[stages.CONTACTS] = found.group(settings.contacts, inputs, seconds=detect_report.seconds)
-    groups[stages.CONTACTS].attrs["features"] = scene.features.attr()
-    return scene
+    groups[stages.CONTACTS].attrs["features"] = prepared.features.attr()
+    return prepared
