@@ -520,12 +520,10 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
     contacts are declared). Writes /curves, /helices, /contacts and /model.
     """
     from hairinv import config, stages
-    from hairinv.errors import RunError
-    from hairinv.features import invert_features
     from hairinv.invert import invert as run_invert
-    from hairinv.invert import settings_dict, validate_settings, warm_start
+    from hairinv.invert import warm_start
     from hairinv.model import Material
-    from hairinv.pipeline import prepare
+    from hairinv.pipeline import check_invert_settings, model_features, model_groups, prepare
 
     settings = config.resolve(quality, config_file, sets)
     solver_extra = {}
@@ -551,9 +549,7 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
                               ("import", "body", "fit", "contacts", "material", "solver"))
     if _up_to_date(obj, if_stale, output, record):
         return
-    # bad material or solver settings fail here, before any fitting
-    Material.from_settings(settings.material, (0.0, 1.0, 0.0))
-    validate_settings(settings.solver)
+    check_invert_settings(settings)  # before any fitting
     gravity_only = settings.solver.target == "gravity-only"
     prepared = prepare(style, body, settings, contacts=not gravity_only, progress=_stage_progress(obj["progress"]))
     for line in prepared.lines:
@@ -576,24 +572,9 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
         bar.close()
     for line in report.lines():
         _say(obj, line)
-    # body contact as the contacts in use model it (reused from the file, they may have been found against a body
-    # not given now)
-    body = "body_contact" in prepared.features.modelled if prepared.features is not None else prepared.body is not None
-    features = invert_features(settings.contacts, settings.solver, material.gravity, body)
+    features = model_features(prepared, settings, material)
     _say(obj, features.line())
-    if model.result.status == "NUMERICAL_ERROR":
-        raise RunError(f"the contact solver met a numerical error after {model.result.sweeps} sweeps "
-                       f"(residual {model.result.residual:.3g} N); no output was written")
-    groups = dict(prepared.groups)
-    if stages.CONTACTS not in groups:  # gravity-only: the model declares no contact
-        from hairinv.model import Contacts
-
-        groups[stages.CONTACTS] = Contacts.empty().group(settings.contacts, prepared.inputs)
-    groups.pop(stages.MODEL, None)
-    groups.pop(stages.FRAMES, None)
-    groups[stages.MODEL] = model.group(settings_dict(settings.material, settings.solver), prepared.inputs)
-    groups[stages.MODEL].attrs["features"] = features.attr()
-    stages.write_stage(output, list(groups.values()), "invert", record)
+    stages.write_stage(output, model_groups(prepared, model, settings, features), "invert", record)
     _say(obj, f"wrote {output}")
     _say_timings(obj, {**prepared.timings, "invert": report.seconds})
 

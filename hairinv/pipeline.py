@@ -7,6 +7,9 @@ Contacts stored with other contact settings than the current ones, against
 another body file than the one given (or without one), for helices fitted
 again, or by a gravity-only inversion (which declares none) are detected
 again (detection is cheap and its settings are easy to change).
+
+Once inverted, :func:`model_groups` assembles what the model's stage file
+holds, and refuses a model the contact solver could not compute.
 """
 
 from __future__ import annotations
@@ -21,13 +24,13 @@ from . import formats, stages
 from .config import BodySettings, UNITS, ImportSettings, Settings
 from .contacts import detect_contacts
 from .contacts.body import BodyMesh
-from .errors import InputError, in_file
-from .features import Features, detect_features
+from .errors import InputError, RunError, in_file
+from .features import Features, detect_features, invert_features
 from .fit import fit_groom
 from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto, strand_lengths
-from .model import BODY, Contacts, Helices
+from .model import BODY, Contacts, Helices, Material
 
-__all__ = ["Prepared", "prepare"]
+__all__ = ["Prepared", "prepare", "check_invert_settings", "model_features", "model_groups"]
 
 
 @dataclass
@@ -311,3 +314,48 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
     groups[stages.CONTACTS] = found.group(settings.contacts, inputs, seconds=detect_report.seconds)
     groups[stages.CONTACTS].attrs["features"] = prepared.features.attr()
     return prepared
+
+
+def check_invert_settings(settings: Settings) -> None:
+    """Refuse bad material or solver settings (an :class:`InputError` naming the setting), before any
+    fitting."""
+    from .invert import validate_settings  # the solvers, imported only by the commands that invert
+
+    Material.from_settings(settings.material, (0.0, 1.0, 0.0))
+    validate_settings(settings.solver)
+
+
+def model_features(prepared: Prepared, settings: Settings, material: Material) -> Features:
+    """What an inversion of ``prepared`` models and skips, and why: body contact as the contacts in use
+    model it (reused from the style file, they may have been found against a body not given now)."""
+    if prepared.features is not None:
+        body = "body_contact" in prepared.features.modelled
+    else:
+        body = prepared.body is not None
+    return invert_features(settings.contacts, settings.solver, material.gravity, body)
+
+
+def model_groups(prepared: Prepared, model, settings: Settings, features: Features) -> list[stages.Group]:
+    """The groups of an inverted model's stage file: the prepared ones (with an empty ``/contacts`` for a
+    gravity-only model, which declares none), then ``model``'s ``/model`` with ``features``; a ``/model``
+    or ``/frames`` the style file held is dropped.
+
+    Raises
+    ------
+    RunError
+        The contact solver met a numerical error: there is no model to write.
+    """
+    from .invert import settings_dict
+
+    result = model.result
+    if result.status == "NUMERICAL_ERROR":
+        raise RunError(f"the contact solver met a numerical error after {result.sweeps} sweeps "
+                       f"(residual {result.residual:.3g} N); no output was written")
+    groups = dict(prepared.groups)
+    if stages.CONTACTS not in groups:  # gravity-only: the model declares no contact
+        groups[stages.CONTACTS] = Contacts.empty().group(settings.contacts, prepared.inputs)
+    groups.pop(stages.MODEL, None)
+    groups.pop(stages.FRAMES, None)
+    groups[stages.MODEL] = model.group(settings_dict(settings.material, settings.solver), prepared.inputs)
+    groups[stages.MODEL].attrs["features"] = features.attr()
+    return list(groups.values())
