@@ -336,14 +336,13 @@ def fit(obj, curves, output, units, scale, up, flip, guides, seed, tolerance, el
     from hairinv.fit import fit_groom
     from hairinv.groom import load_groom
 
-    settings = config.resolve(quality, config_file, sets)
-    settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed)}, "command line")
     fit_extra = {}
     if tolerance is not None:
         fit_extra["tolerance"] = tolerance
     if elements is not None:
         fit_extra["elements"] = elements
-    settings = config.apply(settings, {"fit": fit_extra}, "command line")
+    options = {"import": _import_extra(units, scale, up, flip, guides, seed), "fit": fit_extra}
+    settings = config.Sources(quality, config_file, sets, options).settings()
     _say_settings(obj, settings, "import", "fit")
     output = output or _default_output(curves, "fit")
     stages.check_output_path(output, inputs=[curves])
@@ -461,11 +460,9 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
     from hairinv import config, stages
     from hairinv.pipeline import prepare
 
-    settings = config.resolve(quality, config_file, sets)
-    settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed),
-                                       "body": body_frame,
-                                       "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair)},
-                            "command line")
+    options = {"import": _import_extra(units, scale, up, flip, guides, seed), "body": body_frame,
+               "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair)}
+    settings = config.Sources(quality, config_file, sets, options).settings()
     _say_settings(obj, settings, "import", "body", "fit", "contacts")
     output = output or _default_output(style, "contacts")
     stages.check_output_path(output, inputs=[style, body])
@@ -525,7 +522,6 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
     from hairinv.model import Material
     from hairinv.pipeline import check_invert_settings, model_features, model_groups, prepare
 
-    settings = config.resolve(quality, config_file, sets)
     solver_extra = {}
     if target is not None:
         solver_extra["target"] = target
@@ -538,10 +534,9 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
         solver_extra["stabilize"] = stabilize
     if method is not None:
         solver_extra["method"] = method
-    settings = config.apply(settings, {"import": _import_extra(units, scale, up, flip, guides, seed),
-                                       "body": body_frame,
-                                       "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair),
-                                       "solver": solver_extra}, "command line")
+    options = {"import": _import_extra(units, scale, up, flip, guides, seed), "body": body_frame,
+               "contacts": _contact_extra(body_distance, hair_distance, mu, no_hair_hair), "solver": solver_extra}
+    settings = config.Sources(quality, config_file, sets, options).settings()
     _say_settings(obj, settings, "import", "body", "fit", "contacts", "material", "solver")
     output = output or _default_output(style, "model")
     stages.check_output_path(output, inputs=[style, body])

@@ -420,3 +420,40 @@ def resolve(quality: str = "default", config_file=None, sets=(), extra: dict | N
     if extra:
         settings = apply(settings, {k: v for k, v in extra.items() if v}, "command line")
     return settings
+
+
+@dataclass(frozen=True)
+class Sources:
+    """Where a command's settings come from, each over the one before: the defaults, the quality preset, a
+    TOML file, ``--set`` items, then the command's own options (``--mu``, ``--body-units`` ...).
+
+    The library takes these rather than resolved :class:`Settings` where it must know what the user gave
+    explicitly: a simulation keeps the contacts its model declared unless the user changes them
+    (:func:`simulation_settings`)."""
+
+    quality: str = "default"
+    """The preset, ``configs/quality/<name>.toml``: draft, default or final; default is the balance of speed
+    and accuracy the defaults above are chosen for."""
+    config_file: str | Path | None = None
+    """A TOML settings file (``--config``), one table per section; None: none."""
+    sets: tuple[str, ...] = ()
+    """``section.key=value`` items (``--set``), applied after the file; none by default."""
+    options: dict = field(default_factory=dict)
+    """``{section: {key: value}}``: the values of the command's own options, which win over everything
+    else and are said to come from the command line; none by default."""
+
+    def settings(self) -> Settings:
+        """The settings in effect (:func:`resolve`, then :attr:`options`)."""
+        settings = resolve(self.quality, self.config_file, self.sets)
+        return apply(settings, self.options, "command line") if self.options else settings
+
+    def given(self, section: str) -> dict:
+        """The values of ``section`` the user gave: the TOML file's, then the ``--set`` items', then the
+        options' (the preset's are not the user's)."""
+        values = {}
+        if self.config_file is not None:
+            values.update(load_toml(self.config_file).get(section, {}))
+        values.update(parse_set(self.sets).get(section, {}))
+        values.update(self.options.get(section, {}))
+        return values
+
