@@ -581,141 +581,9 @@ def _init_option(fn):
                              "contact-free inversion (gravity-only), for comparison.")(fn)
 
 
-def _load_simulation(say, model: Path, body: Path | None, output: Path | None, scene_name: str, quality,
-                     config_file, sets, body_frame: dict | None = None, init: str = "inverted") -> dict:
-    """What ``simulate`` and ``verify`` share before running: the model's groups, the settings (contacts as the
-    model declared them, which --config and --set may still change), the scene and the body mesh. With
-    ``init = "inverted"`` the model must hold its helices in equilibrium with its forces (eq. 4), or it was
-    changed since it was inverted and is refused.
-
-    ``say`` gets the lines about the body. Returns a dict: stage, helices, contacts, mesh, body, scene, settings.
-    """
-    import dataclasses
-
-    from hairinv import config, stages
-    from hairinv.errors import InputError
-
-    if not model.exists():
-        raise InputError("no such file", model)
-    if body is not None and not body.exists():
-        raise InputError("no such file", body)
-    if not stages.is_stage_file(model):
-        raise InputError("is not a hairinv stage file: run `hairinv invert` on the hairstyle first", model)
-    stage = stages.read_stage(model)  # checked whole before the numerical code is even imported
-    for name in (stages.CURVES, stages.HELICES, stages.MODEL):
-        if name not in stage:
-            raise InputError(f"has no /{name} group: run `hairinv invert` on it first", model)
-
-    from hairinv.dynamics.scene import Scene
-    from hairinv.dynamics.simulate import validate_settings
-    from hairinv.groom import load_body, simulation_body
-    from hairinv.model import Contacts, Helices
-
-    scene = Scene.load(scene_name)
-    if output is not None:
-        stages.check_output_path(output, inputs=[model, body])
-    settings = config.apply(config.resolve(quality, config_file, sets), {"body": body_frame or {}}, "command line")
-    # contacts as the model declared them, so the first step meets the inverted contacts again;
-    # --config and --set may still change them
-    stored = stage[stages.CONTACTS].config.get("contacts", {}) if stages.CONTACTS in stage else {}
-    contact_settings = config.apply(config.Settings(), {"contacts": stored}, str(model)).contacts
-    user = {}
-    if config_file is not None:
-        user.update(config.load_toml(config_file).get("contacts", {}))
-    user.update(config.parse_set(sets).get("contacts", {}))
-    if user:
-        contact_settings = config.apply(dataclasses.replace(settings, contacts=contact_settings),
-                                        {"contacts": user}, "settings").contacts
-    settings = dataclasses.replace(settings, contacts=contact_settings)
-    validate_settings(settings.dynamics)
-    curves = stage[stages.CURVES]
-    helices = Helices.from_group(stage[stages.HELICES])
-    contacts = Contacts.from_group(stage[stages.CONTACTS]) if stages.CONTACTS in stage else None
-    if init == "inverted":
-        _check_equilibrium(model, helices, contacts, stage[stages.MODEL])
-    body, to_groom, notes, read = simulation_body(settings.body, body, stage, model, curves)
-    mesh = None
-    if body is not None:
-        for line in notes:
-            say(line)
-        mesh = load_body(body, to_groom, read)
-        say(f"body: {body}")
-    elif scene.body != "removed":
-        say("no body: only hair-hair contacts")
-    return {"stage": stage, "helices": helices, "contacts": contacts, "mesh": mesh, "body": body, "scene": scene,
-            "settings": settings, "to_groom": to_groom}
-
-
-def _check_equilibrium(path: Path, helices, contacts, model) -> None:
-    """Refuse a model whose rest shape does not hold ``helices`` with its forces (:func:`model_mismatch`)."""
-    import numpy as np
-
-    from hairinv.errors import InputError
-    from hairinv.invert import model_mismatch
-
-    miss, element = model_mismatch(helices, contacts, model)
-    if element >= 0:
-        strand = int(np.searchsorted(helices.offsets, element, side="right") - 1)
-        raise InputError(f"/model does not hold /helices in equilibrium with its forces: its rest shape is "
-                         f"{miss:.3g} 1/m from the one its forces give at element {element} (strand {strand}), so "
-                         "its helices, contacts, forces or material were changed after it was inverted (or it "
-                         "was written by another version); invert it again", path)
-
-
-def _simulation_features(run: dict, init: str):
-    """What a simulation of ``run`` (:func:`_load_simulation`) models and skips, and why."""
-    import numpy as np
-
-    from hairinv import stages
-    from hairinv.features import simulate_features
-    from hairinv.model import stiffening_from_group
-
-    model = run["stage"][stages.MODEL]
-    factor = stiffening_from_group(model, run["helices"].n_strands)
-    return simulate_features(run["settings"].contacts, np.asarray(model.attrs["gravity"], dtype=np.float64),
-                             run["mesh"] is not None, run["scene"], init,
-                             factor is not None and bool(np.any(factor > 1.0)))
-
-
-def _run_simulation(obj, run: dict, init: str, seconds: float, fps: float, on_frame):
-    """``run_scene`` on what :func:`_load_simulation` loaded, with a progress bar of its steps."""
-    from hairinv import stages
-    from hairinv.dynamics.run import run_scene
-    from hairinv.errors import RunError
-
-    settings = run["settings"]
-    steps = max(1, round(1.0 / (fps * settings.dynamics.time_step))) * max(0, round(seconds * fps))
-    bar = Progress(steps, run["scene"].name, obj["progress"], unit="step")
-    try:
-        return run_scene(run["helices"], run["stage"][stages.MODEL], run["contacts"], run["mesh"], run["scene"],
-                         settings, init=init, seconds=seconds, fps=fps, on_frame=on_frame, on_step=bar,
-                         body_path=run["body"])
-    except FloatingPointError as exc:
-        raise RunError(f"the simulation diverged {exc}; no output was written; try a smaller "
-                       "dynamics.time_step") from None
-    finally:
-        bar.close()
-
-
-def _write_frames(output: Path, model: Path, run: dict, frames, init: str) -> None:
-    """The model's groups and the run's /frames, written atomically."""
-    import dataclasses
-
-    import numpy as np
-
-    from hairinv import stages
-
-    stage, body, settings = run["stage"], run["body"], run["settings"]
-    groups = {name: stage[name] for name in (stages.CURVES, stages.HELICES, stages.CONTACTS, stages.MODEL)
-              if name in stage}
-    inputs = [stages.file_record(model)]
-    if body is not None:
-        inputs.append({**stages.file_record(body), "to_groom": np.asarray(run["to_groom"]).tolist()})
-    cfg = {"dynamics": dataclasses.asdict(settings.dynamics), "contacts": dataclasses.asdict(settings.contacts),
-           "scene": run["scene"].name, "init": init}
-    groups[stages.FRAMES] = frames.group(cfg, inputs)
-    groups[stages.FRAMES].attrs["features"] = _simulation_features(run, init).attr()
-    stages.write_stage(output, list(groups.values()), "simulate", run.get("record"))
+def _simulation_progress(obj, run):
+    """A bar of the time steps of ``run`` (:class:`hairinv.simulation.Run`)."""
+    return Progress(run.steps, run.scene.name, obj["progress"], unit="step")
 
 
 @main.command()
@@ -743,28 +611,28 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
     groups and /frames; each frame's contacts, solver residual, energies and
     largest displacement are printed as it is done.
     """
-    from hairinv.staleness import command_record
+    from hairinv import config, simulation
 
     output = output or _default_output(model, "frames")
-    run = _load_simulation(functools.partial(_say, obj), model, body, output, scene_name, quality, config_file,
-                           sets, body_frame, init)
-    scene = run["scene"]
-    run_seconds = scene.seconds if seconds is None else seconds
-    run_fps = scene.fps if fps is None else fps
-    scene_file = Path(scene_name) if Path(scene_name).suffix == ".toml" else None  # its contents count
-    run["record"] = command_record("simulate", [model, run["body"], scene_file], run["settings"],
-                                   ("body", "contacts", "dynamics"),
-                                   {"scene": scene_name, "init": init, "seconds": run_seconds, "fps": run_fps})
-    if _up_to_date(obj, if_stale, output, run["record"]):
+    sources = config.Sources(quality, config_file, sets, {"body": body_frame})
+    run = simulation.load(model, body, sources, scene_name, init, seconds, fps, output,
+                          say=functools.partial(_say, obj))
+    run.record = simulation.simulate_record(run, scene_name)
+    if _up_to_date(obj, if_stale, output, run.record):
         return
-    _say(obj, f"scene {scene.name}, {run_seconds:g} s at {run_fps:g} frames per second"
+    scene = run.scene
+    _say(obj, f"scene {scene.name}, {run.seconds:g} s at {run.fps:g} frames per second"
          + (f": {scene.description}" if scene.description else ""))
-    _say(obj, _simulation_features(run, init).line())
-    frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=lambda log: _say(obj, log.line()))
+    _say(obj, run.features().line())
+    bar = _simulation_progress(obj, run)
+    try:
+        frames = run.simulate(on_frame=lambda log: _say(obj, log.line()), on_step=bar)
+    finally:
+        bar.close()
     last = frames.log[-1]
     _say(obj, f"simulated {last.time:g} s in {sum(f.seconds for f in frames.log):.1f} s; largest displacement "
               f"{1e3 * max(f.displacement for f in frames.log):.3f} mm")
-    _write_frames(output, model, run, frames, init)
+    run.write(output)
     _say(obj, f"wrote {output}")
     _say_timings(obj, {"simulate": sum(f.seconds for f in frames.log)})
 
@@ -838,41 +706,37 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
     an output written by the same check (same inputs, settings and options)
     is not simulated again: its verdict is read back from it.
     """
-    from hairinv.dynamics.verify import judge, parse_length
-    from hairinv.staleness import command_record
+    from hairinv import config, simulation
+    from hairinv.dynamics.verify import parse_length
 
     tolerance = parse_length(tolerance_text, "--tolerance")
     if if_stale and output is None:
         raise click.UsageError("--if-stale needs -o: without an output file verify keeps nothing to compare")
     notes = []
-    run = _load_simulation(notes.append, model, body, output, "still", quality, config_file, sets, body_frame,
-                           init)
-    scene = run["scene"]
-    run_seconds = scene.seconds if seconds is None else seconds
-    run_fps = scene.fps if fps is None else fps
+    sources = config.Sources(quality, config_file, sets, {"body": body_frame})
+    run = simulation.load(model, body, sources, "still", init, seconds, fps, output, say=notes.append)
     if output is not None:  # what the frames file records, and what --if-stale compares (inputs hashed once)
-        run["record"] = command_record("verify", [model, run["body"]], run["settings"],
-                                       ("body", "contacts", "dynamics"),
-                                       {"init": init, "seconds": run_seconds, "fps": run_fps,
-                                        "tolerance_m": tolerance, "full": full})
-    notes.append(_simulation_features(run, init).line())
-    if output is not None and _up_to_date(obj, if_stale, output, run["record"]):
-        verdict = _recorded_verdict(output, tolerance, run_seconds)
+        run.record = simulation.verify_record(run, tolerance, full)
+    notes.append(run.features().line())
+    if output is not None and _up_to_date(obj, if_stale, output, run.record):
+        verdict = simulation.recorded_verdict(output, tolerance, run.seconds)
         notes.append(f"the verdict recorded in {output}")
     else:
-        stop = None if full else (lambda log: log.displacement > tolerance)
-        frames = _run_simulation(obj, run, init, run_seconds, run_fps, on_frame=stop)
-        verdict = judge(frames, tolerance, run_seconds)
+        bar = _simulation_progress(obj, run)
+        try:
+            verdict = run.check_still(tolerance, full, on_step=bar)
+        finally:
+            bar.close()
         if output is not None:
-            _write_frames(output, model, run, frames, init)
-        notes.append(f"init {init}; checked at {run_fps:g} frames per second; simulated "
-                     f"{verdict.seconds_simulated:.3g} of {run_seconds:g} s in "
-                     f"{sum(f.seconds for f in frames.log):.1f} s")
+            run.write(output)
+        seconds_used = sum(f.seconds for f in run.frames.log)
+        notes.append(f"init {init}; checked at {run.fps:g} frames per second; simulated "
+                     f"{verdict.seconds_simulated:.3g} of {run.seconds:g} s in {seconds_used:.1f} s")
         if output is not None:
             notes.append(f"wrote {output}")
-        _say_timings(obj, {"simulate": sum(f.seconds for f in frames.log)})
+        _say_timings(obj, {"simulate": seconds_used})
     if as_json:
-        summary = {"model": str(model), "init": init, "fps": run_fps, **verdict.as_dict(every_strand=full)}
+        summary = {"model": str(model), "init": init, "fps": run.fps, **verdict.as_dict(every_strand=full)}
         _say({**obj, "quiet": False}, json.dumps(summary, indent=2))
     else:
         for line in _verdict_lines(verdict, every_strand=full):
@@ -881,23 +745,6 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
             _say(obj, line)
     if not verdict.passed:
         sys.exit(FAILED)
-
-
-def _recorded_verdict(path: Path, tolerance: float, seconds: float):
-    """The verdict of a check from the /frames group ``verify -o`` wrote (each frame's per-strand displacement)."""
-    from hairinv import stages
-    from hairinv.dynamics.verify import judge_displacements
-    from hairinv.errors import InputError
-
-    stage = stages.read_stage(path)
-    if stages.FRAMES not in stage:
-        raise InputError("holds no /frames group to read a verdict from; run verify without --if-stale", path)
-    group = stage[stages.FRAMES]
-    if "strand_displacement" not in group.datasets:
-        raise InputError("holds no per-strand displacements (written by an older hairinv); run verify without "
-                         "--if-stale", path)
-    return judge_displacements(group.datasets["time"], group.datasets["strand_displacement"], tolerance, seconds,
-                               bool(group.attrs.get("stopped", False)))
 
 
 @main.command()

@@ -457,3 +457,23 @@ class Sources:
         values.update(self.options.get(section, {}))
         return values
 
+
+def simulation_settings(sources: Sources, stored_contacts: dict, where: str) -> Settings:
+    """The settings of a simulation of an inverted model.
+
+    The contacts are the ones the model declared (``stored_contacts``: the ``[contacts]`` table its
+    ``/contacts`` group records, read as a settings source named ``where``), so that the first step meets
+    the inverted contacts again; contact settings the user gave (:meth:`Sources.given`) still change
+    them, the preset's do not. Every other section is ``sources``'s.
+
+    Raises
+    ------
+    InputError
+        For an unknown section or key, or a value of the wrong type, named with its source.
+    """
+    settings = sources.settings()
+    contacts = apply(Settings(), {"contacts": stored_contacts}, where).contacts
+    given = sources.given("contacts")
+    if given:
+        contacts = apply(dataclasses.replace(settings, contacts=contacts), {"contacts": given}, "settings").contacts
+    return dataclasses.replace(settings, contacts=contacts)

@@ -1,6 +1,7 @@
-"""``hairinv simulate`` end to end, checked from the files it writes.
+"""``hairinv simulate`` end to end, checked from the files it writes, as a command and as a library call
+(:func:`hairinv.simulation.simulate`).
 
-Runtime: about 20-40 s warm (one small inversion, four short simulations).
+Runtime: about 20-40 s warm (one small inversion, five short simulations).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 import pytest
 
 from conftest import SAMPLES
-from hairinv import stages
+from hairinv import simulation, stages
 from test_cli import assert_refused, hairinv
 
 
@@ -34,9 +35,26 @@ def test_still_scene_keeps_the_inverted_groom_still(model):
     assert result.returncode == 0, result.stderr
     assert "frame    5" in result.stdout and "wrote" in result.stdout
     assert "halved   0" in result.stdout  # a still groom needs no halved step
-    stage = stages.read_stage(model / "still.h5")
+    assert_still_frames(model / "still.h5")
+
+
+def test_still_scene_in_process_keeps_the_inverted_groom_still(model):
+    """The same run as a library call: the frames it logs and the file it writes."""
+    lines = []
+    run = simulation.simulate(model / "model.h5", seconds=0.2, fps=25, output=model / "still_call.h5",
+                              on_frame=lambda log: lines.append(log.line()))
+    printed = "\n".join(lines)
+    assert "frame    5" in printed and (model / "still_call.h5").exists()
+    assert "halved   0" in printed  # a still groom needs no halved step
+    assert run.scene.name == "still" and len(run.frames.log) == 6
+    assert_still_frames(model / "still_call.h5")
+
+
+def assert_still_frames(path):
+    """The frames of a still scene of 0.2 s at 25 frames per second from the inverted model."""
+    stage = stages.read_stage(path)
     assert list(stage.groups) == ["curves", "helices", "contacts", "model", "frames"]
-    with h5py.File(model / "still.h5", "r") as fh:
+    with h5py.File(path, "r") as fh:
         frames, helices = fh["frames"], fh["helices"]
         F, E, S = 6, len(helices["omega"]), len(helices["root"])
         assert frames["time"].shape == (F,) and np.allclose(frames["time"][()], np.arange(F) / 25)

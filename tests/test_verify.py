@@ -1,6 +1,7 @@
-"""``hairinv verify``: the still check, end to end, checked against the frames it writes.
+"""``hairinv verify``: the still check, end to end, checked against the frames it writes, as a command and
+as a library call (:func:`hairinv.simulation.verify`).
 
-Runtime: about 30-50 s warm (one inversion and six short simulations of 40
+Runtime: about 35-60 s warm (one inversion and eight short simulations of 40
 strands, a few runs that stop before any numerics).
 """
 
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import ROUNDOFF, SAMPLES
+from hairinv import simulation
 from hairinv.dynamics.verify import StrandMotion, Verdict, parse_length
 from hairinv.errors import InputError
 from hairinv.rod.helix import points_at
@@ -106,13 +108,27 @@ def test_verify_runs_the_still_scene_of_simulate(model):
     simulated = hairinv(model, "simulate", "model.h5", "--scene", "still", "--seconds", "0.3", "-o", "simulated.h5")
     assert simulated.returncode == 0, simulated.stderr
     summary = json.loads(verified.stdout)  # stdout holds the JSON and nothing else
-    ours, theirs = frames_of(model / "verified.h5"), frames_of(model / "simulated.h5")
+    assert_the_still_scene(summary, model / "verified.h5", model / "simulated.h5")
+
+
+def test_verify_in_process_runs_the_still_scene_of_simulate(model):
+    """The same as library calls: :func:`simulation.verify` and :func:`simulation.simulate`."""
+    verdict, run = simulation.verify(model / "model.h5", seconds=0.3, output=model / "verified_call.h5")
+    simulation.simulate(model / "model.h5", scene="still", seconds=0.3, output=model / "simulated_call.h5")
+    assert verdict.passed and run.scene.name == "still"
+    assert_the_still_scene(verdict.as_dict(), model / "verified_call.h5", model / "simulated_call.h5")
+
+
+def assert_the_still_scene(summary: dict, verified, simulated) -> None:
+    """A check of 0.3 s that passed (``summary``, as ``verify --json`` prints it) wrote the frames of the
+    still scene (``simulated``) to ``verified``, and nothing past them."""
+    ours, theirs = frames_of(verified), frames_of(simulated)
     for name in ours:
         assert np.array_equal(ours[name], theirs[name]), name
     assert summary["verdict"] == "PASS" and not summary["stopped_early"] and summary["strands"] == []
     assert summary["tolerance_m"] == TOLERANCE and summary["seconds_requested"] == 0.3
     assert summary["seconds_simulated"] == pytest.approx(ours["time"][-1], abs=0) == pytest.approx(0.3, rel=1e-12)
-    moved = strand_displacements(model / "verified.h5").max(axis=0)
+    moved = strand_displacements(verified).max(axis=0)
     assert summary["largest"]["displacement_m"] == pytest.approx(moved.max(), abs=DISPLACEMENT_TOL)
     assert moved.max() <= TOLERANCE
 

@@ -1,0 +1,284 @@
+"""Simulate an inverted model, and check that it stays still: ``hairinv simulate`` and ``verify`` as calls.
+
+:func:`load` reads a model's stage file, settles its settings (the contacts as the model declared them,
+:func:`hairinv.config.simulation_settings`), its scene and its body, and refuses a model whose rest
+shape does not hold its helices with its forces (:func:`check_equilibrium`). The :class:`Run` it
+returns simulates the scene (:meth:`Run.simulate`), judges a still check (:meth:`Run.check_still`) and
+writes the model's groups with ``/frames`` (:meth:`Run.write`). :func:`simulate` and :func:`verify` do
+all of it in one call, as the commands do, for code that drives them without a subprocess.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import stages
+from .config import Settings, Sources, simulation_settings
+from .errors import InputError, RunError
+from .features import Features, simulate_features
+from .model import Contacts, Helices, stiffening_from_group
+
+if TYPE_CHECKING:  # the dynamics, for annotations only: imported once a model has been read and checked
+    from .dynamics.run import Frames
+    from .dynamics.scene import Scene
+    from .dynamics.verify import Verdict
+
+__all__ = ["Run", "load", "check_equilibrium", "simulate_record", "verify_record", "recorded_verdict", "simulate",
+           "verify"]
+
+#: m, the largest distance a strand point may move in a still check, as ``hairinv verify`` takes it by
+#: default (``--tolerance 0.1mm``): a hair's diameter (material.radius is 50 um).
+STILL_TOLERANCE = 1e-4
+
+
+@dataclass
+class Run:
+    """A simulation of an inverted model: what :func:`load` read and settled, and once simulated its frames.
+
+    Attributes
+    ----------
+    model_path : Path, the model's stage file
+    stage : StageFile, its groups (``/curves``, ``/helices``, ``/model`` and ``/contacts`` if any)
+    helices : Helices
+    contacts : Contacts or None, the contacts the model was inverted with
+    mesh : trimesh.Trimesh or None, the body in the groom's frame, m
+    body : Path or None, the body file in use
+    to_groom : (4, 4) float64 or None, the transform of the body file into the groom's frame
+    scene : Scene
+    settings : Settings
+    init : str, the rest shape the strands start from (hairinv.dynamics.run.INITS)
+    seconds : float, s, the simulated time
+    fps : float, 1/s, frames per second
+    record : dict or None, the command record written with the frames (hairinv.staleness)
+    frames : Frames or None, once simulated
+    """
+
+    model_path: Path
+    stage: stages.StageFile
+    helices: Helices
+    contacts: Contacts | None
+    mesh: object
+    body: Path | None
+    to_groom: np.ndarray | None
+    scene: Scene
+    settings: Settings
+    init: str
+    seconds: float
+    fps: float
+    record: dict | None = None
+    frames: Frames | None = None
+
+    @property
+    def steps(self) -> int:
+        """The time steps the run takes (each frame's, times the frames after the first)."""
+        per_frame = max(1, round(1.0 / (self.fps * self.settings.dynamics.time_step)))
+        return per_frame * max(0, round(self.seconds * self.fps))
+
+    def features(self) -> Features:
+        """What the simulation models and skips, and why."""
+        model = self.stage[stages.MODEL]
+        factor = stiffening_from_group(model, self.helices.n_strands)
+        return simulate_features(self.settings.contacts, np.asarray(model.attrs["gravity"], dtype=np.float64),
+                                 self.mesh is not None, self.scene, self.init,
+                                 factor is not None and bool(np.any(factor > 1.0)))
+
+    def simulate(self, on_frame=None, on_step=None) -> Frames:
+        """Run the scene (:func:`hairinv.dynamics.run.run_scene`); the frames, also kept in :attr:`frames`.
+
+        ``on_frame(log)`` after every frame (returning True stops the run there), ``on_step()`` after
+        every step.
+
+        Raises
+        ------
+        RunError
+            The simulation diverged: no output is written.
+        """
+        from .dynamics.run import run_scene
+
+        try:
+            self.frames = run_scene(self.helices, self.stage[stages.MODEL], self.contacts, self.mesh, self.scene,
+                                    self.settings, init=self.init, seconds=self.seconds, fps=self.fps,
+                                    on_frame=on_frame, on_step=on_step, body_path=self.body)
+        except FloatingPointError as exc:
+            raise RunError(f"the simulation diverged {exc}; no output was written; try a smaller "
+                           "dynamics.time_step") from None
+        return self.frames
+
+    def check_still(self, tolerance: float = STILL_TOLERANCE, full: bool = False, on_step=None) -> Verdict:
+        """Simulate and judge whether no strand point moves more than ``tolerance`` (m): the run stops at
+        the first frame past it, unless ``full``."""
+        from .dynamics.verify import judge
+
+        stop = None if full else (lambda log: log.displacement > tolerance)
+        return judge(self.simulate(on_frame=stop, on_step=on_step), tolerance, self.seconds)
+
+    def groups(self) -> list[stages.Group]:
+        """The groups of the run's stage file: the model's, then ``/frames`` with the settings and inputs
+        that made it."""
+        groups = [self.stage[name] for name in (stages.CURVES, stages.HELICES, stages.CONTACTS, stages.MODEL)
+                  if name in self.stage]
+        inputs = [stages.file_record(self.model_path)]
+        if self.body is not None:
+            inputs.append({**stages.file_record(self.body), "to_groom": np.asarray(self.to_groom).tolist()})
+        config = {"dynamics": dataclasses.asdict(self.settings.dynamics),
+                  "contacts": dataclasses.asdict(self.settings.contacts), "scene": self.scene.name, "init": self.init}
+        frames = self.frames.group(config, inputs)
+        frames.attrs["features"] = self.features().attr()
+        return groups + [frames]
+
+    def write(self, output) -> None:
+        """The model's groups and the run's ``/frames``, written atomically to ``output``."""
+        stages.write_stage(output, self.groups(), "simulate", self.record)
+
+
+def load(model, body=None, sources: Sources | None = None, scene: str = "still", init: str = "inverted",
+         seconds: float | None = None, fps: float | None = None, output=None, say=None) -> Run:
+    """Read an inverted model for a simulation of ``scene``.
+
+    Parameters
+    ----------
+    model : path of a stage file written by ``hairinv invert``
+    body : path of the body mesh, or None for the one the model was inverted against, where it still is
+    sources : Sources, the settings (default: the defaults); the contacts are the model's unless the user
+        changes them (:func:`hairinv.config.simulation_settings`)
+    scene : a scene preset's name or a scene file (hairinv.dynamics.scene)
+    init : inverted, naive or gravity-only: the rest shape the strands start from
+    seconds, fps : s and 1/s, or None for the scene's
+    output : path the frames will be written to, checked here to be none of the inputs; or None
+    say : callable(str), optional, gets the lines about the body
+
+    Raises
+    ------
+    InputError
+        A missing file, a file that holds no inverted model, a bad setting or scene, an output that is an
+        input; with ``init = "inverted"``, a model whose rest shape does not hold its helices with its
+        forces (eq. 4), changed since it was inverted.
+    """
+    say = say or (lambda line: None)
+    model = Path(model)
+    body = None if body is None else Path(body)
+    if not model.exists():
+        raise InputError("no such file", model)
+    if body is not None and not body.exists():
+        raise InputError("no such file", body)
+    if not stages.is_stage_file(model):
+        raise InputError("is not a hairinv stage file: run `hairinv invert` on the hairstyle first", model)
+    stage = stages.read_stage(model)  # checked whole before the numerical code is even imported
+    for name in (stages.CURVES, stages.HELICES, stages.MODEL):
+        if name not in stage:
+            raise InputError(f"has no /{name} group: run `hairinv invert` on it first", model)
+
+    from .dynamics.scene import Scene
+    from .dynamics.simulate import validate_settings
+    from .groom import load_body, simulation_body
+
+    loaded = Scene.load(scene)
+    if output is not None:
+        stages.check_output_path(output, inputs=[model, body])
+    stored = stage[stages.CONTACTS].config.get("contacts", {}) if stages.CONTACTS in stage else {}
+    settings = simulation_settings(sources or Sources(), stored, str(model))
+    validate_settings(settings.dynamics)
+    curves = stage[stages.CURVES]
+    helices = Helices.from_group(stage[stages.HELICES])
+    contacts = Contacts.from_group(stage[stages.CONTACTS]) if stages.CONTACTS in stage else None
+    if init == "inverted":
+        check_equilibrium(model, helices, contacts, stage[stages.MODEL])
+    body, to_groom, notes, read = simulation_body(settings.body, body, stage, model, curves)
+    mesh = None
+    if body is not None:
+        for line in notes:
+            say(line)
+        mesh = load_body(body, to_groom, read)
+        say(f"body: {body}")
+    elif loaded.body != "removed":
+        say("no body: only hair-hair contacts")
+    return Run(model, stage, helices, contacts, mesh, body, to_groom, loaded, settings, init,
+               loaded.seconds if seconds is None else seconds, loaded.fps if fps is None else fps)
+
+
+def check_equilibrium(path, helices: Helices, contacts: Contacts | None, model: stages.Group) -> None:
+    """Refuse a model whose rest shape does not hold ``helices`` with its forces
+    (:func:`hairinv.invert.model_mismatch`): an :class:`InputError` of ``path``."""
+    from .invert import model_mismatch
+
+    miss, element = model_mismatch(helices, contacts, model)
+    if element >= 0:
+        strand = int(np.searchsorted(helices.offsets, element, side="right") - 1)
+        raise InputError(f"/model does not hold /helices in equilibrium with its forces: its rest shape is "
+                         f"{miss:.3g} 1/m from the one its forces give at element {element} (strand {strand}), so "
+                         "its helices, contacts, forces or material were changed after it was inverted (or it "
+                         "was written by another version); invert it again", path)
+
+
+def simulate_record(run: Run, scene: str) -> dict:
+    """The command record of ``hairinv simulate`` of ``run`` (``scene`` as given: a scene file's contents
+    count among the inputs)."""
+    from .staleness import command_record
+
+    scene_file = Path(scene) if Path(scene).suffix == ".toml" else None
+    return command_record("simulate", [run.model_path, run.body, scene_file], run.settings,
+                          ("body", "contacts", "dynamics"),
+                          {"scene": scene, "init": run.init, "seconds": run.seconds, "fps": run.fps})
+
+
+def verify_record(run: Run, tolerance: float, full: bool) -> dict:
+    """The command record of ``hairinv verify`` of ``run``, checking to ``tolerance`` (m)."""
+    from .staleness import command_record
+
+    return command_record("verify", [run.model_path, run.body], run.settings, ("body", "contacts", "dynamics"),
+                          {"init": run.init, "seconds": run.seconds, "fps": run.fps, "tolerance_m": tolerance,
+                           "full": full})
+
+
+def recorded_verdict(path, tolerance: float, seconds: float) -> Verdict:
+    """The verdict of a still check from the ``/frames`` group ``verify -o`` wrote (each frame's per-strand
+    displacement)."""
+    from .dynamics.verify import judge_displacements
+
+    stage = stages.read_stage(path)
+    if stages.FRAMES not in stage:
+        raise InputError("holds no /frames group to read a verdict from; run verify without --if-stale", path)
+    group = stage[stages.FRAMES]
+    if "strand_displacement" not in group.datasets:
+        raise InputError("holds no per-strand displacements (written by an older hairinv); run verify without "
+                         "--if-stale", path)
+    return judge_displacements(group.datasets["time"], group.datasets["strand_displacement"], tolerance, seconds,
+                               bool(group.attrs.get("stopped", False)))
+
+
+def simulate(model, body=None, sources: Sources | None = None, scene: str = "still", init: str = "inverted",
+             seconds: float | None = None, fps: float | None = None, output=None, on_frame=None, on_step=None,
+             say=None) -> Run:
+    """``hairinv simulate``: :func:`load` the model, simulate ``scene``, and write the frames to ``output``
+    (with the command's record) when it is given. The run, its frames in :attr:`Run.frames`."""
+    run = load(model, body, sources, scene, init, seconds, fps, output, say)
+    if output is not None:
+        run.record = simulate_record(run, scene)
+    run.simulate(on_frame=on_frame, on_step=on_step)
+    if output is not None:
+        run.write(output)
+    return run
+
+
+def verify(model, body=None, sources: Sources | None = None, init: str = "inverted", seconds: float | None = None,
+           fps: float | None = None, tolerance: float = STILL_TOLERANCE, full: bool = False, output=None,
+           on_step=None, say=None) -> tuple[Verdict, Run]:
+    """``hairinv verify``: the still scene from the model, judged to ``tolerance`` (m), stopped at the first
+    frame past it unless ``full``; the frames written to ``output`` when it is given.
+
+    Returns
+    -------
+    (Verdict, Run)
+    """
+    run = load(model, body, sources, "still", init, seconds, fps, output, say)
+    if output is not None:
+        run.record = verify_record(run, tolerance, full)
+    verdict = run.check_still(tolerance, full, on_step=on_step)
+    if output is not None:
+        run.write(output)
+    return verdict, run
