@@ -29,6 +29,7 @@ from .features import Features, detect_features, invert_features
 from .fit import fit_groom
 from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto, strand_lengths
 from .model import BODY, Contacts, Helices, Material
+from .solver.status import Status
 
 __all__ = ["Prepared", "prepare", "check_invert_settings", "model_features", "model_groups"]
 
@@ -348,7 +349,7 @@ def model_groups(prepared: Prepared, model, settings: Settings, features: Featur
     from .invert import settings_dict
 
     result = model.result
-    if result.status == "NUMERICAL_ERROR":
+    if result.status == Status.NUMERICAL_ERROR:
         raise RunError(f"the contact solver met a numerical error after {result.sweeps} sweeps "
                        f"(residual {result.residual:.3g} N); no output was written")
     groups = dict(prepared.groups)
