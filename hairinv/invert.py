@@ -30,9 +30,10 @@ from ._jit import jit
 from ._parallel import run_chunks
 from .config import MaterialSettings, SolverSettings
 from .errors import InputError, RunError
+from .gravity import generalized_gravity, tolerance_gravity
 from .model import (UNSTABLE_MARGIN, Contacts, Helices, Material, Model, material_from_group, rest_from_group,
                     stiffening_from_group, stiffness)
-from .rod.statics import gravity_forces, gravity_hessian, point_load_hessian
+from .rod.statics import gravity_hessian, point_load_hessian
 from .solver.blocks import group_newton, strand_blocks
 from .solver import gauss_seidel, interior
 from .solver.gauss_seidel import SolverResult, diagonal_blocks, project_forces, split_strands
@@ -76,26 +77,6 @@ def _interior_progress(progress, max_iterations: int):
     return report
 
 
-@jit
-def _gravity_chunk(root, frame0, offsets, omega, length, lam, gravity, out, lo, hi):
-    for s in range(lo, hi):
-        a = offsets[s]
-        z = offsets[s + 1]
-        gravity_forces(root[s], frame0[s], omega[a:z], length[a:z], lam, gravity, out[a:z])
-
-
-def generalized_gravity(helices: Helices, material: Material) -> np.ndarray:
-    """``F_g(q)`` of every element, (E, 3), J m."""
-    out = np.zeros((helices.n_elements, 3))
-
-    def work(lo: int, hi: int) -> None:
-        _gravity_chunk(helices.root, helices.frame0, helices.offsets, helices.omega, helices.length,
-                       material.linear_density, material.gravity, out, lo, hi)
-
-    run_chunks(work, helices.n_strands, 256)
-    return out
-
-
 #: 1/m: how far a stored rest shape may be from the one its forces give on its helices (eq. 4), plus
 #: :data:`MODEL_MISMATCH_RELATIVE` of the curvatures involved; a model read back as written is at round-off
 MODEL_MISMATCH = 1e-6
@@ -127,14 +108,6 @@ def model_mismatch(helices: Helices, contacts: Contacts | None, group: stages.Gr
         return 0.0, -1
     e = int(np.argmax(beyond))
     return float(miss.reshape(-1, 3)[e].max()), e
-
-
-def tolerance_gravity(material: Material) -> float:
-    """m/s^2: the gravity of the weight the solver's tolerance is relative to: the material's, or, in a scene
-    without gravity (where every weight is zero and no residual could meet a tolerance relative to one),
-    the default 9.81 m/s^2."""
-    g = float(np.linalg.norm(material.gravity))
-    return g if g > 0.0 else MaterialSettings().gravity
 
 
 def target_shape(helices: Helices, target: str) -> np.ndarray:

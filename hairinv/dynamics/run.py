@@ -20,7 +20,7 @@ from .. import stages
 from ..config import Settings
 from ..contacts.body import BodyMesh
 from ..errors import InputError, in_file
-from ..invert import generalized_gravity
+from ..gravity import generalized_gravity
 from ..model import (Contacts, Helices, Material, material_from_group, rest_from_group, stiffening_from_group,
                      stiffness)
 from ..solver.status import Status

@@ -37,7 +37,7 @@ from ..contacts.body import REFINE_ITERATIONS, BodyMesh
 from ..contacts.detect import COINCIDENT, contact_frames, detect_contacts
 from ..rod.helix import chain, strand_points
 from ..errors import InputError
-from ..invert import tolerance_gravity
+from ..gravity import tolerance_gravity
 from ..model import Contacts, Helices, Material, stiffness
 from ..rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from ..solver.gauss_seidel import SolverResult, natural_residuals, split_strands
@@ -163,7 +163,7 @@ class Motion:
 # _HALVING_GAIN times as far as the attempt it replaces (a smooth motion turns half as far in half the
 # time) and no further than _FUTILE_CAP times max_turn
 #: m/s^2: the weight the velocity products are compared with in a scene without gravity (the solvers'
-#: tolerances' weight, :func:`hairinv.invert.tolerance_gravity`)
+#: tolerances' weight, :func:`hairinv.gravity.tolerance_gravity`)
 _WEIGHTLESS_GRAVITY = MaterialSettings().gravity
 _HALVING_GAIN = 0.75
 _FUTILE_CAP = 4.0
