@@ -46,7 +46,8 @@ from hairinv.contacts.body import BodyMesh  # noqa: E402
 from hairinv.dynamics.run import _samples  # noqa: E402
 from hairinv.dynamics.scene import Scene, trim_helices  # noqa: E402
 from hairinv.dynamics.simulate import Motion, Simulation  # noqa: E402
-from hairinv.invert import generalized_gravity, invert  # noqa: E402
+from hairinv.gravity import generalized_gravity  # noqa: E402
+from hairinv.invert import invert  # noqa: E402
 from hairinv.model import Helices, Material, stiffness  # noqa: E402
 from hairinv.pipeline import prepare  # noqa: E402
 

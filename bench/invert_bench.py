@@ -50,7 +50,9 @@ from hairinv.config import apply, resolve  # noqa: E402
 from hairinv.contacts import detect_contacts  # noqa: E402
 from hairinv.fit import fit_groom  # noqa: E402
 from hairinv.groom import Groom, hair_unit_transform, load_body, load_groom  # noqa: E402
-from hairinv.invert import contact_diagonal, contact_gamma, generalized_gravity, invert, target_shape  # noqa: E402
+from hairinv.gravity import generalized_gravity  # noqa: E402
+from hairinv.inverse.problem import contact_diagonal, contact_gamma, target_shape  # noqa: E402
+from hairinv.invert import invert  # noqa: E402
 from hairinv.model import Material, stiffness  # noqa: E402
 from hairinv.solver.reference import solve_socqp_clarabel  # noqa: E402
 from hairinv.contacts.rows import contact_rows  # noqa: E402

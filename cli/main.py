@@ -517,8 +517,8 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
     contacts are declared). Writes /curves, /helices, /contacts and /model.
     """
     from hairinv import config, stages
+    from hairinv.inverse.method import warm_start
     from hairinv.invert import invert as run_invert
-    from hairinv.invert import warm_start
     from hairinv.model import Material
     from hairinv.pipeline import check_invert_settings, model_features, model_groups, prepare
 

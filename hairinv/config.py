@@ -207,7 +207,7 @@ class SolverSettings:
     """Largest number of Gauss-Seidel sweeps over all contacts."""
     method: str = "auto"
     """auto (the default: the interior-point method where its factorisation costs at most
-    ``hairinv.invert.AUTO_GFLOP`` a step, the sweeps otherwise), interior-point (a primal-dual interior-point
+    ``hairinv.inverse.method.AUTO_GFLOP`` a step, the sweeps otherwise), interior-point (a primal-dual interior-point
     method, one sparse Cholesky factorisation a step, stopped by ``rest_tolerance``: it reaches the optimum
     where the sweeps stall, at the cost of factoring a system as large as the groom's coordinates) or sweeps
     (block Gauss-Seidel over the contacts, stopped by ``rest_tolerance`` or ``tolerance``). docs/inverse.md,

@@ -262,7 +262,7 @@ class Model:
     stability_margin: np.ndarray | None = None
     """(S,) float64, each strand's smallest eigenvalue ``lambda`` of ``I + K^-1/2 V'' K^-1/2`` at the
     stiffness it rests with (its stiffening included), on the motions ``solver.stable_under`` allows
-    (:func:`hairinv.invert.stability_margins`): > 0 rests stably, < 0 unstable; ``inf`` where no motion is
+    (:func:`hairinv.inverse.stability.stability_margins`): > 0 rests stably, < 0 unstable; ``inf`` where no motion is
     left; below :data:`UNSTABLE_MARGIN` unstable. None when stability was not checked"""
     stable_under: str = ""
     """what ``stability_margin`` holds fixed: ``forces`` or ``supports`` (solver.stable_under)"""

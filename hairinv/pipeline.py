@@ -346,7 +346,7 @@ def model_groups(prepared: Prepared, model, settings: Settings, features: Featur
     RunError
         The contact solver met a numerical error: there is no model to write.
     """
-    from .invert import settings_dict
+    from .inverse.report import settings_dict
 
     result = model.result
     if result.status == Status.NUMERICAL_ERROR:

@@ -203,8 +203,8 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
 
 def check_equilibrium(path, helices: Helices, contacts: Contacts | None, model: stages.Group) -> None:
     """Refuse a model whose rest shape does not hold ``helices`` with its forces
-    (:func:`hairinv.invert.model_mismatch`): an :class:`InputError` of ``path``."""
-    from .invert import model_mismatch
+    (:func:`hairinv.inverse.problem.model_mismatch`): an :class:`InputError` of ``path``."""
+    from .inverse.problem import model_mismatch
 
     miss, element = model_mismatch(helices, contacts, model)
     if element >= 0:

@@ -18,7 +18,7 @@ from hairinv.dynamics.contact import (back_substitute, contact_keys, delassus_bl
                                       forward_substitute)
 from hairinv.dynamics.inertia import gauss_nodes, inertia_terms, strand_nodes
 from hairinv.dynamics.simulate import Motion, Simulation, _free_chunk
-from hairinv.invert import generalized_gravity
+from hairinv.gravity import generalized_gravity
 from hairinv.contacts.rows import contact_rows
 from hairinv.model import stiffness
 

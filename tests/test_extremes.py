@@ -31,7 +31,8 @@ from hypothesis import strategies as st
 
 from conftest import FINITE_DIFFERENCE
 from hairinv.config import MATERIAL_RANGE, MaterialSettings, SolverSettings
-from hairinv.invert import generalized_gravity, invert
+from hairinv.gravity import generalized_gravity
+from hairinv.invert import invert
 from hairinv.model import Contacts, Helices, Material, stiffness
 from hairinv.rod.helix import chain, element_derivatives, element_step, frames_at, points_at
 from hairinv.rod.statics import gravity_forces, point_jacobian

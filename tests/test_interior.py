@@ -23,7 +23,8 @@ import pytest
 import scipy.sparse
 
 from hairinv.errors import InputError
-from hairinv.invert import generalized_gravity, invert
+from hairinv.gravity import generalized_gravity
+from hairinv.invert import invert
 from hairinv.config import SolverSettings
 from hairinv.contacts.rows import contact_rows
 from hairinv.model import stiffness
@@ -304,7 +305,7 @@ def test_the_flop_cap_is_the_counted_cost_itself():
 def test_auto_takes_the_interior_point_where_it_is_affordable_and_the_sweeps_elsewhere(monkeypatch):
     """solver.method = auto: the interior-point method on a small groom, ignoring a start (and
     saying so); over ``AUTO_GFLOP`` the sweeps, from that start, with a note. Either answer is the optimum."""
-    import hairinv.invert as inv
+    import hairinv.inverse.method as inv
 
     helices, contacts = four_strands_in_a_pile()
     mat = material()

@@ -24,7 +24,9 @@ import pytest
 from conftest import FINITE_DIFFERENCE
 from hairinv.config import MaterialSettings, SolverSettings
 from hairinv.errors import InputError
-from hairinv.invert import generalized_gravity, invert, target_shape
+from hairinv.gravity import generalized_gravity
+from hairinv.inverse.problem import target_shape
+from hairinv.invert import invert
 from hairinv.model import Contacts, Helices, Material, stiffness
 from hairinv.rod.helix import points_at
 from hairinv.rod.statics import gravity_potential
@@ -372,7 +374,7 @@ def test_body_contacts_only_are_solved_strand_by_strand_at_once(mu, monkeypatch)
     each, upright and tilted normals): at a 1e-6 tolerance no sweep is needed; at 1e-10 the forces
     satisfy the optimality conditions on the dense W assembled here, after at most a twentieth of
     the sweeps Gauss-Seidel needs from zero forces (165 to 3,465 here)."""
-    import hairinv.invert as inverse
+    import hairinv.inverse.method as inverse
 
     helices, contacts = three_strands_on_the_body(mu)
     mat = material()
@@ -629,7 +631,7 @@ def test_a_start_far_from_the_optimum_reaches_the_same_optimum():
 def test_a_model_of_another_gamma_relative_is_not_a_start():
     """Forces found with another solver.gamma_relative (or none: a file written before it) solve another
     problem: inverting such a model again starts afresh and says why; the same fraction continues."""
-    from hairinv.invert import warm_start
+    from hairinv.inverse.method import warm_start
 
     helices, contacts = resting_scene()
     mat = material()

@@ -182,8 +182,8 @@ def test_no_stability_check_changes_nothing_but_the_check(everything, monkeypatc
     mat = Material.from_settings(s.material, scene.up)
     checked, checked_report = invert(scene.helices, scene.contacts, mat, dataclasses.replace(s.solver, stabilize="off"))
     assert checked.stability_margin is not None and checked_report.checked
-    forbid(monkeypatch, "hairinv.invert.stability_margins", "the stability check")
-    forbid(monkeypatch, "hairinv.invert.group_margins", "the joint stability check")
+    forbid(monkeypatch, "hairinv.inverse.stabilize.stability_margins", "the stability check")
+    forbid(monkeypatch, "hairinv.inverse.stabilize.group_margins", "the joint stability check")
     solver = dataclasses.replace(s.solver, stabilize="off", check_stability=False)
     model, report = invert(scene.helices, scene.contacts, mat, solver)
     assert model.stiffening is None and model.omega_rest_stiffened is None  # the material's own: factors 1

@@ -16,7 +16,9 @@ import pytest
 from conftest import ROUNDOFF
 from hairinv import stages
 from hairinv.config import FitSettings, SolverSettings
-from hairinv.invert import generalized_gravity, invert, stability_margins
+from hairinv.gravity import generalized_gravity
+from hairinv.inverse.stability import stability_margins
+from hairinv.invert import invert
 from hairinv.model import rest_from_group, stiffening_from_group, stiffness
 from hairinv.contacts.rows import contact_rows
 from test_invert import UP, make_contacts, material, strands
@@ -201,7 +203,7 @@ def test_the_held_margin_is_the_smallest_eigenvalue_on_the_null_space_of_the_hel
     two contacts on one spot, or rows that repeat a combination of others); ``inf`` where no motion is left."""
     from scipy.linalg import null_space
 
-    from hairinv.invert import _lowest_held
+    from hairinv.inverse.stability import _lowest_held
 
     rng = np.random.default_rng(rows)
     m = 21

@@ -23,7 +23,8 @@ import pytest
 
 from conftest import ROOT
 from hairinv import stages
-from hairinv.invert import generalized_gravity, stability_margins
+from hairinv.gravity import generalized_gravity
+from hairinv.inverse.stability import stability_margins
 from hairinv.model import Contacts, Helices, material_from_group, rest_from_group, stiffening_from_group, stiffness
 from hairinv.contacts.rows import contact_rows
 from test_cli import hairinv
