@@ -31,8 +31,7 @@ from .inverse.report import InvertReport, gravity_notes, rest_figures, status_wa
 from .inverse.stabilize import STABILIZE, STABLE_UNDER, Stability, check_and_stiffen
 from .model import Contacts, Helices, Material, Model, stiffness
 
-# Material, Model and stiffness live in hairinv.model; they are importable from here too, for now
-__all__ = ["Material", "Model", "invert", "stiffness", "validate_settings"]
+__all__ = ["invert", "validate_settings"]
 
 
 def validate_settings(settings: SolverSettings) -> None:

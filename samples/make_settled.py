@@ -36,7 +36,7 @@ if str(ROOT) not in sys.path:
 from hairinv import config, stages  # noqa: E402
 from hairinv.contacts.body import BodyMesh  # noqa: E402
 from hairinv.dynamics.simulate import Motion, Simulation  # noqa: E402
-from hairinv.invert import Material  # noqa: E402
+from hairinv.model import Material  # noqa: E402
 from hairinv.pipeline import prepare  # noqa: E402
 from hairinv.rod.helix import points_at  # noqa: E402
 
