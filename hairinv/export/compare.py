@@ -1,8 +1,10 @@
 """Several simulations of one groom side by side (PNG, and inlined in the HTML report): one before/after
 column per stage file.
 
-Each column shows the input shape (grey) against the run's last frame, from the front (above) and from the
-side (below), over the body, as the before/after row of :mod:`hairinv.export.picture` does for one file.
+Each column shows the input shape (grey), carried with the body to its pose at the run's last frame, against
+that frame, from the front (above) and from the side (below), over the body at that pose, as the
+before/after row of :mod:`hairinv.export.picture` does for one file (far strands first, those the body
+hides faded).
 The last frame's strands are coloured by how far each vertex moved: its distance at the last frame from
 where it was at frame 0, in the body's frame (the measure ``simulate`` prints and ``/frames/displacement``
 stores, here at the input's vertices). Every column has the same views, limits and colour scale (0 to the
@@ -25,7 +27,8 @@ import numpy as np
 from .. import __version__
 from ..atomic import write_bytes
 from .base import register_comparison
-from .picture import DPI, INPUT_GREY, Coloring, Picture, Quantity, _draw_body, _frame_axes, _segments, _view
+from .picture import (DPI, INPUT_GREY, VIEWS, Body, Coloring, Picture, Quantity, _draw_body,
+                      _draw_strands, _frame_axes, _view, hidden_by)
 from .source import ExportSource, OutputAxes, Strands
 
 __all__ = ["DISPLACEMENT", "Run", "comparison_picture", "comparison_size", "draw_comparison", "export_png_comparison",
@@ -39,7 +42,6 @@ ROW_IN = 5.0
 TITLE_IN = 1.9
 BOTTOM_IN = 0.6
 DISPLACEMENT = Quantity("displacement at the last frame", "mm", 1e3, "plasma")
-_VIEWS = ((False, "front", "x"), (True, "side", "z"))
 
 
 @dataclass
@@ -55,6 +57,7 @@ class Run:
     last : Strands, the last frame at the input's vertices (a trimmed run: on its cut strands), m, world frame
     moved : (P,) float64, m, per vertex of ``last``: its distance from the same vertex at frame 0, in the body's
         frame
+    pose : (4, 4) float64, the body's rigid transform at the last frame, from its rest pose (column vectors, m)
     """
 
     source: ExportSource
@@ -64,6 +67,7 @@ class Run:
     time: float
     last: Strands
     moved: np.ndarray
+    pose: np.ndarray
 
     @property
     def largest(self) -> float:
@@ -84,11 +88,12 @@ def run_of(source: ExportSource) -> Run:
     """The column of a stage file with ``/frames``: its last frame and how far each vertex moved."""
     last_index = source.n_frames - 1
     first, last = source.frame(0), source.frame(last_index)
-    moved = np.linalg.norm(_in_body_frame(last.points, source.body_transform(last_index))
+    pose = source.body_transform(last_index)
+    moved = np.linalg.norm(_in_body_frame(last.points, pose)
                            - _in_body_frame(first.points, source.body_transform(0)), axis=1)
     target = "" if source.model is None else str(source.model.attrs.get("target", ""))
     return Run(source, str(source.frames.attrs.get("init", "")), target, str(source.frames.attrs.get("scene", "")),
-               float(source.times[last_index]), last, moved)
+               float(source.times[last_index]), last, moved, pose)
 
 
 def comparison_size(columns: int) -> tuple[int, int]:
@@ -107,13 +112,14 @@ def _title(run: Run) -> str:
 def draw_comparison(sources: list[ExportSource]):
     """The figure (matplotlib, Agg) and what it shows: ``(figure, runs, (vmin, vmax) in mm, lines, bodies)``;
     ``bodies`` holds each file's body note (see :meth:`ExportSource.body`)."""
-    from matplotlib.collections import LineCollection
+    from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
 
     runs = [run_of(source) for source in sources]
     axes = OutputAxes.onto(sources[0].up, "y")
-    before = axes.points(sources[0].points)
+    # each run's input carried with its body to the last frame's pose, and the last frame, picture frame
+    befores = [axes.points(run.source.points @ run.pose[:3, :3].T + run.pose[:3, 3]) for run in runs]
     afters = [axes.points(run.last.points) for run in runs]
     vmax = max(DISPLACEMENT.scale * run.largest for run in runs)
     norm = Normalize(0.0, vmax if vmax > 0 else 1.0)
@@ -124,31 +130,28 @@ def draw_comparison(sources: list[ExportSource]):
                             top=1.0 - TITLE_IN / (height / DPI), bottom=BOTTOM_IN / (height / DPI))
     fig.suptitle("before/after: the input (grey) against each run's last frame,\ncoloured by how far it moved",
                  fontsize=13, y=1.0 - 0.12 / (height / DPI), va="top")
-    bodies, collection = [], None
-    for row, (side, label, horizontal) in enumerate(_VIEWS):
-        screen_before, _ = _view(before, side)
-        screens = [_view(after, side)[0] for after in afters]
-        frame_on = np.concatenate([screen_before, *screens])  # the same limits in every column
-        for column, (run, screen) in enumerate(zip(runs, screens)):
+    bodies = []
+    for run in runs:
+        mesh, note = run.source.body()
+        body = None if mesh is None or run.source.body_removed else Body.posed(mesh, axes, run.pose)
+        bodies.append((body, note))
+    for row, (side, label, horizontal) in enumerate(VIEWS):
+        # the same limits in every column
+        frame_on = np.concatenate([_view(points, side)[0] for points in (*befores, *afters)])
+        for column, (run, before, after) in enumerate(zip(runs, befores, afters)):
             ax = fig.add_subplot(grid[row, column])
-            if row == 0:
-                mesh, note = run.source.body()
-                bodies.append((mesh, note))
-            mesh = bodies[column][0]
-            if mesh is not None:
-                _draw_body(ax, mesh, axes.rotation, side)
-            ax.add_collection(LineCollection(_segments(screen_before, run.source.offsets)[0], colors=INPUT_GREY,
-                                             linewidths=1.4, zorder=2))
-            segments, starts = _segments(screen, run.last.offsets)
-            value = DISPLACEMENT.scale * np.maximum(run.moved[starts], run.moved[starts + 1])
-            order = np.argsort(value, kind="stable")
-            collection = LineCollection(segments[order], array=value[order], cmap=DISPLACEMENT.cmap, norm=norm,
-                                        linewidths=0.8, zorder=3)
-            ax.add_collection(collection)
+            body = bodies[column][0]
+            if body is not None:
+                _draw_body(ax, body, side)
+            _draw_strands(ax, before, run.source.offsets, side, hidden_by(body, before, side), color=INPUT_GREY,
+                          linewidths=1.4, zorder=2.0)
+            _draw_strands(ax, after, run.last.offsets, side, hidden_by(body, after, side),
+                          values=DISPLACEMENT.scale * run.moved, cmap=DISPLACEMENT.cmap, norm=norm, linewidths=0.8,
+                          zorder=3.0)
             _frame_axes(ax, frame_on, f"{label} view", horizontal)
             if row == 0:
                 ax.set_title(_title(run) + f"\n\n{label} view", fontsize=10)
-    bar = fig.colorbar(collection, cax=fig.add_subplot(grid[:, -1]))
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=DISPLACEMENT.cmap), cax=fig.add_subplot(grid[:, -1]))
     label = f"{DISPLACEMENT.label} ({DISPLACEMENT.unit})"
     if vmax <= 0:
         bar.set_ticks([0.0])

@@ -129,7 +129,7 @@ def report_html(source, color: str | None, output: Path) -> tuple[str, list[str]
         f"{drawn.coloring.vmin:.4g} to {drawn.coloring.vmax:.4g})")
     parts += [
         "<h2>Picture</h2>",
-        f"<p>Front and side views, {escape(what)}.</p>",
+        f"<p>Front and side views, {escape(what)}; strands and dots the body hides are drawn faded.</p>",
         _image(drawn.png, f"{source.name}: front and side views", drawn.size),
     ]
     for name, values in summary["groups"].items():

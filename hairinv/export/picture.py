@@ -1,11 +1,14 @@
 """PNG (matplotlib, Agg, headless): the groom from the front and the side over its body, coloured by a quantity.
 
 Views are orthographic, in the groom's frame turned so that its up axis is vertical (+Y): the front view
-looks along -Z (horizontal axis x), the side view along -X (horizontal axis z). The body mesh, if the stage
-file records one that is still there unchanged (found as the USD writer finds it), is drawn light grey
-behind the strands, its triangles shaded by how squarely they face the viewer. Each strand segment takes
-the larger of its two vertices' values; segments are drawn in order of value, so the largest lie on top.
-With ``/frames`` a second row shows the input shape against the last frame.
+looks along -Z (horizontal axis x), the side view along +X (horizontal axis z); neither is mirrored. The
+body mesh, if the stage file records one that is still there unchanged (found as the USD writer finds it),
+is drawn light grey, its triangles shaded by how squarely they face the viewer, at the pose of the frame
+shown: at rest under the input shape, moved by ``/frames/body_transform`` of the last frame under the last
+frame. Strand segments and dots are drawn far to near; those the body hides (its surface nearest the viewer
+lies in front of them, found on a grid of cells by :mod:`hairinv.export._depth`) are drawn faded over it.
+Each strand segment takes the larger of its two vertices' values. With ``/frames`` a second row shows the
+input shape, carried with the body, against the last frame.
 
 The PNG's text chunks record what the colours mean: ``hairinv:quantity``, ``hairinv:unit``,
 ``hairinv:min`` and ``hairinv:max`` (the colour bar's range, in that unit: the quantity's smallest and
@@ -26,11 +29,13 @@ import numpy as np
 from .. import __version__
 from ..atomic import write_bytes
 from ..errors import InputError
+from ._depth import nearest_depth
 from .base import register_exporter
 from .convergence import convergence_of, convergence_png, convergence_size
 from .source import ExportSource, OutputAxes
 
-__all__ = ["COLORS", "PLOTS", "Coloring", "Picture", "coloring", "default_color", "draw", "picture", "png_size"]
+__all__ = ["COLORS", "PLOTS", "Body", "Coloring", "Picture", "coloring", "default_color", "draw", "hidden_by",
+           "picture", "png_size"]
 
 # Figure layout: inches at DPI, so the PNG is WIDTH_IN * DPI pixels wide and ROW_IN * DPI per row of views
 # (plus the title band); fixed, not cropped to the drawing, so every picture of one kind has one size.
@@ -48,7 +53,18 @@ STRAND_GREY = "0.3"
 DOT_SIZE = 12.0
 LAST_FRAME = "tab:red"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# (side, name, horizontal axis) of the two views of a row: the front view, then the side view.
+VIEWS = ((False, "front", "x"), (True, "side", "z"))
 
+# Depth: the body's surface nearest the viewer on a grid of DEPTH_CELLS cells across the strands' extent
+# (about the views' own pixels: a view is some 450 pixels across). A point is hidden where that surface is
+# more than DEPTH_TOLERANCE in front of it at its cell and at the 8 around it: hair lying on the scalp (a
+# few tenths of a millimetre off it, some just inside) stays in front, and the surface's slope across one
+# cell, which is steep at the body's outline, does not hide the strands beside it.
+DEPTH_CELLS = 512
+DEPTH_TOLERANCE = 2e-3  # m
+# Opacity of what the body hides, drawn over it: there, but not in front of the face.
+HIDDEN_ALPHA = 0.12
 
 @dataclass(frozen=True)
 class Quantity:
@@ -132,17 +148,73 @@ def _segments(points2d: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np
 
 
 def _view(points: np.ndarray, side: bool) -> tuple[np.ndarray, np.ndarray]:
-    """(horizontal, vertical) screen coordinates and depth towards the viewer, of points in the Y-up frame."""
-    if side:  # looking along -X, seen from +X: z increases to the viewer's left; drawn as it increases
-        return points[:, [2, 1]], points[:, 0]
-    return points[:, [0, 1]], points[:, 2]
+    """(horizontal, vertical) screen coordinates (n, 2) and depth towards the viewer (n,), m, of points
+    (n, 3) in the Y-up frame.
+
+    Front: the viewer at +Z looks along -Z, x to the right. Side: the viewer at -X looks along +X, z to the
+    right (right = forward x up, as for the front view), so the picture is what that viewer sees, not its
+    mirror image."""
+    if side:
+        return points[:, [2, 1]], np.ascontiguousarray(-points[:, 0])
+    return points[:, [0, 1]], np.ascontiguousarray(points[:, 2])
 
 
-def _draw_body(ax, mesh, rotation: np.ndarray, side: bool) -> None:
+@dataclass(frozen=True)
+class Body:
+    """The body mesh where a picture shows it.
+
+    Attributes
+    ----------
+    vertices : (V, 3) float64, m, the picture's Y-up frame
+    faces : (T, 3) int64
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+    @classmethod
+    def posed(cls, mesh, axes: OutputAxes, transform: np.ndarray | None = None) -> Body:
+        """``mesh`` (trimesh, m, the groom's frame, at rest) moved by the rigid ``transform`` (4, 4) from the
+        body's rest pose to the pose shown (``/frames/body_transform`` of a frame; None: at rest), then
+        turned with ``axes`` into the picture's frame."""
+        vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        if transform is not None:
+            vertices = vertices @ transform[:3, :3].T + transform[:3, 3]
+        return cls(np.ascontiguousarray(axes.points(vertices)), np.ascontiguousarray(mesh.faces, dtype=np.int64))
+
+
+def hidden_by(body: Body | None, points: np.ndarray, side: bool) -> np.ndarray:
+    """(n,) bool: which of ``points`` (n, 3), m, picture frame, the body hides in the view ``side``.
+
+    A point is hidden where the body's surface nearest the viewer lies more than :data:`DEPTH_TOLERANCE` in
+    front of it, at the cell of a :data:`DEPTH_CELLS` grid over the points that holds it and at the 8 cells
+    around it; so a point beside the body's outline or on its surface is not hidden."""
+    hidden = np.zeros(len(points), dtype=bool)
+    if body is None or len(points) == 0 or len(body.faces) == 0:
+        return hidden
+    screen, depth = _view(points, side)
+    lo, hi = screen.min(axis=0), screen.max(axis=0)
+    cell = max(float((hi - lo).max()), 1e-3) / DEPTH_CELLS
+    origin = lo - 2.0 * cell
+    nx, ny = (np.ceil((hi - lo) / cell).astype(np.int64) + 4).tolist()
+    near = np.full((ny, nx), -np.inf)
+    body_screen, body_depth = _view(body.vertices, side)
+    nearest_depth(np.ascontiguousarray(body_screen), body_depth, body.faces, float(origin[0]), float(origin[1]),
+                  cell, near)
+    padded = np.pad(near, 1, constant_values=-np.inf)
+    cover = near.copy()
+    for dj in range(3):
+        for di in range(3):
+            np.minimum(cover, padded[dj:dj + ny, di:di + nx], out=cover)
+    i = np.clip(((screen[:, 0] - origin[0]) / cell).astype(np.int64), 0, nx - 1)
+    j = np.clip(((screen[:, 1] - origin[1]) / cell).astype(np.int64), 0, ny - 1)
+    return cover[j, i] > depth + DEPTH_TOLERANCE
+
+
+def _draw_body(ax, body: Body, side: bool) -> None:
     from matplotlib.collections import PolyCollection
 
-    vertices = np.asarray(mesh.vertices, dtype=np.float64) @ rotation.T
-    faces = np.asarray(mesh.faces, dtype=np.int64)
+    vertices, faces = body.vertices, body.faces
     screen, depth = _view(vertices, side)
     tri = vertices[faces]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -153,6 +225,50 @@ def _draw_body(ax, mesh, rotation: np.ndarray, side: bool) -> None:
     polys = PolyCollection(screen[faces[order]], facecolors=np.repeat(grey[order, None], 3, axis=1),
                            edgecolors="none", zorder=1)
     ax.add_collection(polys)
+
+
+def _faded_zorder(zorder: float) -> float:
+    """Hidden strands and dots lie over the body (zorder 1) and under every visible one (zorder 2 and up)."""
+    return 1.0 + 0.1 * zorder
+
+
+def _draw_strands(ax, points: np.ndarray, offsets: np.ndarray, side: bool, hidden: np.ndarray, *, color=None,
+                  values=None, cmap=None, norm=None, linewidths: float = 0.6, zorder: float = 2.0,
+                  label: str | None = None) -> None:
+    """Strand segments far to near, in ``color`` or coloured by per-vertex ``values`` (a segment takes the
+    larger of its two vertices'); a segment whose two ends the body hides is drawn faded."""
+    from matplotlib.collections import LineCollection
+
+    screen, depth = _view(points, side)
+    segments, starts = _segments(screen, offsets)
+    far = 0.5 * (depth[starts] + depth[starts + 1])
+    faded = hidden[starts] & hidden[starts + 1]
+    value = None if values is None else np.maximum(values[starts], values[starts + 1])
+    for fade in (True, False):
+        pick = np.flatnonzero(faded == fade)
+        pick = pick[np.argsort(far[pick], kind="stable")]
+        style = {"linewidths": linewidths, "alpha": HIDDEN_ALPHA if fade else 1.0,
+                 "zorder": _faded_zorder(zorder) if fade else zorder}
+        if value is None:
+            style["colors"] = color
+        else:
+            style.update(array=value[pick], cmap=cmap, norm=norm)
+        if label is not None and not fade:
+            style["label"] = label
+        ax.add_collection(LineCollection(segments[pick], **style))
+
+
+def _draw_dots(ax, points: np.ndarray, side: bool, hidden: np.ndarray, values: np.ndarray, cmap, norm,
+               zorder: float = 3.0) -> None:
+    """Dots at ``points`` coloured by ``values``, far to near; those the body hides drawn faded."""
+    screen, depth = _view(points, side)
+    for fade in (True, False):
+        pick = np.flatnonzero(hidden == fade)
+        if len(pick):
+            pick = pick[np.argsort(depth[pick], kind="stable")]
+            ax.scatter(screen[pick, 0], screen[pick, 1], c=values[pick], s=DOT_SIZE, cmap=cmap, norm=norm,
+                       edgecolors="none", alpha=HIDDEN_ALPHA if fade else 1.0,
+                       zorder=_faded_zorder(zorder) if fade else zorder)
 
 
 def _frame_axes(ax, screen: np.ndarray, title: str, horizontal: str) -> None:
@@ -169,16 +285,16 @@ def _frame_axes(ax, screen: np.ndarray, title: str, horizontal: str) -> None:
 
 def draw(source: ExportSource, color: str | None, output: Path):
     """The figure (matplotlib, Agg) and what it shows: ``(figure, coloring or None, rows, lines)``."""
-    from matplotlib.collections import LineCollection
+    from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
 
     name = color if color is not None else default_color(source)
     paint = None if name is None else coloring(source, name, output)
     axes = OutputAxes.onto(source.up, "y")
-    rotation = axes.rotation
     points = axes.points(source.points)
     mesh, body_note = source.body()
+    body = None if mesh is None else Body.posed(mesh, axes)
     lines = [body_note if mesh is not None else f"no body drawn: {body_note}"]
     rows = 2 if source.n_frames else 1
     width, height = png_size(rows)
@@ -187,36 +303,29 @@ def draw(source: ExportSource, color: str | None, output: Path):
                             hspace=0.3, top=1.0 - TITLE_IN / (height / DPI) - 0.02, bottom=0.7 / (height / DPI))
     what = "input shape" if paint is None else f"input shape coloured by {paint.quantity.label}"
     fig.suptitle(f"{source.name}: {what}", fontsize=13)
-    norm = None
+    norm = cmap = values = None
     if paint is not None:
         vmin, vmax = paint.vmin, paint.vmax
         if vmax <= vmin:  # one value everywhere: a range around it, so the colour bar can be drawn
             vmin, vmax = vmin - 0.5 * max(abs(vmin), 1.0), vmax + 0.5 * max(abs(vmax), 1.0)
-        norm = Normalize(vmin, vmax)
-    for column, (side, label, horizontal) in enumerate(((False, "front", "x"), (True, "side", "z"))):
+        norm, cmap, values = Normalize(vmin, vmax), paint.quantity.cmap, paint.values
+    for column, (side, label, horizontal) in enumerate(VIEWS):
         ax = fig.add_subplot(grid[0, column])
-        screen, _ = _view(points, side)
-        if mesh is not None:
-            _draw_body(ax, mesh, rotation, side)
-        segments, starts = _segments(screen, source.offsets)
+        if body is not None:
+            _draw_body(ax, body, side)
+        hidden = hidden_by(body, points, side)
         if paint is None:
-            collection = LineCollection(segments, colors="tab:brown", linewidths=0.6, zorder=2)
+            _draw_strands(ax, points, source.offsets, side, hidden, color="tab:brown")
         elif paint.quantity.at_points:
-            ax.add_collection(LineCollection(segments, colors=STRAND_GREY, linewidths=0.6, zorder=2))
+            _draw_strands(ax, points, source.offsets, side, hidden, color=STRAND_GREY)
             loaded = np.flatnonzero(paint.values > 0)
-            loaded = loaded[np.argsort(paint.values[loaded], kind="stable")]
-            collection = ax.scatter(screen[loaded, 0], screen[loaded, 1], c=paint.values[loaded], s=DOT_SIZE,
-                                    cmap=paint.quantity.cmap, norm=norm, edgecolors="none", zorder=3)
+            _draw_dots(ax, points[loaded], side, hidden[loaded], values[loaded], cmap, norm)
         else:
-            value = np.maximum(paint.values[starts], paint.values[starts + 1])
-            order = np.argsort(value, kind="stable")
-            collection = LineCollection(segments[order], array=value[order], cmap=paint.quantity.cmap, norm=norm,
-                                        linewidths=0.8, zorder=2)
-        if not paint or not paint.quantity.at_points:
-            ax.add_collection(collection)
-        _frame_axes(ax, screen, f"{label} view", horizontal)
+            _draw_strands(ax, points, source.offsets, side, hidden, values=values, cmap=cmap, norm=norm,
+                          linewidths=0.8)
+        _frame_axes(ax, _view(points, side)[0], f"{label} view", horizontal)
     if paint is not None:
-        bar = fig.colorbar(collection, cax=fig.add_subplot(grid[0, 2]))
+        bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), cax=fig.add_subplot(grid[0, 2]))
         label = f"{paint.quantity.label} ({paint.quantity.unit})"
         if paint.vmax <= paint.vmin:
             bar.set_ticks([paint.vmin])
@@ -224,34 +333,45 @@ def draw(source: ExportSource, color: str | None, output: Path):
         bar.set_label(label)
         lines.append(f"colour: {paint.quantity.label}, {paint.vmin:.4g} to {paint.vmax:.4g} {paint.quantity.unit}")
     if rows == 2:
-        last = source.n_frames - 1
-        frame = source.frame(last)
-        moved = None
-        if frame.points.shape == source.points.shape:
-            moved = 1e3 * float(np.linalg.norm(frame.points - source.points, axis=1).max())
-        after = axes.points(frame.points)
-        for column, (side, label, horizontal) in enumerate(((False, "front", "x"), (True, "side", "z"))):
-            ax = fig.add_subplot(grid[1, column])
-            screen, _ = _view(points, side)
-            screen_after, _ = _view(after, side)
-            if mesh is not None:
-                _draw_body(ax, mesh, rotation, side)
-            ax.add_collection(LineCollection(_segments(screen, source.offsets)[0], colors=INPUT_GREY,
-                                             linewidths=1.4, zorder=2, label="input"))
-            ax.add_collection(LineCollection(_segments(screen_after, frame.offsets)[0], colors=LAST_FRAME,
-                                             linewidths=0.6, zorder=3, label=frame.label))
-            _frame_axes(ax, np.concatenate([screen, screen_after]), f"before/after, {label} view", horizontal)
-            ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
-        scene = source.frames.attrs.get("scene", "")
-        note = f"{scene} scene, " if scene else ""
-        if moved is not None:
-            note += f"the last frame's vertices are at most {moved:.3g} mm from the input's"
-        else:
-            note += "the last frame is on the trimmed strands"
-        fig.text(0.5, 1.0 - (TITLE_IN + ROW_IN - 0.1) / (height / DPI), f"before/after: the input (grey) against "
-                 f"{frame.label} (red); {note}", ha="center", fontsize=11)
-        lines.append(f"before/after: the input against {frame.label}; {note}")
+        lines.append(_before_after(fig, grid, source, axes, mesh, height))
     return fig, paint, rows, lines
+
+
+def _before_after(fig, grid, source: ExportSource, axes: OutputAxes, mesh, height: float) -> str:
+    """The second row: the input, carried with the body, against the last frame; the line saying so."""
+    last = source.n_frames - 1
+    frame = source.frame(last)
+    pose = source.body_transform(last)
+    carried = source.points @ pose[:3, :3].T + pose[:3, 3]  # the input where the body has taken it
+    turned = not np.allclose(pose, np.eye(4), rtol=0.0, atol=1e-12)
+    moved = None
+    if frame.points.shape == carried.shape:
+        moved = 1e3 * float(np.linalg.norm(frame.points - carried, axis=1).max())
+    body = None if mesh is None or source.body_removed else Body.posed(mesh, axes, pose)
+    before, after = axes.points(carried), axes.points(frame.points)
+    for column, (side, label, horizontal) in enumerate(VIEWS):
+        ax = fig.add_subplot(grid[1, column])
+        if body is not None:
+            _draw_body(ax, body, side)
+        _draw_strands(ax, before, source.offsets, side, hidden_by(body, before, side), color=INPUT_GREY,
+                      linewidths=1.4, zorder=2.0, label="input")
+        _draw_strands(ax, after, frame.offsets, side, hidden_by(body, after, side), color=LAST_FRAME,
+                      linewidths=0.6, zorder=3.0, label=frame.label)
+        _frame_axes(ax, np.concatenate([_view(before, side)[0], _view(after, side)[0]]),
+                    f"before/after, {label} view", horizontal)
+        ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
+    scene = source.frames.attrs.get("scene", "")
+    note = f"{scene} scene, " if scene else ""
+    if source.body_removed:
+        note += "the body removed, "
+    if moved is not None:
+        note += f"the last frame's vertices are at most {moved:.3g} mm from the input's"
+    else:
+        note += "the last frame is on the trimmed strands"
+    carried_note = ", moved with the body," if turned else ""
+    fig.text(0.5, 1.0 - (TITLE_IN + ROW_IN - 0.25) / (height / DPI), f"before/after: the input (grey){carried_note} "
+             f"against {frame.label} (red)\n{note}", ha="center", va="center", fontsize=11)
+    return f"before/after: the input{carried_note} against {frame.label}; {note}"
 
 
 def _owns(path: Path) -> bool:
