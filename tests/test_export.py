@@ -891,6 +891,45 @@ def test_png_of_a_real_simulation(real, tmp_path):
     assert _body_pixels(pixels) > 0.05 * pixels.shape[0] * pixels.shape[1]  # the bust, drawn behind the hair
 
 
+def test_png_of_a_turning_head_carries_the_input_with_the_body(real, tmp_path):
+    """The motion scene turns the head: the before/after row carries the input with the body to the last
+    frame's pose, and the distance it prints is the last frame's from the input so carried."""
+    result = hairinv(real, "export", "motion.h5", "-o", tmp_path / "motion.png")
+    assert result.returncode == 0, result.stderr
+    [line] = [line for line in result.stdout.splitlines() if line.startswith("before/after")]
+    assert "moved with the body" in line
+    f = _h5(real / "motion.h5")
+    last = len(f["frames"]["time"]) - 1
+    T = f["frames"]["body_transform"][last]
+    assert np.linalg.norm(T[:3, :3] - np.eye(3)) > 0.1  # the head has turned
+    carried = f["curves"]["points"] @ T[:3, :3].T + T[:3, 3]
+    frame = np.concatenate(_frames_expected(real / "motion.h5", last))
+    expected = 1e3 * np.linalg.norm(frame - carried, axis=1).max()
+    printed = float(line.split("at most ")[1].split(" mm")[0])
+    assert printed == pytest.approx(expected, rel=5e-3)  # printed to 3 significant digits
+    # the distance in the world frame, which adds the turn (8 degrees at 0.2 s), is not the one printed
+    world = 1e3 * np.linalg.norm(frame - f["curves"]["points"], axis=1).max()
+    assert abs(world - printed) > 1.0
+
+
+def test_png_contact_force_scale_is_the_quantiles_of_the_dotted_forces(real, tmp_path):
+    """The dots are the vertices whose net force exceeds the model's carrying threshold; the colour bar runs
+    between numpy's 2nd and 98th percentiles of their forces (the forces read from the USD export)."""
+    assert hairinv(real, "export", "model.h5", "-o", tmp_path / "model.png").returncode == 0
+    assert hairinv(real, "export", "model.h5", "-o", tmp_path / "model.usda").returncode == 0
+    usd = _open(tmp_path / "model.usda")
+    force = 1e3 * np.array(_primvar(_curves(usd), "groom_contact_force").Get(), dtype=np.float64)
+    floor = 1e3 * _h5(real / "model.h5")["model"]["attrs"]["carrying_threshold"]
+    dotted = force[force > floor]
+    lo, hi = np.quantile(dotted, [0.02, 0.98], method="inverted_cdf")
+    _, text = _png(tmp_path / "model.png")
+    assert hi >= 100 * lo and text["hairinv:scale"] == "log, 2-98 % quantiles"  # forces spanning decades
+    # float32 in USD: 1e-7 relative
+    assert float(text["hairinv:bar_min"]) == pytest.approx(lo, rel=1e-6)
+    assert float(text["hairinv:bar_max"]) == pytest.approx(hi, rel=1e-6)
+    assert float(text["hairinv:max"]) == pytest.approx(force.max(), rel=1e-6)
+
+
 @pytest.mark.parametrize("args, name, fragment", [
     (["model.h5", "-o", "out.png", "--color", "curliness"], "out.png", "--color takes contact-force"),
     (["curly.h5", "-o", "out.png", "--color", "contact-force"], "curly.h5", "no /model group"),

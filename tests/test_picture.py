@@ -4,6 +4,8 @@
   rotation and translation built here with Rodrigues' formula, then turned from +Z up to the picture's +Y.
 - Depth: which points a ball hides, against the closed form of a sphere; on a drawn picture, a strand
   behind the ball is faded and drawn before the one in front, and its pixels stay the body's grey.
+- The colour scale: the bar's limits are numpy's quantiles of the values where a few values would set its
+  range, and the bar is logarithmic where those span two decades.
 
 Runtime: a few seconds (the depth kernel compiles once).
 """
@@ -17,7 +19,9 @@ import pytest
 import trimesh  # a dependency of hairinv
 
 from hairinv import stages
-from hairinv.export.picture import DEPTH_TOLERANCE, HIDDEN_ALPHA, Body, draw, hidden_by
+from hairinv.export import export
+from hairinv.export.picture import (DEPTH_TOLERANCE, HIDDEN_ALPHA, LOG_SPAN, OUTLIER_SHARE, QUANTILES,
+                                    Body, colour_scale, draw, hidden_by)
 from hairinv.export.source import ExportSource
 
 # float64 round-off of a rotation and translation of points within a metre of the origin.
@@ -235,3 +239,69 @@ def test_a_strand_behind_the_body_is_faded_and_drawn_first(tmp_path):
     middle = 0.5 * STRAND_LENGTH
     assert colour_near(STRANDS["F"][0] + middle, STRANDS["F"][1]) > 0.3
     assert colour_near(STRANDS["B"][0] + middle, STRANDS["B"][1]) < 0.1
+
+
+# --------------------------------------------------------------------------- the colour scale
+
+
+@pytest.mark.parametrize("n", [50, 500, 5000])
+def test_values_spanning_decades_get_a_log_scale_between_the_quantiles(rng, n):
+    values = np.exp(rng.normal(0.0, 3.0, size=n))  # 2nd to 98th percentile: e^(+-6.2), five decades
+    scale = colour_scale(values)
+    lo, hi = np.quantile(values, QUANTILES, method="inverted_cdf")
+    assert hi / lo >= LOG_SPAN
+    assert scale.log and scale.clipped
+    assert (scale.vmin, scale.vmax) == pytest.approx((lo, hi), rel=ROUNDOFF_M)
+    assert scale.note == "log scale, 2-98 % quantiles; beyond clipped"
+
+
+def test_a_few_outliers_clip_the_scale_to_the_quantiles(rng):
+    values = np.concatenate([rng.uniform(1.0, 2.0, size=500), [1e3, 2e3, 5e3]])
+    scale = colour_scale(values)
+    lo, hi = np.quantile(values, QUANTILES, method="inverted_cdf")
+    assert hi - lo < OUTLIER_SHARE * np.ptp(values)
+    assert not scale.log and scale.clipped
+    assert (scale.vmin, scale.vmax) == pytest.approx((lo, hi), rel=ROUNDOFF_M)
+    assert scale.note == "2-98 % quantiles; beyond clipped"
+    assert scale.extend(values) == "both"
+
+
+@pytest.mark.parametrize("values", [np.linspace(1.0, 2.0, 101), np.array([1.0, 2.0]), np.array([1.0] * 98 + [2.0, 3.0]),
+                                    np.array([0.0, 1e-3, 1.0]), np.array([4.0])],
+                         ids=["spread", "two", "most equal", "with zero", "one"])
+def test_values_without_outliers_keep_their_whole_range(values):
+    scale = colour_scale(values)
+    assert not scale.clipped and not scale.log and scale.note == ""
+    assert (scale.vmin, scale.vmax) == (values.min(), values.max())
+    assert scale.extend(values) == "neither"
+
+
+def test_the_picture_colour_bar_is_the_quantiles_of_the_strands_values(tmp_path, rng):
+    """40 strands side by side over the ball with fit errors spanning decades (per strand, so each counts
+    once): the bar's limits are numpy's quantiles of those, in mm, on a log scale, and its label says so."""
+    from matplotlib.collections import LineCollection
+    from PIL import Image
+
+    n = 40
+    strands = {f"s{k}": (-0.18 + 0.009 * k, 0.15, 0.05) for k in range(n)}
+    error = np.exp(rng.normal(np.log(1e-4), 2.5, size=n))  # m
+    make_ball_stage(tmp_path, fit_error=error, strands=strands)
+    report = export(tmp_path / "ball.h5", tmp_path / "out.png", color="fit-error")
+    with Image.open(tmp_path / "out.png") as image:
+        text = dict(image.text)
+    lo, hi = np.quantile(1e3 * error, QUANTILES, method="inverted_cdf")
+    assert text["hairinv:scale"] == "log, 2-98 % quantiles"
+    assert float(text["hairinv:bar_min"]) == pytest.approx(lo, rel=ROUNDOFF_M)
+    assert float(text["hairinv:bar_max"]) == pytest.approx(hi, rel=ROUNDOFF_M)
+    assert float(text["hairinv:min"]) == pytest.approx(1e3 * error.min(), rel=ROUNDOFF_M)
+    assert float(text["hairinv:max"]) == pytest.approx(1e3 * error.max(), rel=ROUNDOFF_M)
+    assert any("log scale, 2-98 % quantiles; beyond clipped" in line for line in report.lines)
+    fig, _, _, _ = draw(ExportSource(tmp_path / "ball.h5"), "fit-error", tmp_path / "out.png")
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    assert any("log scale, 2-98 % quantiles; beyond clipped" in label for label in labels)
+    # every segment keeps a colour: values beyond the bar take its end colours, none is left out
+    for collection in fig.axes[0].collections:
+        if isinstance(collection, LineCollection) and collection.get_array() is not None:
+            array = collection.get_array()
+            assert not np.ma.is_masked(array) and np.all((array >= lo * (1 - ROUNDOFF_M))
+                                                          & (array <= hi * (1 + ROUNDOFF_M)))

@@ -27,7 +27,7 @@ import numpy as np
 from .. import __version__
 from ..atomic import write_bytes
 from .base import register_comparison
-from .picture import (DPI, INPUT_GREY, VIEWS, Body, Coloring, Picture, Quantity, _draw_body,
+from .picture import (DPI, INPUT_GREY, VIEWS, Body, ColourScale, Coloring, Picture, Quantity, _draw_body,
                       _draw_strands, _frame_axes, _view, hidden_by)
 from .source import ExportSource, OutputAxes, Strands
 
@@ -167,7 +167,8 @@ def _metadata(runs: list[Run], vmin: float, vmax: float) -> dict:
     names = ", ".join(run.source.name for run in runs)
     return {"Title": f"comparison of {names}", "Software": f"hairinv {__version__}", "Source": names,
             "hairinv:quantity": "displacement", "hairinv:unit": DISPLACEMENT.unit, "hairinv:min": repr(vmin),
-            "hairinv:max": repr(vmax), "hairinv:columns": json.dumps([run.column() for run in runs])}
+            "hairinv:max": repr(vmax), "hairinv:scale": "linear", "hairinv:bar_min": repr(vmin),
+            "hairinv:bar_max": repr(vmax), "hairinv:columns": json.dumps([run.column() for run in runs])}
 
 
 def comparison_picture(sources: list[ExportSource]) -> tuple[Picture, list[Run]]:
@@ -184,7 +185,7 @@ def comparison_picture(sources: list[ExportSource]) -> tuple[Picture, list[Run]]
         else:  # the file names a body that is gone or changed: say so as USD does
             warnings.append(f"warning: {run.source.name}: {note}; its column has no body")
     moved = np.concatenate([DISPLACEMENT.scale * run.moved for run in runs])
-    paint = Coloring("displacement", DISPLACEMENT, moved, vmin, vmax)
+    paint = Coloring("displacement", DISPLACEMENT, moved, vmin, vmax, ColourScale(vmin, vmax))
     return Picture(buffer.getvalue(), paint, comparison_size(len(runs)), lines, warnings), runs
 
 

@@ -125,8 +125,7 @@ def report_html(source, color: str | None, output: Path) -> tuple[str, list[str]
         parts.append("<h2>Warnings</h2>")
         parts += [f'<p class="warning">{escape(w)}</p>' for w in summary["warnings"]]
     what = "the input shape" if drawn.coloring is None else (
-        f"coloured by {drawn.coloring.quantity.label} ({drawn.coloring.quantity.unit}, "
-        f"{drawn.coloring.vmin:.4g} to {drawn.coloring.vmax:.4g})")
+        f"coloured by {drawn.coloring.quantity.label} ({drawn.coloring.describe()})")
     parts += [
         "<h2>Picture</h2>",
         f"<p>Front and side views, {escape(what)}; strands and dots the body hides are drawn faded.</p>",

@@ -7,12 +7,15 @@ is drawn light grey, its triangles shaded by how squarely they face the viewer, 
 shown: at rest under the input shape, moved by ``/frames/body_transform`` of the last frame under the last
 frame. Strand segments and dots are drawn far to near; those the body hides (its surface nearest the viewer
 lies in front of them, found on a grid of cells by :mod:`hairinv.export._depth`) are drawn faded over it.
-Each strand segment takes the larger of its two vertices' values. With ``/frames`` a second row shows the
-input shape, carried with the body, against the last frame.
+Each strand segment takes the larger of its two vertices' values. The colour bar runs over the values, or
+over their 2nd to 98th percentiles where a few values would set its range, on a log scale where those
+span two decades or more (:func:`colour_scale`); its label says which. With ``/frames`` a second row
+shows the input shape, carried with the body, against the last frame.
 
 The PNG's text chunks record what the colours mean: ``hairinv:quantity``, ``hairinv:unit``,
-``hairinv:min`` and ``hairinv:max`` (the colour bar's range, in that unit: the quantity's smallest and
-largest value over the vertices or strands it is defined on).
+``hairinv:min`` and ``hairinv:max`` (the quantity's smallest and largest value over the vertices or strands
+it is defined on), ``hairinv:scale``, ``hairinv:bar_min`` and ``hairinv:bar_max`` (the colour bar's scale
+and limits, in that unit).
 
 ``--plot convergence`` draws the model's contact solver history instead
 (:mod:`hairinv.export.convergence`); several stage files are drawn side by side by
@@ -34,8 +37,8 @@ from .base import register_exporter
 from .convergence import convergence_of, convergence_png, convergence_size
 from .source import ExportSource, OutputAxes
 
-__all__ = ["COLORS", "PLOTS", "Body", "Coloring", "Picture", "coloring", "default_color", "draw", "hidden_by",
-           "picture", "png_size"]
+__all__ = ["COLORS", "PLOTS", "Body", "ColourScale", "Coloring", "Picture", "colour_scale", "coloring",
+           "default_color", "draw", "hidden_by", "picture", "png_size"]
 
 # Figure layout: inches at DPI, so the PNG is WIDTH_IN * DPI pixels wide and ROW_IN * DPI per row of views
 # (plus the title band); fixed, not cropped to the drawing, so every picture of one kind has one size.
@@ -66,6 +69,18 @@ DEPTH_TOLERANCE = 2e-3  # m
 # Opacity of what the body hides, drawn over it: there, but not in front of the face.
 HIDDEN_ALPHA = 0.12
 
+# The colour scale (:func:`colour_scale`): where the spread between these quantiles is less than
+# OUTLIER_SHARE of the values' whole range, a few values would take most of the colour bar, so the bar runs
+# between the quantiles; where the upper quantile is LOG_SPAN times the lower or more (two decades), the
+# bar is logarithmic between the quantiles. The quantiles are values that occur (numpy's ``inverted_cdf``):
+# 98 strands of stiffening 1 and two stiffened keep the whole range, 1 to the largest factor, where an
+# interpolated 98th percentile (1.02) would draw both stiffened strands in one clipped colour.
+QUANTILES = (0.02, 0.98)
+QUANTILE_METHOD = "inverted_cdf"
+OUTLIER_SHARE = 0.5
+LOG_SPAN = 100.0
+
+
 @dataclass(frozen=True)
 class Quantity:
     """A ``--color`` choice: its label, the unit shown and the factor from SI to it, the colour map."""
@@ -87,16 +102,101 @@ COLORS = {
 _CHOICES = ", ".join(list(COLORS)[:-1]) + " or " + list(COLORS)[-1]
 
 
+@dataclass(frozen=True)
+class ColourScale:
+    """How values map onto the colour map: linearly or logarithmically from ``vmin`` to ``vmax``; values
+    beyond take the end colours. ``clipped``: the limits are the :data:`QUANTILES` of the values, not their
+    extremes."""
+
+    vmin: float
+    vmax: float
+    log: bool = False
+    clipped: bool = False
+
+    @property
+    def kind(self) -> str:
+        """``linear``, ``linear, 2-98 % quantiles`` or ``log, 2-98 % quantiles`` (the PNG's ``hairinv:scale``)."""
+        lo, hi = (f"{100 * q:g}" for q in QUANTILES)
+        return ("log" if self.log else "linear") + (f", {lo}-{hi} % quantiles" if self.clipped else "")
+
+    @property
+    def note(self) -> str:
+        """What the colour bar's label adds: empty for a linear bar over every value."""
+        if not self.clipped:
+            return ""
+        lo, hi = (f"{100 * q:g}" for q in QUANTILES)
+        return ("log scale, " if self.log else "") + f"{lo}-{hi} % quantiles; beyond clipped"
+
+    def norm(self):
+        from matplotlib.colors import LogNorm, Normalize
+
+        vmin, vmax = self.vmin, self.vmax
+        if vmax <= vmin:  # one value everywhere: a range around it, so the colour bar can be drawn
+            return Normalize(vmin - 0.5 * max(abs(vmin), 1.0), vmax + 0.5 * max(abs(vmax), 1.0))
+        return LogNorm(vmin, vmax) if self.log else Normalize(vmin, vmax)
+
+    def clip(self, values: np.ndarray) -> np.ndarray:
+        """``values`` within the limits: those beyond are drawn in the end colours (a log scale would leave
+        zeros out)."""
+        return np.clip(values, self.vmin, self.vmax) if self.vmax > self.vmin else values
+
+    def extend(self, values: np.ndarray) -> str:
+        """The colour bar's ``extend``: an arrow at each end beyond which values were clipped."""
+        below = bool(np.any(values < self.vmin))
+        above = bool(np.any(values > self.vmax))
+        return {(False, False): "neither", (True, False): "min", (False, True): "max"}.get((below, above), "both")
+
+
+def colour_scale(values: np.ndarray) -> ColourScale:
+    """The colour bar's scale for ``values`` (the finite ones): between their 2nd and 98th percentiles
+    (:data:`QUANTILES`, values that occur) where that spread is less than half their whole range, on a log
+    scale where the 98th percentile is 100 times the 2nd or more (:data:`OUTLIER_SHARE`, :data:`LOG_SPAN`);
+    else linear from the smallest to the largest."""
+    values = np.asarray(values, dtype=np.float64)
+    values = values[np.isfinite(values)]
+    if len(values) == 0:
+        return ColourScale(0.0, 0.0)
+    lo, hi = float(values.min()), float(values.max())
+    q_lo, q_hi = (float(q) for q in np.quantile(values, QUANTILES, method=QUANTILE_METHOD))
+    if q_hi > q_lo:  # an empty spread (most values equal: stiffening 1) leaves the extremes to show
+        if q_lo > 0.0 and q_hi >= LOG_SPAN * q_lo:
+            return ColourScale(q_lo, q_hi, log=True, clipped=True)
+        if q_hi - q_lo < OUTLIER_SHARE * (hi - lo):
+            return ColourScale(q_lo, q_hi, clipped=True)
+    return ColourScale(lo, hi)
+
+
 @dataclass
 class Coloring:
-    """The values a picture is coloured by: ``values`` per input vertex (in ``quantity.unit``), and the
-    range of the quantity where it is defined (``vmin``, ``vmax``)."""
+    """The values a picture is coloured by: ``values`` per input vertex (in ``quantity.unit``), the range of
+    the quantity where it is defined (``vmin``, ``vmax``) and the colour bar's scale. A quantity drawn as
+    dots has one at each vertex whose value exceeds ``floor``."""
 
     name: str
     quantity: Quantity
     values: np.ndarray
     vmin: float
     vmax: float
+    scale: ColourScale | None = None
+    floor: float = 0.0
+
+    @property
+    def dotted(self) -> np.ndarray:
+        """Indices of the vertices drawn as dots."""
+        return np.flatnonzero(self.values > self.floor)
+
+    @property
+    def bar(self) -> ColourScale:
+        return self.scale if self.scale is not None else ColourScale(self.vmin, self.vmax)
+
+    def describe(self) -> str:
+        """The values and the colour bar in words: ``0 to 0.75 mN; colour bar 0.01 to 0.3 mN, log scale, 2-98 %
+        quantiles; beyond clipped``, or ``0.01 to 0.3 mN`` where the bar runs over every value."""
+        bar, unit = self.bar, self.quantity.unit
+        text = f"{self.vmin:.4g} to {self.vmax:.4g} {unit}"
+        if bar.clipped:
+            text += f"; colour bar {bar.vmin:.4g} to {bar.vmax:.4g} {unit}, {bar.note}"
+        return text
 
 
 def png_size(rows: int) -> tuple[int, int]:
@@ -114,7 +214,12 @@ def default_color(source: ExportSource) -> str | None:
 
 
 def coloring(source: ExportSource, name: str, output: Path) -> Coloring:
-    """The values of quantity ``name`` on the input vertices, or an :class:`InputError` naming the file."""
+    """The values of quantity ``name`` on the input vertices, or an :class:`InputError` naming the file.
+
+    The colour bar's scale is set by the values where they are drawn: for ``contact-force`` the vertices
+    that carry force, above ``/model`` ``carrying_threshold`` as ``invert`` counts contacts carrying force
+    (the others are not dotted), every vertex for ``rest-curvature``, every strand (once each) for the
+    per-strand quantities."""
     if name not in COLORS:
         raise InputError(f"--color takes {_CHOICES}, not {name!r}", output)
     quantity = COLORS[name]
@@ -127,7 +232,10 @@ def coloring(source: ExportSource, name: str, output: Path) -> Coloring:
         if values is None:
             raise InputError("has no contact forces matching its /contacts to colour by", source.path)
         values = values[0] * quantity.scale
-        return Coloring(name, quantity, values, float(values.min()), float(values.max()))
+        floor = quantity.scale * float(source.model.attrs.get("carrying_threshold", 0.0)) if quantity.at_points \
+            else 0.0
+        drawn = values[values > floor] if quantity.at_points else values
+        return Coloring(name, quantity, values, float(values.min()), float(values.max()), colour_scale(drawn), floor)
     strand_values = source.strand_values()
     key = "stiffening" if name == "stiffening" else "fit_error_max"
     if key not in strand_values:
@@ -135,7 +243,7 @@ def coloring(source: ExportSource, name: str, output: Path) -> Coloring:
                if name == "stiffening" else "has no /helices group, so it has no fit error")
         raise InputError(f"{why}; choose another --color", source.path)
     per = strand_values[key][0] * quantity.scale
-    return Coloring(name, quantity, per[per_strand], float(per.min()), float(per.max()))
+    return Coloring(name, quantity, per[per_strand], float(per.min()), float(per.max()), colour_scale(per))
 
 
 def _segments(points2d: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -286,7 +394,6 @@ def _frame_axes(ax, screen: np.ndarray, title: str, horizontal: str) -> None:
 def draw(source: ExportSource, color: str | None, output: Path):
     """The figure (matplotlib, Agg) and what it shows: ``(figure, coloring or None, rows, lines)``."""
     from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
 
     name = color if color is not None else default_color(source)
@@ -305,10 +412,8 @@ def draw(source: ExportSource, color: str | None, output: Path):
     fig.suptitle(f"{source.name}: {what}", fontsize=13)
     norm = cmap = values = None
     if paint is not None:
-        vmin, vmax = paint.vmin, paint.vmax
-        if vmax <= vmin:  # one value everywhere: a range around it, so the colour bar can be drawn
-            vmin, vmax = vmin - 0.5 * max(abs(vmin), 1.0), vmax + 0.5 * max(abs(vmax), 1.0)
-        norm, cmap, values = Normalize(vmin, vmax), paint.quantity.cmap, paint.values
+        norm, cmap = paint.bar.norm(), paint.quantity.cmap
+        values = paint.bar.clip(paint.values)
     for column, (side, label, horizontal) in enumerate(VIEWS):
         ax = fig.add_subplot(grid[0, column])
         if body is not None:
@@ -318,20 +423,26 @@ def draw(source: ExportSource, color: str | None, output: Path):
             _draw_strands(ax, points, source.offsets, side, hidden, color="tab:brown")
         elif paint.quantity.at_points:
             _draw_strands(ax, points, source.offsets, side, hidden, color=STRAND_GREY)
-            loaded = np.flatnonzero(paint.values > 0)
+            loaded = paint.dotted
             _draw_dots(ax, points[loaded], side, hidden[loaded], values[loaded], cmap, norm)
         else:
             _draw_strands(ax, points, source.offsets, side, hidden, values=values, cmap=cmap, norm=norm,
                           linewidths=0.8)
         _frame_axes(ax, _view(points, side)[0], f"{label} view", horizontal)
     if paint is not None:
-        bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), cax=fig.add_subplot(grid[0, 2]))
+        bar_scale = paint.bar
+        shown = paint.values[paint.dotted] if paint.quantity.at_points else paint.values
+        bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), cax=fig.add_subplot(grid[0, 2]),
+                           extend=bar_scale.extend(shown))
+        bar.outline.set_visible(False)  # the colours, and the arrows of clipped ends, stand without a frame
         label = f"{paint.quantity.label} ({paint.quantity.unit})"
-        if paint.vmax <= paint.vmin:
-            bar.set_ticks([paint.vmin])
-            label += f": {paint.vmin:.4g} everywhere"
+        if bar_scale.vmax <= bar_scale.vmin:
+            bar.set_ticks([bar_scale.vmin])
+            label += f": {bar_scale.vmin:.4g} " + ("at every dot" if paint.quantity.at_points else "everywhere")
+        elif bar_scale.note:
+            label += f",\n{bar_scale.note}"
         bar.set_label(label)
-        lines.append(f"colour: {paint.quantity.label}, {paint.vmin:.4g} to {paint.vmax:.4g} {paint.quantity.unit}")
+        lines.append(f"colour: {paint.quantity.label}, {paint.describe()}")
     if rows == 2:
         lines.append(_before_after(fig, grid, source, axes, mesh, height))
     return fig, paint, rows, lines
@@ -387,7 +498,9 @@ def _metadata(paint: Coloring | None, source: ExportSource) -> dict:
     meta = {"Title": f"{source.name}", "Software": f"hairinv {__version__}", "Source": source.name}
     if paint is not None:
         meta.update({"hairinv:quantity": paint.name, "hairinv:unit": paint.quantity.unit,
-                     "hairinv:min": repr(paint.vmin), "hairinv:max": repr(paint.vmax)})
+                     "hairinv:min": repr(paint.vmin), "hairinv:max": repr(paint.vmax),
+                     "hairinv:scale": paint.bar.kind, "hairinv:bar_min": repr(paint.bar.vmin),
+                     "hairinv:bar_max": repr(paint.bar.vmax)})
     return meta
 
 
