@@ -31,6 +31,10 @@ __all__ = [
     "CURVE_READERS",
     "MESH_READERS",
     "CURVE_WRITERS",
+    "ANIMATED_READERS",
+    "SEQUENCE",
+    "register_animated_reader",
+    "animated_reader_for",
 ]
 
 
@@ -76,6 +80,11 @@ CurvesWriter = Callable[..., None]
 CURVE_READERS: dict[str, CurvesReader] = {}
 MESH_READERS: dict[str, MeshReader] = {}
 CURVE_WRITERS: dict[str, CurvesWriter] = {}
+#: Animated-body readers: key -> (probe, reader). ``probe(path) -> bool`` says whether the file animates a body;
+#: ``reader(path, fps=None) -> AnimatedBody``. The key is a suffix, or :data:`SEQUENCE` for a folder or a
+#: ``body.####.obj`` pattern of per-frame meshes.
+ANIMATED_READERS: dict[str, tuple[Callable[[Path], bool], Callable[..., object]]] = {}
+SEQUENCE = "sequence"
 
 
 def _register(table: dict, suffixes: tuple[str, ...]):
@@ -100,6 +109,28 @@ def register_mesh_reader(*suffixes: str):
 def register_curves_writer(*suffixes: str):
     """Register ``fn(path, points, offsets, **options)`` writing strands to a file."""
     return _register(CURVE_WRITERS, suffixes)
+
+
+def register_animated_reader(*keys: str, probe: Callable[[Path], bool]):
+    """Register ``fn(path, fps=None) -> AnimatedBody`` for suffixes (or :data:`SEQUENCE`), with ``probe(path)``
+    telling whether a file of that suffix holds an animated body (a GLB may hold a static one)."""
+
+    def decorate(fn):
+        for key in keys:
+            ANIMATED_READERS[key.lower()] = (probe, fn)
+        return fn
+
+    return decorate
+
+
+def _animated_key(path: Path) -> str:
+    path = Path(path)
+    return SEQUENCE if path.is_dir() or "#" in path.name else _suffix(path)
+
+
+def animated_reader_for(path: Path):
+    """The ``(probe, reader)`` pair of an animated-body path, or None when no animated reader takes it."""
+    return ANIMATED_READERS.get(_animated_key(path))
 
 
 def _suffix(path: Path) -> str:
