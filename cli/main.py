@@ -831,15 +831,23 @@ def _export_record(stage_files, output: Path, shape, color, plot, basis) -> dict
 @click.pass_obj
 @handle_errors
 def info(obj, file, as_json):
-    """Summarise a hairinv stage file: groups, sizes and key figures."""
-    from hairinv import stages
+    """Summarise a hairinv stage file (groups, sizes and key figures) or an animated body (frames, rate,
+    time range, bounds, joints)."""
+    from hairinv import formats, stages
     from hairinv.errors import InputError
     from hairinv.summary import summarise, summary_lines
 
+    say = functools.partial(_say, {**obj, "quiet": False})
+    if formats.is_animated_body(file):
+        from hairinv.formats.animated import summary_lines as body_lines
+
+        body = formats.read_animated_body(file).summary()
+        for line in [json.dumps(body, indent=2)] if as_json else body_lines(body, str(file)):
+            say(line)
+        return
     if not file.exists():
         raise InputError("no such file", file)
     summary = summarise(stages.read_stage(file))
-    say = functools.partial(_say, {**obj, "quiet": False})
     if as_json:
         say(json.dumps(summary, indent=2))
         return

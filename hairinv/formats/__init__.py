@@ -2,7 +2,8 @@
 
 Each module of this package handles one format and registers its functions
 with the decorators of :mod:`hairinv.formats.base`; importing this package
-imports them all. Use :func:`read_curves` and :func:`read_mesh`.
+imports them all. Use :func:`read_curves` and :func:`read_mesh`; for a body that moves (a skinned glTF, a
+USD point cache or skeleton, a mesh sequence), :func:`is_animated_body` and :func:`read_animated_body`.
 """
 
 from __future__ import annotations
@@ -14,7 +15,9 @@ from .base import (
     CURVE_READERS,
     CURVE_WRITERS,
     MESH_READERS,
+    ANIMATED_READERS,
     RawCurves,
+    animated_reader_for,
     curves_reader_for,
     curves_writer_for,
     mesh_reader_for,
@@ -22,8 +25,11 @@ from .base import (
 
 # Each import registers its format.
 from . import yuksel, usc, tressfx, obj, usd, hdf5, mesh  # noqa: E402,F401
+from . import gltf_anim, usd_anim, sequence, alembic  # noqa: E402,F401
+from .animated import AnimatedBody  # noqa: E402
 
-__all__ = ["RawCurves", "read_curves", "read_mesh", "write_curves", "CURVE_READERS", "MESH_READERS", "CURVE_WRITERS"]
+__all__ = ["RawCurves", "AnimatedBody", "read_curves", "read_mesh", "write_curves", "is_animated_body",
+           "read_animated_body", "CURVE_READERS", "MESH_READERS", "CURVE_WRITERS", "ANIMATED_READERS"]
 
 
 def _existing(path) -> Path:
@@ -47,6 +53,33 @@ def read_mesh(path):
     """Read a body mesh (``trimesh.Trimesh``, triangles) from any registered format."""
     path = _existing(path)
     return mesh_reader_for(path)(path)
+
+
+def is_animated_body(path) -> bool:
+    """Whether ``path`` names an animated body: a folder or ``body.####.obj`` pattern of frames, or a file whose
+    reader finds motion in it (a GLB with a skin or animation, a USD stage with time samples, an Alembic cache).
+    A file of one of those kinds that cannot be read at all raises :class:`InputError` naming it."""
+    path = Path(path)
+    entry = animated_reader_for(path)
+    if entry is None:
+        return False
+    if path.is_dir() or "#" in path.name:
+        return True
+    return path.is_file() and path.stat().st_size > 0 and entry[0](path)
+
+
+def read_animated_body(path, fps: float | None = None) -> AnimatedBody:
+    """Read an animated body (:class:`AnimatedBody`) from any registered kind; ``fps`` states a sequence's frame
+    rate (and overrides a file's)."""
+    path = Path(path)
+    entry = animated_reader_for(path)
+    if not (path.is_dir() or "#" in path.name):
+        path = _existing(path)
+    if entry is None:
+        known = ", ".join(sorted(k for k in ANIMATED_READERS if k.startswith(".")))
+        raise InputError(f"is not an animated body; known kinds are {known}, a folder of frames or a "
+                         "body.####.obj pattern", path)
+    return entry[1](path, fps=fps)
 
 
 def write_curves(path, points, offsets, **options) -> None:

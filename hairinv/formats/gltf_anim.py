@@ -380,11 +380,9 @@ def _rig(path: Path) -> _Rig:
 
 
 def is_animated_gltf(path: Path) -> bool:
-    """Whether a glTF file has a skin or an animation (else it is a static body, read by trimesh)."""
-    try:
-        doc, _ = read_gltf_document(path)
-    except InputError:
-        return False
+    """Whether a glTF file has a skin or an animation (else it is a static body, read by trimesh); a file that
+    is not readable glTF raises the reader's :class:`InputError` (truncated, not GLB ...)."""
+    doc, _ = read_gltf_document(path)
     return bool(doc.get("skins") or doc.get("animations"))
 
 
