@@ -42,7 +42,8 @@ def read_gltf_document(path: Path) -> tuple[dict, list[bytes]]:
     path = Path(path)
     data = path.read_bytes()
     if path.suffix.lower() == ".gltf" or data[:1] == b"{":
-        return _json(data, path), _external_buffers(_json(data, path), path, None)
+        doc = _json(data, path)
+        return doc, _external_buffers(doc, path, None)
     if len(data) < 12 or data[:4] != b"glTF":
         raise InputError("is not a GLB file (it does not start with the 12-byte 'glTF' header)", path)
     _, version, length = struct.unpack_from("<4sII", data)
@@ -220,7 +221,8 @@ class _Rig:
                 self.trs.append(trs)
                 self.fixed.append(trs_matrix(*trs))
         self.order = self._traversal(doc, nodes)
-        self.channels, self.notes = self._channels(doc, reader), []
+        self.notes = []
+        self.channels = self._channels(doc, reader)
         animations = doc.get("animations", [])
         if len(animations) > 1:
             self.notes.append(f"the file holds {len(animations)} animations; the first is played")
@@ -292,6 +294,8 @@ class _Rig:
                     faces = np.arange(len(positions) // 3 * 3, dtype=np.int64).reshape(-1, 3)
                 if len(faces) and (faces.min() < 0 or faces.max() >= len(positions)):
                     raise InputError(f"mesh node {self.names[node]!r} has indices past its vertices", self.path)
+                if primitive.get("targets") and not any("morph" in note for note in self.notes):
+                    self.notes.append("morph targets are not applied (the skin and the node motion are)")
                 instance = {"node": node, "positions": positions, "faces": faces}
                 if skin is not None:
                     instance.update(self._skinning(skin, attributes, reader, node, len(positions)))

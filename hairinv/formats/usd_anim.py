@@ -131,6 +131,7 @@ def read_usd_animated(path: Path, fps: float | None = None) -> AnimatedBody:
 
     def evaluate(t: float | None) -> np.ndarray:
         code = Usd.TimeCode.Default() if t is None else Usd.TimeCode(t * per_second)
+        assert stage  # the prims live as long as their stage: this closure keeps it
         world = xform_cache(code)
         out = []
         for mesh, skinned in parts:
