@@ -85,8 +85,9 @@ def channels(interp_j2="LINEAR"):
     ]
 
 
-def write_glb(path, points, faces, joints, weights, chans, root_q=ROOT_Q, mesh_node_t=(0, 0, 0)):
-    """A GLB of the rig written from the specification: nodes root, j0, j1, j2, body (mesh, skin)."""
+def write_glb(path, points, faces, joints, weights, chans, root_q=ROOT_Q, mesh_node_t=(0, 0, 0), skinned=True):
+    """A GLB of the rig written from the specification: nodes root, j0, j1, j2, body (mesh, skin); not
+    ``skinned``: the body is a plain mesh node, child of j2."""
     blob, views, accessors = bytearray(), [], []
 
     def add(array, component, kind, **extra):
@@ -123,16 +124,16 @@ def write_glb(path, points, faces, joints, weights, chans, root_q=ROOT_Q, mesh_n
     doc = {
         "asset": {"version": "2.0"},
         "scene": 0,
-        "scenes": [{"nodes": [0, 4]}],
+        "scenes": [{"nodes": [0, 4] if skinned else [0]}],
         "nodes": [
             {"name": "root", "translation": ROOT_T.tolist(), "rotation": list(root_q), "children": [1]},
             {"name": "j0", "children": [2]},
             {"name": "j1", "translation": REST_T[1].tolist(), "children": [3]},
-            {"name": "j2", "translation": REST_T[2].tolist()},
-            {"name": "body", "mesh": 0, "skin": 0, "translation": list(mesh_node_t)},
+            {"name": "j2", "translation": REST_T[2].tolist(), **({} if skinned else {"children": [4]})},
+            {"name": "body", "mesh": 0, "translation": list(mesh_node_t), **({"skin": 0} if skinned else {})},
         ],
         "meshes": [{"primitives": [{"attributes": attributes, "indices": indices, "mode": 4}]}],
-        "skins": [{"joints": [1, 2, 3], "inverseBindMatrices": ibm, "skeleton": 1}],
+        **({"skins": [{"joints": [1, 2, 3], "inverseBindMatrices": ibm, "skeleton": 1}]} if skinned else {}),
         "animations": [{"channels": anim_channels, "samplers": samplers}],
         "buffers": [{"byteLength": len(blob)}],
         "bufferViews": views,
@@ -235,6 +236,43 @@ def test_gltf_step_rotation_holds_the_key_pose(tmp_path, rig):
         write_usdskel(tmp_path / "flat.usda", *rig, flat)
         expected = read_animated_body(tmp_path / "flat.usda").vertices_at(t)
         np.testing.assert_allclose(still, expected, rtol=0, atol=FLOAT32_SKINNING)
+
+
+def test_mesh_node_carried_by_the_animated_hierarchy(tmp_path, rig):
+    # Every channel of the rig turns about one axis per joint by less than a half turn between keys, so
+    # LINEAR's slerp is the lerp of the angle: the world matrix of j2 at any t in closed form.
+    glb = tmp_path / "carried.glb"
+    write_glb(glb, *rig, channels(), mesh_node_t=(0.1, 0.2, 0.3), skinned=False)
+    body = read_animated_body(glb)
+    assert body.format == "gltf-animated" and body.joints == ()
+    angles = {0: ([0, 1, 0], (0.0, 0.6, 1.3)), 1: ([0, 0, 1], (0.0, 0.8, -0.5)), 2: ([1, 0, 1], (0.2, 1.1, 2.4))}
+    translation = np.array([[0, 0, 0], [0.1, 0.05, 0], [0.2, 0.0, -0.1]])
+    scale = np.array([[1, 1, 1], [1.5, 1, 1.25], [1, 0.75, 1]])
+    points = rig[0].astype(np.float64)
+    for t in (0.0, 0.2, 0.5, 0.7, 1.0):
+        lerp = lambda keys: np.array([np.interp(t, KEYS, np.asarray(keys)[:, i]) for i in range(3)])  # noqa: E731
+        turn = {j: axis_angle(axis, np.interp(t, KEYS, a)) for j, (axis, a) in angles.items()}
+        world = (trs(ROOT_T, ROOT_Q) @ trs(lerp(translation), turn[0]) @ trs(REST_T[1], turn[1])
+                 @ trs(REST_T[2], turn[2], lerp(scale)) @ trs((0.1, 0.2, 0.3)))
+        expected = points @ world[:3, :3].T + world[:3, 3]
+        np.testing.assert_allclose(body.vertices_at(t), expected, rtol=0, atol=FLOAT32_SKINNING)
+
+
+def test_gltf_with_its_buffer_beside_it(tmp_path, rig):
+    glb = tmp_path / "rig.glb"
+    write_glb(glb, *rig, channels())
+    data = glb.read_bytes()
+    n = struct.unpack_from("<I", data, 12)[0]
+    doc = json.loads(data[20:20 + n])
+    doc["buffers"][0]["uri"] = "rig.bin"
+    (tmp_path / "rig.bin").write_bytes(data[20 + n + 8:])
+    (tmp_path / "rig.gltf").write_text(json.dumps(doc))
+    for t in (0.0, 0.4):
+        np.testing.assert_array_equal(read_animated_body(tmp_path / "rig.gltf").vertices_at(t),
+                                      read_animated_body(glb).vertices_at(t))
+    (tmp_path / "rig.bin").unlink()
+    with fails(tmp_path / "rig.gltf", "rig.bin"):
+        read_animated_body(tmp_path / "rig.gltf")
 
 
 def test_bind_pose_is_what_trimesh_loads(tmp_path, rig):
@@ -417,6 +455,35 @@ def test_usd_point_cache(tmp_path, rng):
     f32 = {k: v.astype(np.float32).astype(np.float64) + [1, 2, 3] for k, v in samples.items()}
     np.testing.assert_allclose(body.vertices_at(5 / 48), 0.5 * (f32[0] + f32[10]), rtol=0, atol=FLOAT32_SKINNING)
     np.testing.assert_allclose(body.vertices_at(10 / 48), f32[10], rtol=0, atol=FLOAT32_SKINNING)
+
+
+def test_usd_point_count_changing_in_time_is_refused(tmp_path):
+    pytest.importorskip("pxr")
+    from pxr import Gf, Usd, UsdGeom, Vt
+
+    path = tmp_path / "grows.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    mesh = UsdGeom.Mesh.Define(stage, "/Body")
+    mesh.CreateFaceVertexCountsAttr([3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2])
+    for code, n in ((1, 3), (2, 4)):
+        mesh.GetPointsAttr().Set(Vt.Vec3fArray([Gf.Vec3f(float(i), 0, 0) for i in range(n)]), code)
+    stage.GetRootLayer().Save()
+    with fails(path, "4 points at time code 2", "one topology"):
+        read_animated_body(path)
+
+
+def test_static_files_are_not_animated(tmp_path):
+    pytest.importorskip("pxr")
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.CreateNew(str(tmp_path / "still.usda"))
+    mesh = UsdGeom.Mesh.Define(stage, "/Body")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0)])
+    stage.GetRootLayer().Save()
+    assert not is_animated_body(tmp_path / "still.usda")
+    assert not is_animated_body(ROOT / "samples" / "body.obj")
+    assert not is_animated_body(tmp_path)  # a folder without frames
 
 
 # --------------------------------------------------------------------------- bad input, the CLI

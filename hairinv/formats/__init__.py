@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, in_file
 from .base import (
     CURVE_READERS,
     CURVE_WRITERS,
@@ -64,7 +64,7 @@ def is_animated_body(path) -> bool:
     if entry is None:
         return False
     if path.is_dir() or "#" in path.name:
-        return True
+        return entry[0](path)
     return path.is_file() and path.stat().st_size > 0 and entry[0](path)
 
 
@@ -79,7 +79,8 @@ def read_animated_body(path, fps: float | None = None) -> AnimatedBody:
         known = ", ".join(sorted(k for k in ANIMATED_READERS if k.startswith(".")))
         raise InputError(f"is not an animated body; known kinds are {known}, a folder of frames or a "
                          "body.####.obj pattern", path)
-    return entry[1](path, fps=fps)
+    with in_file(path):  # the body's own checks name the file too
+        return entry[1](path, fps=fps)
 
 
 def write_curves(path, points, offsets, **options) -> None:

@@ -58,7 +58,10 @@ def sequence_frames(path: Path) -> list[tuple[int, Path]]:
 
 
 def _probe(path: Path) -> bool:
-    return True
+    try:
+        return bool(sequence_frames(path))
+    except InputError:
+        return False
 
 
 @register_animated_reader(SEQUENCE, probe=_probe)

@@ -122,6 +122,15 @@ def read_usd_animated(path: Path, fps: float | None = None) -> AnimatedBody:
             rest = points.Get(Usd.TimeCode(codes[0]))
         if rest is None or len(rest) == 0:
             raise InputError(f"mesh {mesh.GetPath()} has no points", path)
+        for code in points.GetTimeSamples():
+            sample = points.Get(Usd.TimeCode(code))
+            if sample is None or len(sample) != len(rest):
+                raise InputError(f"mesh {mesh.GetPath()} has {0 if sample is None else len(sample)} points at time "
+                                 f"code {code:g} and {len(rest)} at rest; an animated body needs one topology", path)
+        for topology in (mesh.GetFaceVertexCountsAttr(), mesh.GetFaceVertexIndicesAttr()):
+            if topology.GetNumTimeSamples() > 1:
+                raise InputError(f"mesh {mesh.GetPath()} has time-sampled {topology.GetName()}; an animated body "
+                                 "needs one topology", path)
         tri = _triangles(mesh, path)
         if len(tri) and tri.max() >= len(rest):
             raise InputError(f"mesh {mesh.GetPath()} has face indices past its points", path)
