@@ -423,6 +423,17 @@ def test_transformed_applies_the_groom_transform_at_every_time(tmp_path, rig):
     np.testing.assert_array_equal(moved.faces, body.faces[:, ::-1])  # a mirror: triangles reversed, normals out
 
 
+def test_ply_folder_sequence(tmp_path, rng):
+    trimesh = pytest.importorskip("trimesh")
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    frames = {n: rng.normal(size=(4, 3)).astype(np.float32).astype(np.float64) for n in (10, 11)}  # PLY: float32
+    for n, v in frames.items():
+        trimesh.Trimesh(v, faces, process=False).export(tmp_path / f"walk_{n}.ply")
+    body = read_animated_body(tmp_path, fps=25)
+    np.testing.assert_allclose(body.times, [10 / 25, 11 / 25], atol=ROUNDOFF)
+    np.testing.assert_allclose(body.vertices_at(10.5 / 25), 0.5 * (frames[10] + frames[11]), atol=ROUNDOFF)
+
+
 def test_sequence_with_changing_vertex_count_is_refused(tmp_path):
     write_obj(tmp_path / "b.0001.obj", np.zeros((4, 3)), [[0, 1, 2], [0, 2, 3]])
     write_obj(tmp_path / "b.0002.obj", np.zeros((5, 3)), [[0, 1, 2], [0, 2, 4]])
