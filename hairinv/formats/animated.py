@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["AnimatedBody", "lerp_samples"]
+__all__ = ["AnimatedBody", "summary_lines", "lerp_samples"]
 
 
 @dataclass(frozen=True, eq=False)
