@@ -123,20 +123,23 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
     if len(roots) == 0 or len(body_mesh.face_index) == 0:
         return []
     every_root = roots = np.ascontiguousarray(roots, dtype=np.float64)
+    sample = slice(None)
     if len(roots) > _ROOTS_CHECKED:
-        roots = roots[np.random.default_rng(0).choice(len(roots), _ROOTS_CHECKED, replace=False)]
+        sample = np.random.default_rng(0).choice(len(roots), _ROOTS_CHECKED, replace=False)
+        roots = roots[sample]
 
-    def median_distance(points: np.ndarray) -> tuple[float, float]:
-        distance = np.abs(body_mesh.closest(np.ascontiguousarray(points))[0])  # signed: negative inside
-        return float(np.median(distance)), float(distance.min())
+    def signed_distance(points: np.ndarray) -> np.ndarray:
+        return body_mesh.closest(np.ascontiguousarray(points))[0]  # signed: negative inside
 
-    median, nearest = median_distance(roots)
+    distance = np.abs(signed_distance(roots))
+    median, nearest = float(np.median(distance)), float(distance.min())
     if not median > ROOTS_FAR:
         return []
-    fix = _body_fix(roots, median_distance, up, body_settings, to_groom)
+    fix = _body_fix(roots, signed_distance, up, body_settings, to_groom,
+                    None if reach is None else np.asarray(reach, dtype=np.float64)[sample])
     if reach is not None:
         # signed: a root inside the body is in contact with it, however deep
-        outside = body_mesh.closest(every_root)[0]
+        outside = signed_distance(every_root)
         if not np.any(outside <= reach):
             k = int(np.argmin(outside - reach))  # the strand that comes closest to reaching it
             raise InputError(f"no strand can reach this body: every root lies outside it, farther from it than its "
@@ -149,35 +152,49 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
             + fix]
 
 
-def _body_fix(roots: np.ndarray, median_distance, up, body_settings: BodySettings, to_groom) -> str:
-    """What would put ``roots`` on the body: the usual unit factor or up axis that does (with the option),
-    else the options to check."""
+def _body_fix(roots: np.ndarray, signed_distance, up, body_settings: BodySettings, to_groom,
+              reach: np.ndarray | None) -> str:
+    """What would put ``roots`` on the body: a body unit or up axis whose options, applied, bring the roots'
+    median within :data:`ROOTS_FAR` of the body and some strand within its reach (each candidate is tried on
+    the body before it is offered), with the options; else the options to check.
+
+    A candidate scales the body by ``factor`` and turns it by ``R`` about the origin of the groom's frame, as
+    the options do (:func:`hairinv.groom.body_to_groom`): the roots' distances to that body are ``factor``
+    times those of ``R^T roots / factor`` to the body as it is. With the body's transform at hand, the units
+    tried are the body units the options name (``--body-units``), whatever the body is read in now; fewer
+    changes are offered before more (a unit before a unit and an axis)."""
     up = np.asarray(up, dtype=np.float64)
     turns = [(None, np.eye(3))]
     if body_settings.up == "hair":
         turns += [(axis, rotation_onto(np.eye(3)[i], up)) for axis, i in (("y", 1), ("z", 2), ("x", 0))
                   if abs(up[i]) < 0.5]
     body_scale = abs(float(np.linalg.det(to_groom[:3, :3]))) ** (1 / 3) if to_groom is not None else None
+    if body_scale:
+        scales = [(unit, metres / body_scale) for unit, metres in UNITS.items()]
+    else:
+        scales = [(None, factor) for factor in _UNIT_FACTORS]
+    scales = [(None, 1.0)] + [(unit, f) for unit, f in scales if abs(f - 1.0) > 1e-9]
     best = None
     for axis, R in turns:
-        for factor in (1.0, *_UNIT_FACTORS):
-            if axis is None and factor == 1.0:
+        for unit, factor in scales:
+            if axis is None and unit is None and factor == 1.0:
                 continue
-            moved, _ = median_distance(roots @ R / factor)  # the body turned by R, scaled by factor
-            if moved <= ROOTS_FAR and (best is None or moved < best[2]):
-                best = (axis, factor, moved)
+            distance = factor * signed_distance(roots @ R / factor)  # to the body scaled by factor, turned by R
+            moved = float(np.median(np.abs(distance)))
+            if not moved <= ROOTS_FAR or (reach is not None and not np.any(distance <= reach)):
+                continue
+            rank = ((axis is not None) + (factor != 1.0), moved)
+            if best is None or rank < best[0]:
+                best = (rank, axis, unit, factor, moved)
     if best is None:
         return ("check that the groom and the body share their units, up axis and placement "
                 "(--body-units, --body-scale, --body-up)")
-    axis, factor, moved = best
+    _, axis, unit, factor, moved = best
     fixes, what = [], []
     if factor != 1.0:
         what.append(f"at {factor:.4g} times its size")
-        unit = None
-        if body_scale is not None:
-            wanted = body_scale * factor
-            unit = next((u for u, m in UNITS.items() if abs(m - wanted) < 1e-9 * m), None)
-            fixes.append(f"--body-units {unit}" if unit else f"--body-scale {wanted:.6g}")
+        if body_scale:
+            fixes.append(f"--body-units {unit}")
     if axis is not None:
         what.append(f"turned as a +{axis.upper()}-up file")
         fixes.append(f"--body-up {axis}")

@@ -215,3 +215,44 @@ def test_a_body_is_refused_only_when_no_strand_can_reach_it(case):
     else:
         lines = run()
         assert len(lines) == 1 and "roots lie" in lines[0]  # far from it (median over 2 cm), so said
+
+
+@pytest.mark.parametrize("case", ["metres under a scaled hair", "cm and Z-up", "mm", "another body"])
+def test_a_suggested_fix_puts_the_roots_on_the_body(case):
+    """The options a warning suggests are tried here as a user would give them: built into the body's
+    transform by ``body_to_groom`` (not by the suggestion's own arithmetic), the body so read has the roots'
+    median within ROOTS_FAR of it. Roots on the top of the sample bust (metres, +Y up); the bust written in
+    metres under a hair file of 8 mm units (the Sintel case: ``--scale 0.008``, whose first hint was a scale
+    of 8 and a turn, which then refused the body), in cm and Z-up, in mm; and a body the roots are not on
+    (the bust moved 1 m aside), for which no option is offered."""
+    from hairinv.contacts.body import BodyMesh
+    from hairinv.pipeline import ROOTS_FAR, root_distance_lines
+
+    bust = trimesh.load(SAMPLES / "body.obj", process=False)
+    points, faces = trimesh.sample.sample_surface(bust, 4000, seed=3)
+    roots = points[bust.face_normals[faces] @ Y_UP > 0.8][:200]  # the scalp
+    assert len(roots) >= 50
+    groom_scale, file_vertices, right = {
+        "metres under a scaled hair": (0.008, bust.vertices, "--body-units m"),
+        "cm and Z-up": (1.0, 100.0 * bust.vertices @ Y_TO_Z.T, "--body-units cm --body-up z"),
+        "mm": (1.0, 1000.0 * bust.vertices, "--body-units mm"),
+        "another body": (1.0, bust.vertices + [1.0, 0.0, 0.0], None)}[case]
+
+    def body_read_with(settings: BodySettings) -> tuple[BodyMesh, np.ndarray]:
+        to_groom, _ = body_to_groom(settings, groom_scale, "y", "")
+        mesh = trimesh.Trimesh(file_vertices @ to_groom[:3, :3].T + to_groom[:3, 3], bust.faces, process=False)
+        return BodyMesh.from_mesh(mesh), to_groom
+
+    as_hair, to_groom = body_read_with(BodySettings())
+    lines = root_distance_lines(roots, as_hair, "bust.obj", Y_UP, BodySettings(), to_groom)
+    assert len(lines) == 1 and "roots lie" in lines[0], lines
+    if right is None:
+        assert "(try" not in lines[0] and "check that the groom and the body share" in lines[0], lines[0]
+        return
+    suggested = lines[0].split("(try ")[1].split(")")[0]
+    assert suggested == right, lines[0]
+    words = suggested.split()
+    options = dict(zip((w.removeprefix("--body-") for w in words[::2]), words[1::2]))
+    fixed, _ = body_read_with(BodySettings(**options))
+    assert np.median(np.abs(fixed.closest(np.ascontiguousarray(roots))[0])) <= ROOTS_FAR
+    assert root_distance_lines(roots, fixed, "bust.obj", Y_UP, BodySettings(**options), None) == []
