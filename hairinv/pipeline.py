@@ -203,6 +203,18 @@ def _body_fix(roots: np.ndarray, signed_distance, up, body_settings: BodySetting
             + (f" (try {' '.join(fixes)})" if fixes else ""))
 
 
+def animated_body_lines(body) -> list[str]:
+    """A warning when the body file is animated: its bind pose is what the stages read; its animation and skinning
+    are not played."""
+    if not formats.is_animated_body(body):
+        return []
+    motion = formats.read_animated_body(body)
+    joints = f", {len(motion.joints)} joints" if motion.joints else ""
+    return [f"warning: {Path(body).name} is animated ({motion.n_frames} frames over {motion.end - motion.start:.3g} s"
+            f"{joints}): its skin and animation are ignored here, the groom is placed on the mesh as the file "
+            "stores it (its bind pose); `hairinv info` shows the animation"]
+
+
 def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Prepared:
     """Read ``style`` (raw curves or a stage file) and ``body`` and bring them to the contact stage.
 
@@ -226,6 +238,8 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
     groups: dict = {}
     native = formats.read_mesh(body) if body is not None else None  # read once: units guess and contacts
     body_size = float(np.linalg.norm(np.ptp(np.asarray(native.vertices), axis=0))) if native is not None else None
+    if body is not None:
+        lines += animated_body_lines(body)
     if stages.is_stage_file(style):
         stage = stages.read_stage(style)
         if stages.CURVES not in stage:
