@@ -139,9 +139,11 @@ def resolve_scale(settings: ImportSettings, stated: float | None, size_native: f
     else:
         unit = guess_units(size_native, typical)
         scale = UNITS[unit]
+        # a warning: every length of the result (contacts, rest shape, forces) follows from this guess
         notes.append(
-            f"units: guessed {unit} from the {what}'s size ({size_native:.4g} file units across, "
-            f"{size_native * scale:.3g} m); pass --units or --scale to set it"
+            f"warning: units: guessed {unit} from the {what}'s size ({size_native:.4g} file units across, "
+            f"{size_native * scale:.3g} m), and every result depends on it: pass --units {unit} (or --scale) to "
+            "say it"
         )
     if stated is not None and abs(scale - stated) > 1e-12 * stated:
         notes.append(f"warning: the file states {stated:g} m per unit; using {scale:g} as asked")
@@ -330,8 +332,9 @@ def body_to_groom(settings: BodySettings, groom_scale: float, groom_up, groom_fl
             raise InputError("body.units = auto needs the body file to guess from", body_path)
         unit = guess_units(body_size_native, _TYPICAL_BODY_SIZE)
         scale = UNITS[unit]
-        notes.append(f"body units: guessed {unit} from the body's size ({body_size_native:.4g} file units across, "
-                     f"{body_size_native * scale:.3g} m); pass --body-units to set it")
+        notes.append(f"warning: body units: guessed {unit} from the body's size ({body_size_native:.4g} file units "
+                     f"across, {body_size_native * scale:.3g} m), and every contact depends on it: pass "
+                     f"--body-units {unit} to say it")
     elif settings.units in UNITS:
         scale = UNITS[settings.units]
         notes.append(f"body units: {settings.units} (as given)")

@@ -149,6 +149,7 @@ def test_auto_guesses_from_the_hair_size_and_says_so(tmp_path, unit, size):
     np.testing.assert_allclose(groom.points, flat(strands) * UNITS[unit], rtol=1e-15, atol=0.0)
     line = note(report, "units:")
     assert "guessed" in line and f"guessed {unit} " in line and "hairstyle" in line
+    assert line.startswith("warning:") and f"pass --units {unit}" in line  # a guess the whole result rests on
 
 
 def test_auto_guesses_from_the_body_when_given(tmp_path):
@@ -158,6 +159,7 @@ def test_auto_guesses_from_the_body_when_given(tmp_path):
     assert groom.scale_to_m == 0.01
     line = note(report, "guessed")
     assert "guessed cm" in line and "body" in line
+    assert line.startswith("warning:") and "pass --units cm" in line
 
 
 @pytest.mark.parametrize(
