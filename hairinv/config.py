@@ -10,6 +10,8 @@ sections or keys are rejected by name.
 from __future__ import annotations
 
 import dataclasses
+import math
+import re
 import tomllib
 import typing
 from dataclasses import dataclass, field
@@ -323,9 +325,130 @@ def _section_name(attr: str) -> str:
 _SECTIONS = {_section_name(f.name): f.name for f in dataclasses.fields(Settings)}
 
 
+#: Units a length may be written in, metres per unit: ``0.2mm``, ``4 mm``, ``1e-4m``, ``100um``.
+LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "in": 0.0254}
+_LENGTH = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\s\d.+-][^\s]*)?\s*")
+
+
+def parse_length(text: str, option: str = "length", bare_metres: bool = False) -> float:
+    """Metres from a length written with its unit: ``0.1mm``, ``1e-4m``, ``0.01 cm``, ``100um``.
+
+    One rule for every length hairinv reads: a unit may always be given. A bare number is metres where
+    ``bare_metres`` (the settings, and options whose help says metres); elsewhere it is refused, since
+    ``0.1`` could mean 0.1 m or 0.1 mm, and a check a thousand times too lax would pass silently. The
+    length must be finite and > 0.
+
+    Raises
+    ------
+    InputError
+        One sentence starting with ``option``.
+    """
+    units = ", ".join(u for u in LENGTH_UNITS if u != "µm")
+    match = _LENGTH.fullmatch(text)
+    if match is None:
+        raise InputError(f"{option}: {text!r} is not a length; give a number and a unit ({units}), e.g. 0.1mm")
+    number, unit = match.groups()
+    if unit is None and not bare_metres:
+        raise InputError(f"{option}: {text!r} has no unit; give one ({units}), e.g. 0.1mm or 1e-4m")
+    if unit is not None and unit not in LENGTH_UNITS:
+        raise InputError(f"{option}: unknown unit {unit!r} in {text!r}; use one of {units}")
+    value = float(number) * LENGTH_UNITS[unit or "m"]
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"{option}: {text!r} must be a length > 0")
+    return value
+
+
+#: The documented range of every numeric setting, ``section.key -> (least, largest, unit)``, bounds
+#: included; a value outside, or not finite, is refused where it is read (:func:`apply`), before any
+#: size is derived from it. The bounds are far beyond any groom's (a unit slip, a stray exponent, an
+#: allocation of terabytes), not advice; the stages refuse finer mistakes with their own reasons (e.g.
+#: ``solver.gamma`` > 0). A unit ``m`` marks a length: it may be written with its unit (``0.2mm``), a
+#: bare number is metres. Keys of :data:`ZERO_MEANS` also take 0.
+SETTING_RANGE = {
+    "import.scale": (1e-9, 1e3, "m per file unit"),
+    "import.merge_tolerance": (0.0, 1.0, "m"),
+    "import.min_length": (0.0, 10.0, "m"),
+    "import.guides": (0, 10**9, "strands"),
+    "import.seed": (0, 2**63 - 1, ""),
+    "body.scale": (1e-9, 1e3, "m per file unit"),
+    "fit.tolerance": (1e-9, 1.0, "m"),
+    "fit.elements": (1, 1000, "elements"),
+    "fit.min_elements": (1, 1000, "elements"),
+    "fit.max_elements": (1, 1000, "elements"),
+    "fit.max_iterations": (1, 10**6, "iterations"),
+    **{f"material.{key}": value for key, value in MATERIAL_RANGE.items()},
+    "material.poisson_ratio": (-0.99, 0.5, ""),
+    "contacts.body_distance": (0.0, 1.0, "m"),
+    "contacts.hair_distance": (0.0, 1.0, "m"),
+    "contacts.root_clearance": (0.0, 10.0, "m"),
+    "contacts.max_hair_per_element": (1, 10**6, "contacts"),
+    "contacts.mu_body": (0.0, 1e3, ""),
+    "contacts.mu_hair": (0.0, 1e3, ""),
+    "contacts.samples_per_element": (0, 1000, "points"),
+    "contacts.layer_max_gap": (0.0, 1.0, "m"),
+    "contacts.layer_tolerance": (0.0, 1.0, "m"),
+    "contacts.layer_min_length": (0.0, 10.0, "m"),
+    "contacts.hair_max_distance": (0.0, 1.0, "m"),
+    "solver.gamma": (0.0, 1e30, "N^-2 m^-2"),
+    "solver.gamma_relative": (0.0, 1.0, ""),
+    "solver.tolerance": (0.0, 1.0, ""),
+    "solver.max_sweeps": (0, 10**9, "sweeps"),
+    "solver.rest_tolerance": (0.0, 1e6, "1/m"),
+    "solver.max_iterations": (0, 10**6, "steps"),
+    "solver.check_every": (0, 10**6, "sweeps"),
+    "solver.max_seconds": (0.0, 1e9, "s"),
+    "solver.friction_reserve": (0.0, 1.0, ""),
+    "solver.stiffen_margin": (1.0, 1e6, ""),
+    "dynamics.time_step": (1e-7, 10.0, "s"),
+    "dynamics.damping": (0.0, 1e3, "s"),
+    "dynamics.air_damping": (0.0, 1e6, "1/s"),
+    "dynamics.body_thickness": (0.0, 1.0, "m"),
+    "dynamics.hair_thickness": (0.0, 1.0, "m"),
+    "dynamics.push_speed": (0.0, 1e3, "m/s"),
+    "dynamics.tolerance": (0.0, 1.0, ""),
+    "dynamics.max_sweeps": (0, 10**6, "sweeps"),
+    "dynamics.stall_rounds": (0, 10**6, "rounds"),
+    "dynamics.quadrature": (0, 8, "points"),
+    "dynamics.inertia_radius": (0.0, 1.0, "m"),
+    "dynamics.max_turn": (0.0, 3.2, "rad"),
+    "dynamics.max_substeps": (0, 12, "halvings"),
+}
+
+#: Settings whose 0 means something of its own, outside their range.
+ZERO_MEANS = {
+    "import.scale": "0: from units",
+    "body.scale": "0: from units",
+    "fit.elements": "0: adaptive",
+    "fit.max_elements": "0: as many as the tolerance needs",
+    "material.gravity": "0: no gravity",
+    "material.shear_modulus": "0: from E and poisson_ratio",
+    "contacts.max_hair_per_element": "0: no limit",
+}
+
+
+def range_error(where: str, value) -> str | None:
+    """The sentence refusing ``value`` for the setting ``where`` (``section.key``), out of
+    :data:`SETTING_RANGE` or not finite; None where it is within range or the setting has no range."""
+    if where not in SETTING_RANGE or (value == 0 and where in ZERO_MEANS):
+        return None
+    lo, hi, unit = SETTING_RANGE[where]
+    if (isinstance(value, int) or math.isfinite(value)) and lo <= value <= hi:
+        return None
+    zero = f" (or {ZERO_MEANS[where]})" if where in ZERO_MEANS else ""
+    return f"{where} is {value!r}; it must be a number from {lo:g} to {hi:g}{' ' + unit if unit else ''}{zero}"
+
+
 def _coerce(value, typ, where: str, source: str):
     if typ in (int, float) and isinstance(value, bool):
         raise InputError(f"{source}: setting {where} expects a number, got {value!r}")
+    if typ is float and isinstance(value, str) and SETTING_RANGE.get(where, (0, 0, ""))[2] == "m":
+        match = _LENGTH.fullmatch(value)
+        if match is not None and match.group(2) is not None:  # a length with its unit; a bare number is metres
+            number, unit = match.groups()
+            if unit not in LENGTH_UNITS:
+                raise InputError(f"{source}: setting {where}: unknown unit {unit!r} in {value!r}; use one of "
+                                 f"{', '.join(u for u in LENGTH_UNITS if u != 'µm')}")
+            return float(number) * LENGTH_UNITS[unit]
     try:
         if typ is bool:
             if isinstance(value, str):
@@ -374,6 +497,10 @@ def apply(settings: Settings, overrides: dict, source: str = "overrides") -> Set
                     f"{source}: unknown setting {section}.{key}; known in [{section}]: {', '.join(sorted(known))}"
                 )
             updates[key] = _coerce(value, hints[key], f"{section}.{key}", source)
+            if hints[key] in (int, float):
+                problem = range_error(f"{section}.{key}", updates[key])
+                if problem is not None:
+                    raise InputError(f"{source}: setting {problem}")
         changes[attr] = dataclasses.replace(current, **updates)
     return dataclasses.replace(settings, **changes)
 

@@ -173,11 +173,14 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
         if name not in stage:
             raise InputError(f"has no /{name} group: run `hairinv invert` on it first", model)
 
-    from .dynamics.scene import Scene
+    from .dynamics.scene import Scene, check_run_length
     from .dynamics.simulate import validate_settings
     from .groom import load_body, simulation_body
 
     loaded = Scene.load(scene)
+    seconds = loaded.seconds if seconds is None else seconds
+    fps = loaded.fps if fps is None else fps
+    check_run_length(seconds, fps, None, "--seconds", "--fps")
     if output is not None:
         stages.check_output_path(output, inputs=[model, body])
     stored = stage[stages.CONTACTS].config.get("contacts", {}) if stages.CONTACTS in stage else {}
@@ -197,8 +200,8 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
         say(f"body: {body}")
     elif loaded.body != "removed":
         say("no body: only hair-hair contacts")
-    return Run(model, stage, helices, contacts, mesh, body, to_groom, loaded, settings, init,
-               loaded.seconds if seconds is None else seconds, loaded.fps if fps is None else fps)
+    return Run(model, stage, helices, contacts, mesh, body, to_groom, loaded, settings, init, float(seconds),
+               float(fps))
 
 
 def check_equilibrium(path, helices: Helices, contacts: Contacts | None, model: stages.Group) -> None:

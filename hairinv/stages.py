@@ -663,6 +663,22 @@ def _check_size(path, name, key, shape, dims, counts) -> None:
 MAY_BE_INFINITE = {(MODEL, "stability_margin"), (CONTACTS, "mu")}
 
 
+#: The largest magnitude of the values of a float dataset, with its unit, beyond which a value is a
+#: mistake rather than hair: positions and lengths within 10 km, curvatures and twists within 1e6 1/m (a
+#: curl of radius 1 um, a hundredth of a hair's). Any other float dataset holds numbers within
+#: :data:`MAGNITUDE`, so that their squares and products stay finite in the arithmetic that reads them.
+DATASET_RANGE = {
+    **{(group, key): (1e4, "m") for group, key in [
+        (CURVES, "points"), (HELICES, "root"), (HELICES, "length"), (HELICES, "fit_error"), (CONTACTS, "s"),
+        (CONTACTS, "point"), (CONTACTS, "gap"), (FRAMES, "root"), (FRAMES, "length"), (FRAMES, "displacement"),
+        (FRAMES, "strand_displacement")]},
+    **{(group, key): (1e6, "1/m") for group, key in [
+        (HELICES, "omega"), (MODEL, "omega_rest"), (MODEL, "omega_target"), (MODEL, "omega_rest_stiffened"),
+        (FRAMES, "omega")]},
+}
+MAGNITUDE = 1e100
+
+
 def _check_finite(path, name, key, value) -> None:
     infinite = (name, key) in MAY_BE_INFINITE
     bad = (np.isnan(value) | (value == -np.inf)) if infinite else ~np.isfinite(value)
@@ -670,6 +686,12 @@ def _check_finite(path, name, key, value) -> None:
         where = np.unravel_index(int(np.flatnonzero(bad.ravel())[0]), value.shape)
         raise InputError(f"/{name}/{key}{list(map(int, where))} is {value[where]}: the dataset must hold "
                          f"{'no NaN and no -inf' if infinite else 'finite numbers'}", path)
+    largest, unit = DATASET_RANGE.get((name, key), (MAGNITUDE, ""))
+    bad = np.abs(np.where(np.isinf(value), 0.0, value)) > largest if infinite else np.abs(value) > largest
+    if np.any(bad):
+        where = np.unravel_index(int(np.flatnonzero(bad.ravel())[0]), value.shape)
+        raise InputError(f"/{name}/{key}{list(map(int, where))} is {value[where]:g}{' ' + unit if unit else ''}: "
+                         f"the dataset must hold numbers within +-{largest:g}{' ' + unit if unit else ''}", path)
 
 
 def _check_positive(path, name, key, value, what: str) -> None:

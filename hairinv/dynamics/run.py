@@ -24,7 +24,7 @@ from ..gravity import generalized_gravity
 from ..model import (Contacts, Helices, Material, material_from_group, rest_from_group, stiffening_from_group,
                      stiffness)
 from ..solver.status import Status
-from .scene import Scene, trim_helices
+from .scene import Scene, check_run_length, trim_helices
 from .simulate import Motion, Simulation, StepReport, points_on
 
 __all__ = ["INITS", "Frames", "FrameLog", "initial_rest", "run_scene"]
@@ -158,6 +158,7 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
     fps = float(scene.fps if fps is None else fps)
     if not seconds > 0 or not fps > 0:
         raise InputError(f"the simulated time and the frame rate must be > 0, got {seconds} s at {fps} fps")
+    check_run_length(seconds, fps)
     if model is not None:
         material = material_from_group(model)
     else:

@@ -54,6 +54,10 @@ from ..model import Helices
 
 __all__ = [
     "SCENE_DIR",
+    "MAX_SECONDS",
+    "MAX_FPS",
+    "MAX_FRAMES",
+    "check_run_length",
     "BODIES",
     "Keyframe",
     "Trim",
@@ -70,6 +74,14 @@ AXES = {"x": 0, "y": 1, "z": 2}
 MAX_KEY_TURN_DEG = 179.0
 # |forward . up| above this: forward is too close to up to define the left axis.
 PARALLEL = 0.99
+#: s. The longest run a scene or ``--seconds`` may ask for: a day, far beyond a shot, whose frames a groom's
+#: memory could not hold anyway (the frame count is bounded by RUN_FRAMES below).
+MAX_SECONDS = 86400.0
+#: Frames per second, at most: a high-speed camera's rate; beyond it a frame is shorter than any step.
+MAX_FPS = 1e5
+#: Frames in one run, at most (10 minutes at 30 fps is 18,000): /frames is allocated whole before the
+#: first step, so a slip of the exponent in seconds or fps would ask for terabytes.
+MAX_FRAMES = 10**6
 
 
 def scene_names() -> list[str]:
@@ -162,9 +174,10 @@ class Scene:
     trim: Trim | None = None
     """Cut the strands once during the run; None: no cut."""
     seconds: float = 2.0
-    """s. Default simulated duration; 2 s lets a released groom settle."""
+    """s. Default simulated duration, > 0 and at most MAX_SECONDS; 2 s lets a released groom settle."""
     fps: float = 30.0
-    """Frames written per simulated second by default (the usual animation rate)."""
+    """1/s. Frames written per simulated second by default (the usual animation rate); at most MAX_FPS, and
+    ``seconds * fps`` at most MAX_FRAMES."""
     source: str | None = None
     """The file the scene was read from, for messages."""
 
@@ -195,6 +208,10 @@ class Scene:
             raise InputError("no such scene file", path) from None
         except tomllib.TOMLDecodeError as exc:
             raise InputError(f"is not valid TOML ({exc})", path) from None
+        except UnicodeDecodeError as exc:
+            raise InputError(f"is not a TOML text file: byte {exc.start} is not UTF-8", path) from None
+        except IsADirectoryError:
+            raise InputError("is a folder, not a scene file", path) from None
         except OSError as exc:
             raise InputError(f"cannot be read ({exc.strerror})", path) from None
         return _scene_from_dict(raw, str(path))
@@ -448,15 +465,32 @@ def _scene_from_dict(raw: dict, source: str) -> Scene:
     return Scene(**kwargs)
 
 
+def check_run_length(seconds: float, fps: float, source: str | None = None, seconds_name: str = "seconds",
+                     fps_name: str = "fps") -> None:
+    """Refuse a duration (s) or frame rate (1/s) that is not a finite number > 0 within MAX_SECONDS and
+    MAX_FPS, or whose frames (``seconds * fps``) exceed MAX_FRAMES, before anything is allocated for them.
+    ``source`` is the file they come from (None: the command line); the names are the keys or options."""
+    try:
+        seconds, fps = float(seconds), float(fps)
+    except (TypeError, ValueError):
+        raise InputError(f"{seconds_name} and {fps_name} must be numbers, got {seconds!r} and {fps!r}",
+                         source) from None
+    if not (math.isfinite(seconds) and 0 < seconds <= MAX_SECONDS):
+        raise InputError(f"{seconds_name} must be a duration > 0 s and at most {MAX_SECONDS:g} s, got {seconds!r}",
+                         source)
+    if not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
+        raise InputError(f"{fps_name} must be > 0 and at most {MAX_FPS:g} frames per second, got {fps!r}", source)
+    if seconds * fps > MAX_FRAMES:
+        raise InputError(f"{seconds_name} {seconds:g} s at {fps_name} {fps:g} makes {seconds * fps:.3g} frames; "
+                         f"at most {MAX_FRAMES:,} fit in one run (lower {fps_name} or {seconds_name})", source)
+
+
 def _check_scene(scene: Scene) -> None:
     """Ranges and consistency; called on every Scene, loaded or built in code."""
     source = scene.source
     if scene.body not in BODIES:
         raise InputError(f"body must be one of {', '.join(BODIES)}, got {scene.body!r}", source)
-    if not scene.seconds > 0:
-        raise InputError(f"seconds must be a duration > 0 s, got {scene.seconds!r}", source)
-    if not scene.fps > 0:
-        raise InputError(f"fps must be > 0, got {scene.fps!r}", source)
+    check_run_length(scene.seconds, scene.fps, source)
     allowed = ["auto"] + [f"{sign}{axis}" for axis in AXES for sign in ("+", "-", "")]
     if scene.forward not in allowed:
         raise InputError(f"forward must be auto or an axis such as +z or -y, got {scene.forward!r}", source)

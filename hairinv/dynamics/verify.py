@@ -10,46 +10,15 @@ from root to tip of a strand of ``n`` elements, in the body's frame.
 
 from __future__ import annotations
 
-import math
-import re
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from ..config import LENGTH_UNITS, parse_length
 from .run import Frames
 
+# The lengths of the tolerance are read as every length is, config.parse_length (a unit required here).
 __all__ = ["LENGTH_UNITS", "StrandMotion", "Verdict", "judge", "judge_displacements", "parse_length"]
-
-LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6}
-_LENGTH = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\s\d.+-][^\s]*)?\s*")
-
-
-def parse_length(text: str, option: str = "length") -> float:
-    """Metres from a length written with its unit: ``0.1mm``, ``1e-4m``, ``0.01 cm``, ``100um``.
-
-    The unit is required: a bare number is refused, since ``0.1`` could mean
-    0.1 m or 0.1 mm, and a check a thousand times too lax would pass
-    silently. The length must be finite and > 0.
-
-    Raises
-    ------
-    InputError
-        One sentence starting with ``option``.
-    """
-    units = ", ".join(u for u in LENGTH_UNITS if u != "µm")
-    match = _LENGTH.fullmatch(text)
-    if match is None:
-        raise InputError(f"{option}: {text!r} is not a length; give a number and a unit ({units}), e.g. 0.1mm")
-    number, unit = match.groups()
-    if unit is None:
-        raise InputError(f"{option}: {text!r} has no unit; give one ({units}), e.g. 0.1mm or 1e-4m")
-    if unit not in LENGTH_UNITS:
-        raise InputError(f"{option}: unknown unit {unit!r} in {text!r}; use one of {units}")
-    value = float(number) * LENGTH_UNITS[unit]
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(f"{option}: {text!r} must be a length > 0")
-    return value
 
 
 @dataclass(frozen=True)
