@@ -170,12 +170,51 @@ class Progress:
             self.bar.close()
 
 
+class FiniteFloat(click.ParamType):
+    """A finite number (``nan``, ``inf`` are refused as usage errors, exit 2); its range is checked where it
+    is used (:data:`hairinv.config.SETTING_RANGE`, :func:`hairinv.dynamics.scene.check_run_length`)."""
+
+    name = "number"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, float):
+            return value
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is not a number", param, ctx)
+        if number != number or number in (float("inf"), float("-inf")):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        return number
+
+
+class Length(click.ParamType):
+    """A length > 0 in metres, written with its unit (``0.2mm``, ``4 mm``, ``1e-4m``) or as a bare number of
+    metres: the rule of every length setting (:func:`hairinv.config.parse_length`)."""
+
+    name = "length"
+
+    def convert(self, value, param, ctx):
+        from hairinv.config import parse_length
+        from hairinv.errors import InputError
+
+        if isinstance(value, float):
+            return value
+        try:
+            return parse_length(str(value), "length", bare_metres=True)
+        except InputError as error:
+            self.fail(error.message.removeprefix("length: "), param, ctx)
+
+
+FINITE, LENGTH = FiniteFloat(), Length()
+
+
 def import_options(fn):
     """Options shared by every command that reads a hairstyle."""
     options = [
         click.option("--units", type=click.Choice(["auto", "m", "cm", "mm", "in"]), default=None,
                      help="Unit of the hairstyle (and body) file; auto guesses from the size and says so."),
-        click.option("--scale", type=float, default=None,
+        click.option("--scale", type=FINITE, default=None,
                      help="Metres per file unit, for odd units (overrides --units), e.g. 0.00254."),
         click.option("--up", type=click.Choice(["auto", "x", "y", "z"]), default=None,
                      help="World up axis of the file; gravity is along -up. auto uses the format's convention."),
@@ -202,7 +241,7 @@ def body_options(fn):
         click.option("--body-units", type=click.Choice(["hair", "auto", "m", "cm", "mm", "in"]), default=None,
                      help="Unit of the body file when it is not the hair's: a groom in cm on a head in m "
                           "[body.units, default hair]."),
-        click.option("--body-scale", type=float, default=None,
+        click.option("--body-scale", type=FINITE, default=None,
                      help="Metres per body file unit (overrides --body-units) [body.scale]."),
         click.option("--body-up", type=click.Choice(["hair", "x", "y", "z"]), default=None,
                      help="Up axis of the body file when it is not the hair's: the body is turned onto the "
@@ -248,7 +287,8 @@ def settings_options(fn):
         click.option("--config", "config_file", type=click.Path(dir_okay=False), default=None,
                      help="TOML settings file ([import], [fit], ...)."),
         click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
-                     help="Override one setting, e.g. --set fit.tolerance=1e-4 (repeatable)."),
+                     help="Override one setting, e.g. --set fit.tolerance=0.1mm (repeatable); lengths take a unit "
+                          "or are metres."),
     ]
     for option in reversed(options):
         fn = option(fn)
@@ -316,8 +356,9 @@ def main(ctx, quiet, verbose, no_progress, log_json):
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
               help="Output stage file [default: ./<name>.fit.h5].")
 @import_options
-@click.option("--tolerance", type=float, default=None,
-              help="Fit tolerance in metres: largest vertex distance the adaptive fit aims for.")
+@click.option("--tolerance", type=LENGTH, default=None,
+              help="Fit tolerance, a length with its unit (0.2mm) or in metres: largest vertex distance the "
+                   "adaptive fit aims for [fit.tolerance].")
 @click.option("--elements", type=click.IntRange(min=1), default=None,
               help="Fixed number of elements per strand (default: adaptive from the tolerance).")
 @settings_options
@@ -422,11 +463,13 @@ def _contact_extra(body_distance, hair_distance, mu, no_hair_hair) -> dict:
 def contact_options(fn):
     """Options of the contact detection shared by detect and invert."""
     options = [
-        click.option("--body-distance", type=float, default=None,
-                     help="Metres: a strand closer than this to the body touches it [contacts.body_distance]."),
-        click.option("--hair-distance", type=float, default=None,
-                     help="Metres: strands closer than this touch each other [contacts.hair_distance]."),
-        click.option("--mu", type=float, default=None,
+        click.option("--body-distance", type=LENGTH, default=None,
+                     help="A length with its unit (4mm) or in metres: a strand closer than this to the body "
+                          "touches it [contacts.body_distance]."),
+        click.option("--hair-distance", type=LENGTH, default=None,
+                     help="A length with its unit (1mm) or in metres: strands closer than this touch each other "
+                          "[contacts.hair_distance]."),
+        click.option("--mu", type=FINITE, default=None,
                      help="Friction coefficient of every contact (sets contacts.mu_body and contacts.mu_hair)."),
         click.option("--no-hair-hair", is_flag=True, help="Declare no hair-hair contacts."),
     ]
@@ -485,7 +528,7 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
               help="Output stage file [default: ./<name>.model.h5].")
 @click.option("--target", type=click.Choice(["actual", "zero", "uniform", "tip", "gravity-only"]), default=None,
               help="Rest shape the inversion draws towards [solver.target, default actual: the input shape].")
-@click.option("--gamma", type=float, default=None, help="Weight of the contact forces, N^-2 m^-2 [solver.gamma].")
+@click.option("--gamma", type=FINITE, default=None, help="Weight of the contact forces, N^-2 m^-2 [solver.gamma].")
 @click.option("--stabilize", type=click.Choice(["stiffen", "off"]), default=None,
               help="Strands whose equilibrium is unstable under their contact forces held fixed: stiffen each just "
                    "enough to hold (the default), or off: keep the material and only report them "
@@ -594,8 +637,8 @@ def _simulation_progress(obj, run):
 @click.option("--scene", "scene_name", default="still", show_default=True, metavar="NAME|FILE.toml",
               help="What the body does: still, motion, remove-body, trim, or a scene file (docs/scenes.md).")
 @_init_option
-@click.option("--seconds", type=float, default=None, help="Simulated time, s [default: the scene's].")
-@click.option("--fps", type=float, default=None, help="Frames written per second [default: the scene's].")
+@click.option("--seconds", type=FINITE, default=None, help="Simulated time, s [default: the scene's].")
+@click.option("--fps", type=FINITE, default=None, help="Frames written per second [default: the scene's].")
 @body_options
 @settings_options
 @if_stale_option
@@ -673,12 +716,12 @@ def _verdict_lines(verdict, every_strand: bool, rows: int = VERIFY_ROWS) -> list
 @main.command()
 @click.argument("model", type=click.Path(path_type=Path))
 @click.argument("body", type=click.Path(path_type=Path), required=False)
-@click.option("--seconds", type=float, default=None,
+@click.option("--seconds", type=FINITE, default=None,
               help="Simulated time, s [default: the still scene's, 2].")
 @click.option("--tolerance", "tolerance_text", default="0.1mm", show_default=True, metavar="LENGTH",
               help="Largest distance any strand point may move, with its unit: 0.1mm, 1e-4m, 0.01cm, 100um "
-                   "(a bare number is refused).")
-@click.option("--fps", type=float, default=None,
+                   "(a bare number is refused: a check's tolerance a thousand times too lax would pass silently).")
+@click.option("--fps", type=FINITE, default=None,
               help="Checks per simulated second: the run stops at the first frame past the tolerance "
                    "[default: the still scene's, 30].")
 @click.option("--full", is_flag=True,
@@ -707,7 +750,7 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
     is not simulated again: its verdict is read back from it.
     """
     from hairinv import config, simulation
-    from hairinv.dynamics.verify import parse_length
+    from hairinv.config import parse_length
 
     tolerance = parse_length(tolerance_text, "--tolerance")
     if if_stale and output is None:

@@ -47,6 +47,14 @@ def assert_refused(result, *fragments: str) -> None:
         assert fragment in lines[0], lines[0]
 
 
+def assert_usage_error(result, option: str) -> None:
+    """Exit 2 with click's usage error naming ``option`` (its last line), no internal error."""
+    assert result.returncode == 2, result.stderr
+    assert "internal error" not in result.stderr and "Traceback" not in result.stderr
+    last = result.stderr.strip().splitlines()[-1]
+    assert f"Invalid value for '{option}'" in last and "finite" in last, result.stderr
+
+
 # --------------------------------------------------------------------------- what a new user met
 
 
@@ -78,7 +86,15 @@ def test_an_infinite_setting_is_refused(model):
 def test_a_nan_duration_or_rate_on_the_command_line_is_refused(model, option):
     """--seconds nan: ValueError cannot convert float NaN to integer, an internal error."""
     result = hairinv(model, "simulate", "model.h5", option, "nan", "-o", "out.h5")
-    assert_refused(result, option)
+    assert_usage_error(result, option)
+    assert not (model / "out.h5").exists()
+
+
+def test_a_duration_beyond_the_frames_a_run_holds_is_refused_in_one_sentence(model):
+    result = hairinv(model, "simulate", "model.h5", "--seconds", "1e9", "-o", "out.h5")
+    assert_refused(result, "--seconds", "at most")
+    result = hairinv(model, "simulate", "model.h5", "--seconds", "1000", "--fps", "1e4", "-o", "out.h5")
+    assert_refused(result, "frames", "at most 1,000,000")
     assert not (model / "out.h5").exists()
 
 
