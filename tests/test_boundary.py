@@ -122,3 +122,120 @@ def test_lengths_take_a_unit_everywhere(model):
         config.resolve(sets=["fit.tolerance=0.2furlong"])
     with pytest.raises(InputError, match="solver.gamma"):
         config.resolve(sets=["solver.gamma=1mm"])  # not a length
+
+
+# --------------------------------------------------------------------------- the generator
+
+#: What nobody here wrote: non-finite, negative, zero, huge, tiny and wrongly typed values.
+HOSTILE_VALUES = [float("nan"), float("inf"), float("-inf"), -1.0, -1, 0, 0.0, 1e308, 10**30, 1e-300, True,
+                  "abc", "", [1.0], {"a": 1}, "nan", "-inf", "1e999", "0.2mm", "-3mm"]
+
+NUMERIC_SETTINGS = [
+    f"{section}.{f.name}"
+    for section, attr in config._SECTIONS.items()
+    for f in dataclasses.fields(typing.get_type_hints(config.Settings)[attr])
+]
+
+
+def test_every_numeric_setting_has_a_documented_range():
+    hints = {key: typing.get_type_hints(typing.get_type_hints(config.Settings)[config._SECTIONS[key.split(".")[0]]])
+             [key.split(".")[1]] for key in NUMERIC_SETTINGS}
+    numeric = {key for key, typ in hints.items() if typ in (int, float)}
+    assert numeric == set(config.SETTING_RANGE)
+    defaults = config.Settings().to_dict()
+    for key in numeric:  # the defaults lie within their ranges
+        section, name = key.split(".")
+        assert config.range_error(key, defaults[section][name]) is None, key
+
+
+@pytest.mark.parametrize("key", NUMERIC_SETTINGS)
+def test_every_setting_takes_any_value_or_refuses_it(key):
+    """Each value, from a TOML file (a table) and from --set (its text): accepted with a finite number in
+    the setting's range, or an InputError naming the setting."""
+    section, name = key.split(".")
+    for value in HOSTILE_VALUES:
+        for source, given in (("file.toml", value), ("--set", str(value))):
+            try:
+                settings = config.apply(config.Settings(), {section: {name: given}}, source)
+            except InputError as error:
+                assert key in str(error) and str(error).startswith(source), (value, str(error))
+                continue
+            got = getattr(getattr(settings, config._SECTIONS[section]), name)
+            if isinstance(got, (int, float)) and not isinstance(got, bool):
+                assert math.isfinite(got) and config.range_error(key, got) is None, (value, got)
+
+
+SCENE_KEYS = [(None, key) for key in ("description", "body", "seconds", "fps", "pivot", "forward")] + \
+    [("keyframe", key) for key in ("time", "yaw", "pitch", "roll", "translate")] + \
+    [("trim", key) for key in ("length", "fraction", "time")]
+
+
+def _scene_text(table, key, value) -> str:
+    import json
+
+    literal = {float("nan"): "nan", float("inf"): "inf", float("-inf"): "-inf"}.get(value) \
+        if isinstance(value, float) and not math.isfinite(value) else None
+    if literal is None:
+        literal = "true" if value is True else json.dumps(value) if not isinstance(value, dict) else "{ a = 1 }"
+    if table is None:
+        return f"{key} = {literal}\n"
+    if table == "keyframe":
+        base = {"time": "0.0"}
+        base[key] = literal
+        keys = "\n".join(f"{k} = {v}" for k, v in base.items())
+        return f'body = "keyframed"\n[[keyframe]]\n{keys}\n[[keyframe]]\ntime = 1.0\n'
+    base = {"fraction": "0.5"} if key != "length" else {}
+    base[key] = literal
+    return "[trim]\n" + "\n".join(f"{k} = {v}" for k, v in base.items()) + "\n"
+
+
+@pytest.mark.parametrize("table, key", SCENE_KEYS)
+def test_every_scene_key_takes_any_value_or_refuses_it(tmp_path, table, key):
+    """Each value in a scene file: a scene whose run is finite and bounded, or an InputError naming the file."""
+    from hairinv.dynamics.scene import MAX_FRAMES
+
+    path = tmp_path / "scene.toml"
+    for value in HOSTILE_VALUES:
+        path.write_text(_scene_text(table, key, value))
+        try:
+            scene = Scene.load(path)
+        except InputError as error:
+            assert str(error).startswith(str(path)), (value, str(error))
+            continue
+        assert math.isfinite(scene.seconds) and math.isfinite(scene.fps), value
+        assert scene.seconds * scene.fps <= MAX_FRAMES, value
+        motion = scene.body_motion(0.5, np.zeros(3), np.array([0.0, 1.0, 0.0]))
+        assert all(np.all(np.isfinite(part)) for part in motion), value
+
+
+def _datasets(path):
+    with h5py.File(path) as fh:
+        return [f"{g}/{k}" for g in fh for k in fh[g] if fh[g][k].dtype.kind == "f"]
+
+
+@pytest.mark.parametrize("dataset", _datasets(SAMPLES / "settled.h5"))
+def test_every_stage_dataset_takes_any_value_or_refuses_it(tmp_path, dataset):
+    """Each hostile value written into one entry of a dataset of samples/settled.h5: read with finite
+    strands (their centre lines), or an InputError naming the file and the dataset."""
+    from hairinv.model import Helices
+    from hairinv.rod.helix import points_at
+
+    for value in (float("nan"), float("inf"), float("-inf"), -1.0, 0.0, 1e300, -1e300, 1e12, 1e-300):
+        path = tmp_path / "hostile.h5"
+        shutil.copy(SAMPLES / "settled.h5", path)
+        with h5py.File(path, "r+") as fh:
+            data = fh[dataset][...]
+            data.reshape(-1)[data.size // 2] = value
+            fh[dataset][...] = data
+        try:
+            stage = stages.read_stage(path)
+            helices = Helices.from_group(stage[stages.HELICES])
+            a, z = int(helices.offsets[0]), int(helices.offsets[1])
+            s = np.linspace(0.0, float(helices.length[a:z].sum()), 7)
+            points = np.empty((len(s), 3))
+            points_at(np.ascontiguousarray(helices.root[0]), np.ascontiguousarray(helices.frame0[0]),
+                      np.ascontiguousarray(helices.omega[a:z]), np.ascontiguousarray(helices.length[a:z]), s, points)
+        except InputError as error:
+            assert str(error).startswith(str(path)) and f"/{dataset}" in str(error), (value, str(error))
+            continue
+        assert np.all(np.isfinite(points)), (dataset, value)
