@@ -1,7 +1,7 @@
 """The law of one contact: Coulomb cone, Fischer-Burmeister function, local solve; Clarabel reference.
 
-Every check is taken from the definitions, not from the kernels' formulas: the cone
-``K_mu = {|r_T| <= mu r_N}``, its dual ``K*_mu = {|u_T| <= u_N / mu}``, the polar cone
+Every check is taken from the definitions, not from the kernels' formulas (hairinv.testing): the
+cone ``K_mu = {|r_T| <= mu r_N}``, its dual ``K*_mu = {|u_T| <= u_N / mu}``, the polar cone
 ``-K*_mu``, complementarity ``r . u = 0``; closed-form solutions built by construction;
 and Clarabel's interior-point solution of the same SOCQP.
 """
@@ -29,6 +29,7 @@ from hairinv.solver.local import (
     relative_residual,
     solve_contact,
 )
+from hairinv.testing import check_cone_qp, check_coulomb, complementarity, in_cone, in_dual_cone
 
 # Cone membership, Moreau decomposition and FB zeros are exact formulas evaluated in
 # floating point: a few ulps of the magnitudes involved.
@@ -56,40 +57,15 @@ vec3 = st.tuples(floats, floats, floats).map(lambda t: np.array(t, dtype=np.floa
 # ----------------------------------------------------------------- independent helpers
 
 
-def in_cone(r, mu, tol):
-    """r in K_mu (mu = 0: the half-line; mu = inf: the half-space r_N >= 0), up to tol on r."""
-    t = np.hypot(r[1], r[2])
-    if mu == np.inf:
-        return r[0] >= -tol
-    return r[0] >= -tol and t <= mu * r[0] + (1.0 + mu) * tol
-
-
-def in_dual(u, mu, tol):
-    """u in K*_mu = {|u_T| <= u_N / mu} (mu = 0: u_N >= 0; mu = inf: u_T = 0, u_N >= 0), up to tol on u."""
-    t = np.hypot(u[1], u[2])
-    if mu == 0.0:
-        return u[0] >= -tol
-    if mu == np.inf:
-        return u[0] >= -tol and t <= tol
-    return mu * t <= u[0] + (1.0 + mu) * tol
-
-
-def desaxce_u(u, mu):
-    return u + np.array([mu * np.hypot(u[1], u[2]), 0.0, 0.0]) if 0.0 < mu < np.inf else u
-
-
 def assert_ccp(W, b, mu, r, tol, desaxce=False):
     """K_mu ∋ r ⟂ u(~) ∈ K*_mu, relative to the scales of the problem."""
     rho = np.trace(W) / 3.0
-    u = W @ r + b
-    if desaxce:
-        u = desaxce_u(u, mu)
     scale = np.linalg.norm(b) + rho * np.linalg.norm(r)  # the size of u's terms
     if desaxce and mu < np.inf:
         scale *= 1.0 + mu  # mu |u_T| carries mu times u's round-off
-    assert in_cone(rho * r, mu, tol * scale), (r, mu)
-    assert in_dual(u, mu, tol * scale), (u, mu)
-    assert abs(r @ u) <= tol * np.linalg.norm(r) * scale, (r @ u, r, u)
+    check = check_coulomb if desaxce else check_cone_qp
+    # rho r and u on the same scale; |r . u| relative to |r| times it
+    check(W, b, r, mu, primal=tol * scale / rho, dual=tol * scale, complementarity=tol * np.linalg.norm(r) * scale)
 
 
 def random_spd(rng, cond, scale=1.0):
@@ -130,7 +106,7 @@ def test_projection_is_the_moreau_decomposition(x, mu):
     scale = max(np.linalg.norm(x), 1e-300)
     assert in_cone(p, mu, CONE * scale)
     # x - P(x) lies in the polar cone -K* and is orthogonal to P(x): P(x) is the projection
-    assert in_dual(p - x, mu, CONE * scale)
+    assert in_dual_cone(p - x, mu, CONE * scale)
     assert abs((x - p) @ p) <= CONE * scale**2
     again = np.empty(3)
     project_cone(p, mu, again)
@@ -539,10 +515,9 @@ def test_sparse_and_dense_clarabel_agree_and_are_optimal(rng):
     u_scale = np.linalg.norm(b)
     for r in (r_sparse, r_dense):
         u = (W @ r.reshape(-1) + b).reshape(-1, 3)
-        for i in range(len(mu)):
-            assert in_cone(r[i], mu[i], CLARABEL_FEAS * scale)
-            assert in_dual(u[i], mu[i], CLARABEL_MATCH * u_scale)
-            assert abs(r[i] @ u[i]) <= CLARABEL_MATCH * scale * u_scale
+        assert np.all(in_cone(r, mu, CLARABEL_FEAS * scale))
+        assert np.all(in_dual_cone(u, mu, CLARABEL_MATCH * u_scale))
+        assert np.all(np.abs(complementarity(r, u)) <= CLARABEL_MATCH * scale * u_scale)
         assert np.all(np.abs(r[mu == 0.0, 1:]) <= CLARABEL_FEAS * scale)
 
 
