@@ -16,8 +16,7 @@ import subprocess
 import h5py
 import pytest
 
-from conftest import SAMPLES
-from test_cli import ENV, hairinv
+from conftest import SAMPLES, hairinv
 
 MANIFEST = """
 [defaults]

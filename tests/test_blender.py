@@ -5,13 +5,13 @@ in a subprocess running tests/blender_read_usd.py, which imports each file with 
 (default options) into an empty scene and writes what came in (JSON, and every point in world space as
 .npz). Without that Python the tests skip, saying how to get it.
 
-The stage files are test_export's hand-made ones (two strands, centimetres, with a model, contacts and
+The stage files are the hand-made ones of tests/conftest.py (two strands, centimetres, with a model, contacts and
 three frames of a moving body), given the sample bust (written in the groom's unit, as hairinv reads a
 body by default) as their recorded body, exported five ways: ``z.usda`` (+Z up, stiffened model, frames),
 ``y.usdc`` (+Y up, frames), ``model.usd`` (+Y up, metres, a model without frames), ``removed.usda`` (the
 body hidden during the frames, as the remove-body scene does) and ``catmull.usdc`` (``basis="catmull-rom"``:
 pinned Catmull-Rom cubics). What Blender holds is compared with what the stage file holds, read with h5py
-and evaluated independently (test_export's closed forms), after the conversion Blender's importer applies:
+and evaluated independently (the closed forms of tests/conftest.py), after the conversion Blender's importer applies:
 the stage's ``metersPerUnit`` as a scale on the root object (scene unit scale 1: metres) and, for a +Y up
 stage, +90 degrees about X, so that the groom is +Z up as Blender is.
 
@@ -30,9 +30,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import ROOT, SAMPLES
-from test_export import (FLOAT32_M, FPS, N_FRAMES, RADIUS, _body_motion, _expected_frame, _expected_rest,
-                         _obj_mesh, make_stage)
+from conftest import (FLOAT32_M, FPS, N_FRAMES, RADIUS, ROOT, SAMPLES, body_motion, expected_frame, expected_rest,
+                      make_stage, obj_mesh)
 
 from hairinv import stages
 from hairinv.export import export
@@ -80,7 +79,7 @@ def _body_file(folder: Path, scale: float) -> Path:
 
 
 def _stage_file(folder: Path, name: str) -> tuple[Path, dict]:
-    """test_export's hand-made stage file with the sample bust recorded as its body (the last input of the
+    """The hand-made stage file (tests/conftest.py) with the sample bust recorded as its body (the last input of the
     group the export looks in: /frames, else /model)."""
     spec = FILES[name]
     path = folder / (Path(name).stem + ".h5")
@@ -185,13 +184,13 @@ def test_blender_reads_every_strand_in_metres_z_up(blender, name):
     assert np.allclose(points, truth["points"], atol=0)
     if frames:
         # the object's own data is the first time sample (time code 0), not the default value (the input)
-        assert np.abs(arrays["Hair/points"] - _expected_frame(truth, 0) @ to_blender.T).max() < FLOAT32_M
+        assert np.abs(arrays["Hair/points"] - expected_frame(truth, 0) @ to_blender.T).max() < FLOAT32_M
     else:
         assert np.abs(arrays["Hair/points"] - points @ to_blender.T).max() < FLOAT32_M
     # /Root/Rest: the rest shape as curves of their own
     assert arrays["Rest/counts"].tolist() == counts.tolist()
-    expected_rest = _expected_rest(truth, spec.stiffened) @ to_blender.T
-    assert np.abs(arrays["Rest/points"] - expected_rest).max() < FLOAT32_M
+    rest = expected_rest(truth, spec.stiffened) @ to_blender.T
+    assert np.abs(arrays["Rest/points"] - rest).max() < FLOAT32_M
 
 
 @pytest.mark.parametrize("name", list(FILES))
@@ -215,7 +214,7 @@ def test_blender_keeps_the_primvars_as_attributes(blender, name):
     # rest: stage units in the object's space, so the object's matrix takes it to the rest shape in metres
     matrix = np.array(hair["matrix_world"])
     rest = arrays["Hair/attr/rest"] @ matrix[:3, :3].T + matrix[:3, 3]
-    assert np.abs(rest - _expected_rest(truth, stiffened) @ TO_BLENDER[up].T).max() < FLOAT32_M
+    assert np.abs(rest - expected_rest(truth, stiffened) @ TO_BLENDER[up].T).max() < FLOAT32_M
     assert arrays["Hair/attr/groom_id"].tolist() == arrays["Hair/attr/id"].tolist() == [0, 1]
     assert arrays["Hair/attr/groom_guide"].tolist() == [1, 1]
     assert np.allclose(arrays["Hair/attr/groom_fit_error_max"], [3e-5, 4e-5], rtol=1e-6)  # SI, not rescaled
@@ -232,13 +231,13 @@ def test_blender_keeps_the_primvars_as_attributes(blender, name):
 def test_blender_reads_the_body_mesh(blender, name):
     read, arrays, truth = _file(blender, name)
     to_blender = TO_BLENDER[FILES[name].up]
-    vertices, faces = _obj_mesh(SAMPLES / "body.obj")  # metres
+    vertices, faces = obj_mesh(SAMPLES / "body.obj")  # metres
     body = _object(read, "Body")
     assert body["vertices"] == len(vertices) and body["faces"] == len(faces)
     assert body["face_sizes"] == {"3": len(faces)}  # triangles, as written
     frames = sorted(int(k) for k in read["frames"])
     for k in frames:  # the body in metres, placed by the frame's rigid motion (none without frames)
-        T = _body_motion(k) if FILES[name].frames else np.eye(4)
+        T = body_motion(k) if FILES[name].frames else np.eye(4)
         expected = (vertices @ T[:3, :3].T + T[:3, 3]) @ to_blender.T
         assert np.abs(arrays[f"Body/frame{k}"] - expected).max() < FLOAT32_M, k
 
@@ -263,7 +262,7 @@ def test_blender_plays_the_frames(blender, name):
     for k in range(N_FRAMES):
         frame = read["frames"][str(k)]
         assert frame["Hair"]["curves"] == len(truth["offsets"]) - 1
-        assert np.abs(arrays[f"Hair/frame{k}"] - _expected_frame(truth, k) @ to_blender.T).max() < FLOAT32_M, k
+        assert np.abs(arrays[f"Hair/frame{k}"] - expected_frame(truth, k) @ to_blender.T).max() < FLOAT32_M, k
         if k:
             assert frame["Hair"]["moved_since_first"] > 1e-3 and frame["Body"]["moved_since_first"] > 1e-3
             assert frame["Rest"]["moved_since_first"] == 0.0

@@ -19,12 +19,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from conftest import ROUNDOFF, SAMPLES
+from conftest import ROUNDOFF, SAMPLES, hairinv
 from hairinv import formats, stages
 from hairinv.config import BodySettings
 from hairinv.errors import InputError
 from hairinv.groom import body_to_groom, load_body, recorded_body_transform, simulation_body
-from test_cli import hairinv
 
 Y_UP = np.array([0.0, 1.0, 0.0])
 # A Y-up file written as Z-up: the quarter turn about +x that takes +y onto +z, (x, y, z) -> (x, -z, y).

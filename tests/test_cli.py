@@ -23,44 +23,14 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import SAMPLES, real_path
+from conftest import ENV, SAMPLES, hairinv, real_path, snapshot
 from hairinv import __version__, config, stages
 from hairinv.formats import write_curves
 
-ENV = {k: v for k, v in os.environ.items() if k != "HAIRINV_DEBUG"}
-ENV["HAIRINV_THREADS"] = "2"
 # Frames of a fitted root: orthonormal to round-off of the fit's rotations.
 FRAME_TOL = 1e-9
 # The fitted root is clamped to the input root (same float64 numbers, up to round-off).
 ROOT_TOL = 1e-12
-
-
-def hairinv(cwd: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "hairinv_cli.main", *map(str, args)],
-        cwd=cwd,
-        env=ENV,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-
-
-def assert_refused(folder: Path, args, name: str, fragment: str) -> None:
-    """``hairinv *args`` in ``folder`` exits 2 with one line naming ``name`` and saying ``fragment``,
-    no traceback, and leaves every file of ``folder`` as it was."""
-    before = snapshot(folder)
-    result = hairinv(folder, *args)
-    assert result.returncode == 2, (result.stdout, result.stderr)
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and name in lines[0] and fragment in lines[0], result.stderr
-    assert "Traceback" not in result.stderr
-    assert snapshot(folder) == before
-
-
-def snapshot(folder: Path) -> dict[str, bytes]:
-    """Every file of ``folder`` (recursively) with its bytes."""
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 def sample(name: str) -> Path:

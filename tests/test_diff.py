@@ -7,7 +7,7 @@ Two kinds of input:
   worker threads share the work), three times: twice with two threads, once with one. The two-thread runs
   compared by ``hairinv diff`` must pass with every difference zero; the one-thread run must hold the
   same array contents, dataset by dataset, read with h5py (the computing times excepted).
-- the hand-made stage file of tests/test_export.py (two strands, four contacts, three frames), edited with
+- the hand-made stage file of tests/conftest.py (two strands, four contacts, three frames), edited with
   h5py: one strand's rest shape, a contact, a force, a frame, a fit error, a stiffening factor. Each edit
   must fail the quantity it touches, on the strand it touches, by the amount computed here with numpy.
 
@@ -30,9 +30,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, SAMPLES
-from test_cli import ENV, assert_refused
-from test_export import ELEMENT_OFFSETS, LENGTH, N_FRAMES, OMEGA, evaluate, make_stage
+from conftest import ELEMENT_OFFSETS, ENV, LENGTH, N_FRAMES, OMEGA, ROOT, SAMPLES, assert_refused, evaluate, make_stage
 
 # Guide strands of the real runs (see the module docstring).
 GUIDES = 70
@@ -284,7 +282,7 @@ def test_a_frame_moved(pair):
 
 def test_a_frame_bent(pair):
     """Frame 1's second element of strand 0 bent by 0.5 1/m more: the distances against the centerlines evaluated
-    here (tests/test_export.py's closed form, not hairinv's)."""
+    here (the closed form of tests/conftest.py, not hairinv's)."""
     edit(pair / "new.h5", "frames/omega", lambda w: w + np.where(
         (np.arange(N_FRAMES)[:, None, None] == 1) & (np.arange(len(OMEGA))[None, :, None] == 1), [0.5, 0, 0], 0.0))
     with h5py.File(pair / "old.h5", "r") as a, h5py.File(pair / "new.h5", "r") as b:

@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from conftest import material, two_strand_scene
 from hairinv.config import DynamicsSettings, Settings
 from hairinv.dynamics.contact import (back_substitute, contact_keys, delassus_blocks, factored_blocks, factored_rows,
                                       forward_substitute)
@@ -21,8 +22,6 @@ from hairinv.dynamics.simulate import Motion, Simulation, _free_chunk
 from hairinv.gravity import generalized_gravity
 from hairinv.contacts.rows import contact_rows
 from hairinv.model import stiffness
-
-from test_invert import material, two_strand_scene
 
 H = 0.01
 
@@ -335,8 +334,7 @@ def test_the_step_stiffness_holds_the_contact_forces_share():
     holds a strand pressed near its root; explicit, it limits the step). Checked on an inverted sample
     against second differences of the load potential from centerline points and against central
     differences of the gravity forces, both independent of the step's kernels."""
-    from conftest import SAMPLES
-    from test_statics import point_load_potential
+    from conftest import SAMPLES, point_load_potential
 
     from hairinv import config
     from hairinv.invert import invert

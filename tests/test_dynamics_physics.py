@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from conftest import horizontal_strand, material, strands
 from hairinv.config import DynamicsSettings, Settings
 from hairinv.dynamics import contact
 from hairinv.dynamics.contact import (REACH, CoulombSettings, contact_velocities, coulomb_problem, desaxce_residual,
@@ -20,8 +21,6 @@ from hairinv.dynamics.simulate import Motion, Simulation
 from hairinv.rod.helix import points_at
 from hairinv.rod.statics import gravity_forces, gravity_potential
 from hairinv.solver.rows import ContactRows
-
-from test_invert import horizontal_strand, material, strands
 
 NO_CONTACTS = dataclasses.replace(Settings().contacts, body=False, hair_hair=False)
 

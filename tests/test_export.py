@@ -4,7 +4,7 @@ Two kinds of stage files:
 
 - a hand-made one (two strands in centimetres, +Z up, with a model, contacts and frames) whose every
   shape has a closed form: each element is a helix whose frame turns about its constant world Darboux
-  vector, evaluated here with Rodrigues' formula, independently of hairinv.rod;
+  vector, evaluated with Rodrigues' formula independently of hairinv.rod (tests/conftest.py);
 - a real one: ``hairinv invert`` on samples/settled_curly.h5 and body.obj (and its gravity-only
   inversion), then short still simulations from the inverted, naive and gravity-only rest shapes, and
   motion and trim simulations (about 15 s warm in all).
@@ -21,9 +21,11 @@ import shutil
 import h5py
 import numpy as np
 import pytest
-from conftest import SAMPLES
+from conftest import (ELEMENT_OFFSETS, FLOAT32_M, FPS, FRAME0, LENGTH, N_FRAMES, OMEGA, OMEGA_REST,
+                      OMEGA_REST_STIFFENED, RADIUS, ROOTS, SAMPLES, STABILITY_MARGIN, UP_Z, assert_refused,
+                      body_motion, centerline, evaluate, expected_frame, expected_rest, hairinv, make_stage, obj_mesh,
+                      snapshot, vertex_arc_lengths)
 from pxr import Usd, UsdGeom  # usd-core, a dependency of hairinv
-from test_cli import assert_refused, hairinv, snapshot
 
 from hairinv import stages
 from hairinv.config import ImportSettings
@@ -32,67 +34,8 @@ from hairinv.export import export
 from hairinv.formats import read_curves
 from hairinv.groom import load_groom
 
-# USD stores points as float32: about 1e-7 relative, so 1e-6 m on a groom within 2 m of the origin.
-FLOAT32_M = 1e-6
 # The closed forms against themselves in float64 (rotations chained over a few elements).
 ROUNDOFF_M = 1e-12
-
-
-# --------------------------------------------------------------------------- independent evaluation
-
-
-def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rodrigues: ``v`` (n, 3) turned by ``angle`` about the unit ``axis``."""
-    c, s = np.cos(angle), np.sin(angle)
-    return v * c + np.cross(axis, v) * s + np.outer(v @ axis, axis) * (1.0 - c)
-
-
-def _step(x: np.ndarray, F: np.ndarray, omega: np.ndarray, sigma: float):
-    """Point and frame after ``sigma`` along one element from (x, F): the frame (rows t, n1, n2) turns about
-    ``W = kappa1 n1 + kappa2 n2 + tau t`` at the rate |W|; x(sigma) = x + the integral of t."""
-    W = omega[0] * F[1] + omega[1] * F[2] + omega[2] * F[0]
-    k = float(np.linalg.norm(W))
-    t = F[0]
-    if k * sigma < 1e-12:
-        return x + sigma * t, F.copy()
-    b = W / k
-    along = (t @ b) * b
-    across = t - along
-    point = x + sigma * along + np.sin(k * sigma) / k * across + (1.0 - np.cos(k * sigma)) / k * np.cross(b, across)
-    return point, _rotate(F, b, k * sigma)
-
-
-def centerline(root, frame0, omega, length, s) -> np.ndarray:
-    """Points at arc lengths ``s`` of one strand (clamped to its length)."""
-    starts = np.concatenate([[0.0], np.cumsum(length)])
-    xs, Fs = [np.asarray(root, float)], [np.asarray(frame0, float)]
-    for e in range(len(length)):
-        x, F = _step(xs[-1], Fs[-1], omega[e], length[e])
-        xs.append(x)
-        Fs.append(F)
-    out = []
-    for sj in np.clip(s, 0.0, starts[-1]):
-        e = min(int(np.searchsorted(starts, sj, side="right")) - 1, len(length) - 1)
-        out.append(_step(xs[e], Fs[e], omega[e], sj - starts[e])[0])
-    return np.array(out)
-
-
-def vertex_arc_lengths(points, offsets, element_offsets, length) -> list[np.ndarray]:
-    """docs/export.md: vertex i at L * c_i / c_n (c the chord length from the root, L the fitted length)."""
-    out = []
-    for k in range(len(offsets) - 1):
-        p = points[offsets[k]:offsets[k + 1]]
-        c = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
-        out.append(c / c[-1] * length[element_offsets[k]:element_offsets[k + 1]].sum())
-    return out
-
-
-def evaluate(points, offsets, element_offsets, length, roots, frames, omega) -> np.ndarray:
-    """Every strand's centerline at its vertices' arc lengths."""
-    s = vertex_arc_lengths(points, offsets, element_offsets, length)
-    return np.concatenate([centerline(roots[k], frames[k], omega[element_offsets[k]:element_offsets[k + 1]],
-                                      length[element_offsets[k]:element_offsets[k + 1]], s[k])
-                           for k in range(len(offsets) - 1)])
 
 
 def test_independent_evaluation_is_a_circle_for_pure_bending():
@@ -102,118 +45,6 @@ def test_independent_evaluation_is_a_circle_for_pure_bending():
     pts = centerline(np.zeros(3), F, np.array([[0.0, 4.0, 0.0], [0.0, 4.0, 0.0]]), np.array([0.1, 0.2]), s)
     expected = np.stack([np.sin(4 * s) / 4, (1 - np.cos(4 * s)) / 4, 0 * s], axis=1)
     assert np.abs(pts - expected).max() < ROUNDOFF_M
-
-
-# --------------------------------------------------------------------------- a hand-made stage file
-
-UP_Z = np.array([0.0, 0.0, 1.0])
-# Strand 0 hangs along -Z with three helical elements, strand 1 is straight; 2 cm apart.
-FRAME0 = np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])  # rows t, n1, n2 = t x n1
-ROOTS = np.array([[0.0, 0.0, 0.0], [0.02, 0.0, 0.0]])
-ELEMENT_OFFSETS = np.array([0, 3, 5])
-LENGTH = np.array([0.031, 0.042, 0.027, 0.05, 0.05])  # m; no vertex (every 5 mm) on an element joint
-OMEGA = np.array([[5.0, 0.0, 0.0], [0.0, 8.0, 2.0], [3.0, -4.0, 10.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
-OMEGA_REST = np.array([[10.0, 0.0, 0.0], [0.0, 20.0, 0.0], [3.0, 4.0, 0.0], [0.0, 6.0, 0.0], [0.0, 6.0, 0.0]])
-OMEGA_REST_STIFFENED = OMEGA_REST.copy()
-OMEGA_REST_STIFFENED[3:] = [0.0, 3.0, 1.0]
-RADIUS = 5e-5
-FPS = 25.0
-N_FRAMES = 3
-
-
-def _contact_frames(rng, n):
-    q, _ = np.linalg.qr(rng.normal(size=(n, 3, 3)))
-    return np.where(np.linalg.det(q)[:, None, None] < 0, -q, q)  # proper rotations, rows orthonormal
-
-
-def _body_motion(k: int) -> np.ndarray:
-    T = np.eye(4)
-    a = 0.1 * k
-    T[:3, :3] = [[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]]
-    T[:3, 3] = [0.001 * k, 0.0, 0.002 * k]
-    return T
-
-
-# /model/stability_margin of the stiffened hand-made model: strand 0 stable, strand 1 not
-STABILITY_MARGIN = np.array([0.3, -0.05])
-
-
-def make_stage(path, *, up=UP_Z, scale_to_m=0.01, model=True, stiffened=False, frames=True, rng=None, growth=0.1,
-               init=None):
-    """Write the hand-made stage file; returns a dict of what the tests compare with.
-
-    Frame k's shape is ``OMEGA * (1 + growth k)``, its roots moved by ``_body_motion(k)``; ``init`` is the
-    ``/frames`` attribute (None: not recorded)."""
-    rng = np.random.default_rng(7) if rng is None else rng
-    # the input vertices lie on the fitted curve, every 5 mm of arc
-    s_in = [np.linspace(0.0, LENGTH[a:z].sum(), round(LENGTH[a:z].sum() / 0.005) + 1)
-            for a, z in itertools.pairwise(ELEMENT_OFFSETS)]
-    points = np.concatenate([centerline(ROOTS[k], FRAME0, OMEGA[ELEMENT_OFFSETS[k]:ELEMENT_OFFSETS[k + 1]],
-                                        LENGTH[ELEMENT_OFFSETS[k]:ELEMENT_OFFSETS[k + 1]], s_in[k]) for k in range(2)])
-    offsets = np.concatenate([[0], np.cumsum([len(s) for s in s_in])]).astype(np.int64)
-    frame0 = np.stack([FRAME0, FRAME0])
-    groups = [
-        stages.Group(stages.CURVES, {"points": points, "offsets": offsets},
-                     attrs={"source": "hand-made", "scale_to_m": scale_to_m, "up": np.asarray(up, float)},
-                     config={"import": {"flip": ""}}),
-        stages.Group(stages.HELICES, {"root": ROOTS, "frame0": frame0, "offsets": ELEMENT_OFFSETS, "length": LENGTH,
-                                      "omega": OMEGA, "fit_error": np.array([[1e-5, 3e-5], [2e-5, 4e-5]])}),
-    ]
-    truth = {"points": points, "offsets": offsets}
-    s_v = vertex_arc_lengths(points, offsets, ELEMENT_OFFSETS, LENGTH)
-    if model:
-        # four contacts: body at strand 0's vertex 2; body and hair-hair at its vertex 5, the latter at
-        # strand 1's vertex 3 (pushing it the other way) with a body contact there too; each placed off
-        # the vertex, nearer to it than to its neighbours
-        def near(k, i, f):
-            return s_v[k][i] + f * (s_v[k][i + 1] - s_v[k][i])
-
-        strand = np.array([[0, -1], [0, -1], [0, 1], [1, -1]])
-        s = np.array([[near(0, 2, 0.3), 0.0], [near(0, 4, 0.8), 0.0], [near(0, 5, 0.1), near(1, 3, 0.4)],
-                      [near(1, 2, 0.7), 0.0]])
-        frame = _contact_frames(rng, 4)
-        force = np.array([[2e-4, 1e-5, -2e-5], [1e-4, 0.0, 3e-5], [5e-5, -1e-5, 0.0], [3e-5, 1e-5, 1e-5]])
-        world = np.array([frame[c].T @ force[c] for c in range(4)])
-        expected_force = np.zeros(len(points))
-        expected_force[offsets[0] + 2] = np.linalg.norm(world[0])
-        expected_force[offsets[0] + 5] = np.linalg.norm(world[1] + world[2])
-        expected_force[offsets[1] + 3] = np.linalg.norm(world[3] - world[2])
-        truth["contact_force"] = expected_force
-        groups.append(stages.Group(stages.CONTACTS, {"strand": strand, "s": s, "point": np.zeros((4, 3)),
-                                                     "frame": frame, "mu": np.full(4, 0.3)}))
-        data = {"omega_rest": OMEGA_REST, "omega_target": np.zeros_like(OMEGA), "target_weight": np.ones(5),
-                "force": force}
-        if stiffened:
-            data["stiffening"] = np.array([1.0, 2.0])
-            data["omega_rest_stiffened"] = OMEGA_REST_STIFFENED
-            data["stability_margin"] = STABILITY_MARGIN
-        groups.append(stages.Group(stages.MODEL, data, attrs={
-            "youngs_modulus": 4e9, "shear_modulus": 1.5e9, "density": 1300.0, "radius": RADIUS,
-            "gravity": -9.81 * np.asarray(up, float), "gamma": 1e-6, "target": "actual", "iterations": 1,
-            "residual": 0.0, "seconds": 0.0, "stable_under": "forces"}))
-    if frames:
-        T = np.stack([_body_motion(k) for k in range(N_FRAMES)])
-        groups.append(stages.Group(stages.FRAMES, {
-            "time": np.arange(N_FRAMES) / FPS,
-            "omega": np.stack([OMEGA * (1.0 + growth * k) for k in range(N_FRAMES)]),
-            "root": np.stack([ROOTS @ T[k, :3, :3].T + T[k, :3, 3] for k in range(N_FRAMES)]),
-            "frame0": np.stack([frame0 @ T[k, :3, :3].T for k in range(N_FRAMES)]),
-            "body_transform": T}, attrs={"fps": FPS} if init is None else {"fps": FPS, "init": init}))
-    stages.write_stage(path, groups, "test")
-    return truth
-
-
-def _expected_rest(truth, stiffened=False):
-    rest = OMEGA_REST_STIFFENED if stiffened else OMEGA_REST
-    return evaluate(truth["points"], truth["offsets"], ELEMENT_OFFSETS, LENGTH, ROOTS, np.stack([FRAME0, FRAME0]), rest)
-
-
-def _expected_frame(truth, k):
-    T = _body_motion(k)
-    roots = ROOTS @ T[:3, :3].T + T[:3, 3]
-    frames = np.stack([FRAME0, FRAME0]) @ T[:3, :3].T
-    return evaluate(truth["points"], truth["offsets"], ELEMENT_OFFSETS, LENGTH, roots, frames,
-                    OMEGA * (1.0 + 0.1 * k))
 
 
 def _open(path):
@@ -257,20 +88,20 @@ def test_usd_holds_every_shape_in_the_groom_units(tmp_path, stiffened):
     assert hair.GetWidthsInterpolation() == UsdGeom.Tokens.vertex
     assert widths.shape == (len(points),) and np.allclose(widths * cm, 2 * RADIUS, rtol=1e-6)
     # the rest shape: the second prim and the vertex primvar `rest`, both q0 evaluated without load
-    expected_rest = _expected_rest(truth, stiffened)
+    rest_shape = expected_rest(truth, stiffened)
     rest_prim = np.array(_curves(stage, "/Root/Rest").GetPointsAttr().Get(), dtype=np.float64) * cm
     rest = _primvar(hair, "rest")
     assert rest.GetInterpolation() == UsdGeom.Tokens.vertex
-    assert np.abs(rest_prim - expected_rest).max() < FLOAT32_M
-    assert np.abs(np.array(rest.Get(), dtype=np.float64) * cm - expected_rest).max() < FLOAT32_M
-    assert np.abs(expected_rest - truth["points"]).max() > 1e-3  # the rest shape is another shape
+    assert np.abs(rest_prim - rest_shape).max() < FLOAT32_M
+    assert np.abs(np.array(rest.Get(), dtype=np.float64) * cm - rest_shape).max() < FLOAT32_M
+    assert np.abs(rest_shape - truth["points"]).max() > 1e-3  # the rest shape is another shape
     # frames: time samples at the run's frame rate, each the frame's centerlines
     assert stage.GetTimeCodesPerSecond() == FPS and stage.GetFramesPerSecond() == FPS
     assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (0.0, N_FRAMES - 1.0)
     assert hair.GetPointsAttr().GetTimeSamples() == [float(k) for k in range(N_FRAMES)]
     for k in range(N_FRAMES):
         at = np.array(hair.GetPointsAttr().Get(Usd.TimeCode(k)), dtype=np.float64) * cm
-        assert np.abs(at - _expected_frame(truth, k)).max() < FLOAT32_M
+        assert np.abs(at - expected_frame(truth, k)).max() < FLOAT32_M
     # Unreal groom primvars, per curve
     for name in ("groom_id", "groom_guide", "id"):
         assert _primvar(hair, name).GetInterpolation() == UsdGeom.Tokens.uniform
@@ -314,10 +145,10 @@ def test_usd_single_shapes(tmp_path):
     rest = _open(tmp_path / "rest.usdc")
     assert not rest.GetPrimAtPath("/Root/Rest") and not _curves(rest).GetPointsAttr().GetTimeSamples()
     pts = np.array(_curves(rest).GetPointsAttr().Get(), dtype=np.float64) * 0.01
-    assert np.abs(pts - _expected_rest(truth)).max() < FLOAT32_M
+    assert np.abs(pts - expected_rest(truth)).max() < FLOAT32_M
     frame = _open(tmp_path / "f2.usd")
     pts = np.array(_curves(frame).GetPointsAttr().Get(), dtype=np.float64) * 0.01
-    assert np.abs(pts - _expected_frame(truth, 2)).max() < FLOAT32_M
+    assert np.abs(pts - expected_frame(truth, 2)).max() < FLOAT32_M
     assert (tmp_path / "f2.usd").read_bytes()[:8] == b"PXR-USDC"  # .usd is written as binary crate
 
 
@@ -364,7 +195,7 @@ def test_round_trip_through_hairinv_readers(tmp_path, suffix, turn, tolerance):
 def test_polyline_shapes_are_the_closed_forms(tmp_path, suffix):
     truth = make_stage(tmp_path / "syn.h5")
     turn = np.eye(3) if suffix == ".hair" else Z_UP_TO_Y_UP
-    for shape, expected in (("rest", _expected_rest(truth)), ("frame:1", _expected_frame(truth, 1))):
+    for shape, expected in (("rest", expected_rest(truth)), ("frame:1", expected_frame(truth, 1))):
         out = tmp_path / f"{shape.replace(':', '')}{suffix}"
         export(tmp_path / "syn.h5", out, shape=shape)
         raw = read_curves(out)
@@ -440,17 +271,6 @@ def real(tmp_path_factory):
     return folder
 
 
-def _obj_mesh(path):
-    v, f = [], []
-    for line in path.read_text().splitlines():
-        words = line.split()
-        if words and words[0] == "v":
-            v.append([float(w) for w in words[1:4]])
-        elif words and words[0] == "f":
-            f.append([int(w.split("/")[0]) - 1 for w in words[1:]])
-    return np.array(v), f
-
-
 def _frames_expected(stage_file, k, layout=None):
     """Frame k of a real stage file, evaluated independently at the vertex arc lengths."""
     s = stages.read_stage(stage_file)
@@ -502,7 +322,7 @@ def test_usd_of_a_real_simulation(real):
         assert np.abs(at - curves["points"]).max() < 2e-4
     # the body: the recorded mesh, vertex for vertex, triangle for triangle
     body = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Body"))
-    vertices, faces = _obj_mesh(real / "body.obj")
+    vertices, faces = obj_mesh(real / "body.obj")
     assert np.abs(np.array(body.GetPointsAttr().Get()) - vertices).max() < FLOAT32_M
     assert len(body.GetFaceVertexCountsAttr().Get()) == len(faces)
 
@@ -1109,7 +929,7 @@ def test_comparison_colours_by_displacement_in_the_body_frame(tmp_path):
     assert float(text["hairinv:min"]) == 0.0
     assert float(text["hairinv:max"]) == pytest.approx(max(m.max() for m in moved), rel=1e-9)
     # the distance in the world frame, which adds the body's motion (a turn and 4.5 mm), is not what is shown
-    T = _body_motion(N_FRAMES - 1)
+    T = body_motion(N_FRAMES - 1)
     world = evaluate(b["points"], b["offsets"], ELEMENT_OFFSETS, LENGTH, ROOTS @ T[:3, :3].T + T[:3, 3],
                      np.stack([FRAME0 @ T[:3, :3].T] * 2), OMEGA * (1.0 + 0.3 * (N_FRAMES - 1)))
     start = evaluate(b["points"], b["offsets"], ELEMENT_OFFSETS, LENGTH, ROOTS, np.stack([FRAME0] * 2), OMEGA)

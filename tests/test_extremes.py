@@ -3,7 +3,7 @@
 Every check is against mathematics computed here: the helix about its constant Darboux axis
 (Rodrigues' formula) and its complex-step derivatives, the circular helix of a coil, the
 closed-form gravity moment of a straight cantilever, the equilibrium as the gradient of an
-energy taken by finite differences (``test_invert.energy_gradient``), and the natural map of
+energy taken by finite differences (``conftest.energy_gradient``), and the natural map of
 the cone problem on a dense ``W`` assembled here. The extremes: curvature exactly 0 and up to
 1e4 1/m, 1 mm coils, elements from 1e-6 m to 1 m, strands from 1 mm to 2 m, friction 0, 2 and
 infinite, gamma from 1e-12 to 1e9, Young's modulus from 1e6 to 1e12 Pa, no gravity, contacts
@@ -29,7 +29,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from conftest import FINITE_DIFFERENCE
+from conftest import (FINITE_DIFFERENCE, UP, dense_problem, energy_gradient, horizontal_strand, make_contacts,
+                      material, strands, three_strands_on_the_body, two_strand_scene)
 from hairinv.config import MATERIAL_RANGE, MaterialSettings, SolverSettings
 from hairinv.gravity import generalized_gravity
 from hairinv.invert import invert
@@ -38,8 +39,6 @@ from hairinv.rod.helix import chain, element_derivatives, element_step, frames_a
 from hairinv.rod.statics import gravity_forces, point_jacobian
 from hairinv.solver.interior import mu_in_range
 from hairinv.solver.local import CODE_OK, solve_contact
-from test_invert import (UP, dense_problem, energy_gradient, horizontal_strand, make_contacts, material, strands,
-                         three_strands_on_the_body, two_strand_scene)
 
 EPS = np.finfo(float).eps
 hyp = settings(max_examples=12, deadline=None, derandomize=True)

@@ -32,12 +32,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import FINITE_DIFFERENCE, SAMPLES
+from conftest import ENV, FINITE_DIFFERENCE, SAMPLES, UP, energy_gradient, hairinv, three_strands_on_the_body
 from hairinv import config, stages
 from hairinv.model import Material, stiffness
 from hairinv.rod.helix import points_at
-from test_cli import ENV, hairinv
-from test_invert import UP, energy_gradient, three_strands_on_the_body
 
 # The model's sizes (samples/settled.h5 inverted with its default settings on the sample body).
 S = 40
@@ -419,7 +417,7 @@ def test_status_without_check_does_not_read_the_values(valid):
 
 
 def _sticking_scene(path: Path) -> tuple:
-    """A stage file of three strands resting on 10 body contacts of infinite friction (test_invert's scene),
+    """A stage file of three strands resting on 10 body contacts of infinite friction (conftest's scene),
     with the default settings' records, so that ``invert`` uses its contacts: (helices, contacts)."""
     helices, contacts = three_strands_on_the_body(np.inf)
     settings = config.resolve("default")

@@ -22,6 +22,8 @@ import numpy as np
 import pytest
 import scipy.sparse
 
+from conftest import (UP, check_optimality, dense_problem, horizontal_strand, make_contacts, material, resting_scene,
+                      solve, strands, three_strands_on_the_body, two_strand_scene)
 from hairinv.errors import InputError
 from hairinv.gravity import generalized_gravity
 from hairinv.invert import invert
@@ -30,9 +32,6 @@ from hairinv.contacts.rows import contact_rows
 from hairinv.model import stiffness
 from hairinv.solver import interior as interior_method
 from hairinv.solver.problem import CONE, ConeProblem, InteriorSettings
-
-from test_invert import (UP, check_optimality, dense_problem, make_contacts, material, resting_scene, solve,
-                         three_strands_on_the_body, two_strand_scene)
 
 
 def solve_interior(rows, d, gamma, b, mu, rest_tolerance=1e-3, max_iterations=80, max_seconds=0.0, backend=None,
@@ -58,8 +57,6 @@ def ip(helices, mat, share: float = 1e-5) -> dict:
 def four_strands_in_a_pile():
     """Three strands on the body and a fourth lying across all three (hair-hair contacts at three places)."""
     helices, body = three_strands_on_the_body(0.3)
-    from test_invert import horizontal_strand, strands
-
     specs = [horizontal_strand(curl=c, root=(0.0, 0.0, z)) for c, z in ((0.0, 0.0), (2.0, 0.05), (-4.0, 0.1))]
     specs.append((np.array([0.09, 0.004, -0.02]), (0.0, 0.0, 1.0), np.zeros((6, 3)), np.full(6, 0.025)))
     helices = strands(specs)

@@ -1,7 +1,7 @@
 """The inverse problem: equilibrium, optimality conditions, a conic solver, extremes.
 
 Scenes are built by hand (strands with known shapes, contacts at known
-places), so every check is independent of contact detection:
+places: tests/conftest.py), so every check is independent of contact detection:
 
 - equilibrium: the gradient of the total energy
   ``1/2 (q - q0)^T K (q - q0) + V_g(q) - sum_i (C_i^T r_i) . x(s_i; q)``
@@ -21,162 +21,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from conftest import FINITE_DIFFERENCE
-from hairinv.config import MaterialSettings, SolverSettings
+from conftest import (FINITE_DIFFERENCE, TIGHT, UP, check_optimality, dense_problem, energy_gradient, horizontal_strand,
+                      make_contacts, material, resting_scene, solve, strands, three_strands_on_the_body,
+                      two_strand_scene)
+from hairinv.config import SolverSettings
+from hairinv.contacts.rows import contact_rows
 from hairinv.errors import InputError
 from hairinv.gravity import generalized_gravity
 from hairinv.inverse.problem import target_shape
 from hairinv.invert import invert
-from hairinv.model import Contacts, Helices, Material, stiffness
-from hairinv.rod.helix import points_at
-from hairinv.rod.statics import gravity_potential
-from hairinv.contacts.rows import contact_rows
-
-UP = np.array([0.0, 1.0, 0.0])
-# the solver's stopping tolerance in these tests, relative to a strand's weight
-TIGHT = 1e-10
-
-
-def material(**changes) -> Material:
-    return Material.from_settings(MaterialSettings(**changes), UP)
-
-
-def strands(specs) -> Helices:
-    """Helices from ``[(root, tangent, omega (N,3), length (N,)), ...]``; n1 is the up axis projected."""
-    roots, frames, omegas, lengths, offsets = [], [], [], [], [0]
-    for root, tangent, omega, length in specs:
-        t = np.asarray(tangent, float) / np.linalg.norm(tangent)
-        n1 = UP - (UP @ t) * t
-        n1 = n1 / np.linalg.norm(n1) if np.linalg.norm(n1) > 1e-8 else np.array([1.0, 0.0, 0.0])
-        frames.append(np.array([t, n1, np.cross(t, n1)]))
-        roots.append(root)
-        omegas.append(np.asarray(omega, float))
-        lengths.append(np.asarray(length, float))
-        offsets.append(offsets[-1] + len(length))
-    return Helices(np.array(roots, float), np.array(frames), np.array(offsets, np.int64),
-                   np.concatenate(lengths), np.concatenate(omegas), np.zeros((len(specs), 2)))
-
-
-def frame_from_normal(normal) -> np.ndarray:
-    n = np.asarray(normal, float) / np.linalg.norm(normal)
-    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
-    t1 = np.cross(n, a)
-    t1 /= np.linalg.norm(t1)
-    return np.array([n, t1, np.cross(n, t1)])
-
-
-def point_on(helices, strand, s) -> np.ndarray:
-    a, z = helices.offsets[strand], helices.offsets[strand + 1]
-    out = np.empty((1, 3))
-    points_at(helices.root[strand], helices.frame0[strand], helices.omega[a:z], helices.length[a:z],
-              np.array([float(s)]), out)
-    return out[0]
-
-
-def make_contacts(helices, specs) -> Contacts:
-    """Contacts from ``[(strand A, s_A, strand B or -1, s_B, normal, mu), ...]``."""
-    strand = np.array([[a, b] for a, _, b, _, _, _ in specs], np.int64)
-    s = np.array([[sa, sb] for _, sa, _, sb, _, _ in specs], float)
-    point = np.array([point_on(helices, a, sa) for a, sa, _, _, _, _ in specs])
-    frame = np.array([frame_from_normal(n) for *_, n, _ in specs])
-    mu = np.array([m for *_, m in specs], float)
-    return Contacts(strand, s, point, frame, mu)
-
-
-def horizontal_strand(n=6, total=0.12, curl=0.0, root=(0.0, 0.0, 0.0)):
-    """A strand leaving its root horizontally along +x, optionally curled about the up axis."""
-    omega = np.zeros((n, 3))
-    omega[:, 1] = curl
-    return (np.array(root, float), (1.0, 0.0, 0.0), omega, np.full(n, total / n))
-
-
-def three_strands_on_the_body(mu):
-    """Three horizontal strands (straight, curled, curled the other way) resting on 3-4 body contacts
-    each, with upright and tilted normals, friction ``mu``: (helices, contacts)."""
-    tilted = UP + np.array([0.3, 0.0, 0.2])
-    helices = strands([horizontal_strand(curl=c, root=(0.0, 0.0, z)) for c, z in ((0.0, 0.0), (2.0, 0.05),
-                                                                                  (-4.0, 0.1))])
-    specs = [(0, s, -1, 0.0, UP, mu) for s in (0.06, 0.08, 0.1)]
-    specs += [(1, s, -1, 0.0, tilted / np.linalg.norm(tilted), mu) for s in (0.05, 0.07, 0.09, 0.11)]
-    specs += [(2, s, -1, 0.0, UP, mu) for s in (0.07, 0.09, 0.115)]
-    return helices, make_contacts(helices, specs)
-
-
-def resting_scene(mu=0.3, n_contacts=3):
-    """One horizontal strand on point supports below it (a body pushing up)."""
-    helices = strands([horizontal_strand()])
-    spots = np.linspace(0.05, 0.115, n_contacts)
-    contacts = make_contacts(helices, [(0, s, -1, 0.0, UP, mu) for s in spots])
-    return helices, contacts
-
-
-def two_strand_scene(mu=0.3):
-    """Strand 1 lies across strand 0 and rests on it and on the body."""
-    helices = strands([
-        horizontal_strand(n=5, total=0.1),
-        (np.array([0.06, 0.002, -0.05]), (0.0, 0.0, 1.0), np.zeros((5, 3)), np.full(5, 0.02)),
-    ])
-    contacts = make_contacts(helices, [
-        (0, 0.08, -1, 0.0, UP, mu),
-        (0, 0.06, 1, 0.05, -UP, mu),  # strand 1 above strand 0: the normal points from B (1) to A (0)
-        (1, 0.09, -1, 0.0, (0.0, 1.0, 0.3), mu),
-    ])
-    return helices, contacts
-
-
-def solve(helices, contacts, mat=None, **solver):
-    """Invert by the sweeps to ``TIGHT`` (the interior-point method's own tests: tests/test_interior.py), with
-    the friction as declared (no reserve: ``test_friction_reserve`` tests the reserve) and the paper's single
-    ``gamma`` (``test_gamma_relative`` tests the per-contact one); the residual alone stops the sweeps
-    (``rest_tolerance`` far below what they reach: ``test_rest_gap`` tests that stop)."""
-    settings = SolverSettings(**{"tolerance": TIGHT, "max_sweeps": 20000, "method": "sweeps", "friction_reserve": 0.0,
-                                 "gamma_relative": 0.0, "rest_tolerance": 1e-300, **solver})
-    model, report = invert(helices, contacts, mat or material(), settings)
-    return model, report
-
-
-def energy_gradient(helices, contacts, model, mat, h=1e-5):
-    """d/dq of elastic + gravity potential + contact work, by central differences (see module docstring)."""
-    q = helices.omega.copy()
-    K = stiffness(helices, mat).reshape(-1, 3)
-    world = np.einsum("cji,cj->ci", contacts.frame, model.force)  # C^T r
-
-    def strand_energy(s, omega):
-        a, z = helices.offsets[s], helices.offsets[s + 1]
-        args = (helices.root[s], helices.frame0[s], omega, helices.length[a:z])
-        v = gravity_potential(*args, mat.linear_density, mat.gravity)
-        for c in range(contacts.n_contacts):
-            for side, sign in ((0, 1.0), (1, -1.0)):
-                if contacts.strand[c, side] == s:
-                    x = np.empty((1, 3))
-                    points_at(*args, np.array([contacts.s[c, side]]), x)
-                    v -= sign * world[c] @ (x[0] - helices.root[s])  # from the (fixed) root: less round-off
-        return v
-
-    grad = K * (q - model.omega_rest)
-    for s in range(helices.n_strands):
-        a, z = helices.offsets[s], helices.offsets[s + 1]
-        for e in range(z - a):
-            for k in range(3):
-                om = q[a:z].copy()
-                om[e, k] += h
-                vp = strand_energy(s, om)
-                om[e, k] -= 2 * h
-                vm = strand_energy(s, om)
-                grad[a + e, k] += (vp - vm) / (2 * h)
-    return grad, np.abs(generalized_gravity(helices, mat)).max()
-
-
-def dense_problem(helices, contacts, mat, model):
-    rows = contact_rows(helices, contacts)
-    H = rows.to_sparse().toarray()
-    K = stiffness(helices, mat)
-    d = model.target_weight.repeat(3) / K ** 2
-    F_g = generalized_gravity(helices, mat).ravel()
-    b = H @ (d * (F_g - K * (helices.omega.ravel() - model.omega_target.ravel())))
-    gamma = model.gamma if model.contact_gamma is None else np.repeat(model.contact_gamma, 3)
-    W = H @ (d[:, None] * H.T) + np.diag(np.broadcast_to(gamma, len(H)))
-    return W, b, H, d
+from hairinv.model import Contacts, Material, stiffness
 
 
 def primal_dual(helices, contacts, mat, model, r, y=None):
@@ -198,20 +52,6 @@ def primal_dual(helices, contacts, mat, model, r, y=None):
     G = -0.5 * y @ y + y @ (t - q + F_g / K) \
         - np.sum(np.sum(_cone_projection(-v, contacts.mu) ** 2, axis=1) / (2.0 * gamma))
     return P, G
-
-
-def check_optimality(W, b, r, mu, rtol):
-    """Cone, dual cone and complementarity, relative to the scale of the data."""
-    u = (W @ r.ravel() + b).reshape(-1, 3)
-    force = max(np.abs(r).max(), 1e-300)
-    speed = max(np.abs(b).max(), np.abs(W).max() * force)
-    for ri, ui, m in zip(r, u, mu):
-        assert np.hypot(ri[1], ri[2]) <= m * ri[0] + rtol * force
-        if m > 0:
-            assert np.hypot(ui[1], ui[2]) <= ui[0] / m + rtol * speed
-        else:
-            assert ui[0] >= -rtol * speed
-        assert abs(ri @ ui) <= rtol * force * speed
 
 
 @pytest.mark.parametrize("scene", [resting_scene, two_strand_scene])

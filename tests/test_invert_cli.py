@@ -19,10 +19,9 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import SAMPLES, real_path
+from conftest import SAMPLES, assert_refused, hairinv, real_path, snapshot
 from hairinv import stages
 from hairinv.rod.statics import gravity_forces, point_jacobian
-from test_cli import assert_refused, hairinv, snapshot
 
 # The equilibrium holds by construction up to round-off of sums over a strand.
 EQUILIBRIUM = 1e-8
@@ -200,7 +199,7 @@ def test_output_piped_into_a_closed_reader_still_writes_the_file(inverted):
     import subprocess
     import sys
 
-    from test_cli import ENV
+    from conftest import ENV
 
     folder, _ = inverted
     proc = subprocess.Popen([sys.executable, "-m", "hairinv_cli.main", "detect", "model.h5", "body.obj",

@@ -21,8 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import REAL, ROOT
-from test_cli import ENV
+from conftest import ENV, REAL, ROOT
 
 README = ROOT / "README.md"
 # commands the README shows failing, with their exit code

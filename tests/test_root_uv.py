@@ -15,13 +15,12 @@ import pytest
 import trimesh
 from pxr import Usd, UsdGeom
 
-from conftest import ROUNDOFF, SAMPLES
+from conftest import ROUNDOFF, SAMPLES, hairinv
 from hairinv.config import BodySettings
 from hairinv.contacts.body import texture_coordinates
 from hairinv.formats import read_mesh
 from hairinv.formats.mesh import CORNER_UV
 from hairinv.groom import body_to_groom, load_body
-from test_cli import hairinv
 
 A = np.array([[2.0, 0.0, 0.5], [0.0, 1.5, -0.25]])
 B = np.array([0.5, -1.6])

@@ -13,9 +13,8 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import SAMPLES
+from conftest import SAMPLES, assert_refused, hairinv
 from hairinv import simulation, stages
-from test_cli import assert_refused, hairinv
 
 
 @pytest.fixture(scope="module")

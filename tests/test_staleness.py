@@ -19,11 +19,10 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, SAMPLES
+from conftest import ENV, ROOT, SAMPLES, hairinv
 from hairinv import config, stages
 from hairinv.errors import InputError
 from hairinv.staleness import command_record, differences, status
-from test_cli import ENV, hairinv
 
 PYTHON_HAIRINV = f"{os.sys.executable} -m hairinv_cli.main"
 

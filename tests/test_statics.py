@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import FINITE_DIFFERENCE
+from conftest import FINITE_DIFFERENCE, point_load_potential
 from hairinv.rod.helix import points_at
 from hairinv.rod.statics import gravity_forces, gravity_potential
 
@@ -204,14 +204,6 @@ def test_gravity_hessian_is_minus_the_derivative_of_the_gravity_force(rng, n, sc
     scale_h = np.abs(fd).max()
     np.testing.assert_allclose(H, fd, rtol=0, atol=FINITE_DIFFERENCE * scale_h)
     np.testing.assert_allclose(H, H.T, rtol=0, atol=1e-8 * scale_h)
-
-
-def point_load_potential(root, frame0, omega, length, s, force):
-    """-sum_k f_k . x(s_k), from the centerline points themselves (independent of the Jacobians); the
-    root's constant share is left out, so that second differences do not lose digits to it."""
-    x = np.empty((len(s), 3))
-    points_at(root, frame0, omega, length, np.asarray(s, dtype=np.float64), x)
-    return -float(np.sum(force * (x - root)))
 
 
 @pytest.mark.parametrize("n", [1, 4, 9])

@@ -21,13 +21,12 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, hairinv
 from hairinv import stages
 from hairinv.gravity import generalized_gravity
 from hairinv.inverse.stability import stability_margins
 from hairinv.model import Contacts, Helices, material_from_group, rest_from_group, stiffening_from_group, stiffness
 from hairinv.contacts.rows import contact_rows
-from test_cli import hairinv
 
 
 @pytest.fixture(scope="module")

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from pxr import Usd, UsdGeom
 
+from conftest import (ELEMENT_OFFSETS, FLOAT32_M, FRAME0, LENGTH, OMEGA, ROOTS, centerline, make_stage,
+                      vertex_arc_lengths)
 from hairinv.errors import InputError
 from hairinv.export import export
-from test_export import ELEMENT_OFFSETS, FLOAT32_M, FRAME0, LENGTH, OMEGA, ROOTS, centerline, make_stage
-from test_export import vertex_arc_lengths
 
 # Within one helix the cubic's error between vertices h = 5 mm apart is O(h^4), the segment's h^2 k / 8
 # (25 um at k = 8 1/m); measured 0.01 um against 25 um. The cubic must be this many times closer there.
@@ -93,7 +93,7 @@ def test_linear_stays_the_default_and_a_bad_basis_is_refused(tmp_path):
 
 
 def test_the_command_line_takes_the_basis(tmp_path):
-    from test_cli import hairinv
+    from conftest import hairinv
 
     make_stage(tmp_path / "syn.h5", frames=False)
     result = hairinv(tmp_path, "export", "syn.h5", "-o", "cubic.usdc", "--basis", "catmull-rom")

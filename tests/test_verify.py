@@ -15,13 +15,12 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROUNDOFF, SAMPLES
+from conftest import ROUNDOFF, SAMPLES, assert_refused, hairinv
 from hairinv import simulation
 from hairinv.dynamics.verify import StrandMotion, Verdict, parse_length
 from hairinv.errors import InputError
 from hairinv.rod.helix import points_at
 from hairinv_cli.main import VERIFY_ROWS, _verdict_lines
-from test_cli import assert_refused, hairinv
 
 # The default tolerance, m.
 TOLERANCE = 1e-4
