@@ -4,7 +4,7 @@
 - the ``hairinv`` command run as a subprocess, and a folder's snapshot;
 - hand-made scenes of the inverse problem (strands of known shapes, contacts at known places) with the
   checks taken on them independently of the kernels that solve them: the equilibrium as the gradient of
-  an energy, the dense problem, its optimality conditions;
+  an energy, the dense problem, its optimality conditions (from hairinv.testing);
 - a hand-made stage file whose every shape has a closed form, evaluated here with Rodrigues' formula
   independently of hairinv.rod.
 """
@@ -28,6 +28,7 @@ from hairinv.invert import invert
 from hairinv.model import Contacts, Helices, Material, stiffness
 from hairinv.rod.helix import points_at
 from hairinv.rod.statics import gravity_potential
+from hairinv.testing import check_cone_qp, problem_scales
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "samples"
@@ -252,18 +253,17 @@ def dense_problem(helices, contacts, mat, model):
 
 
 def check_optimality(W, b, r, mu, rtol):
-    """Cone, dual cone and complementarity, relative to the scale of the data."""
-    u = (W @ r.ravel() + b).reshape(-1, 3)
-    force = max(np.abs(r).max(), 1e-300)
-    speed = max(np.abs(b).max(), np.abs(W).max() * force)
-    for ri, ui, m in zip(r, u, mu):
-        assert np.hypot(ri[1], ri[2]) <= m * ri[0] + rtol * force
-        if m > 0:
-            assert np.hypot(ui[1], ui[2]) <= ui[0] / m + rtol * speed
-        else:
-            assert ui[0] >= -rtol * speed
-        assert abs(ri @ ui) <= rtol * force * speed
-
+    """Cone, dual cone and complementarity of the dense problem at ``r`` (hairinv.testing), relative to the
+    scale of the data: ``|r_T|`` within ``rtol F`` of ``mu r_N``, ``|u_T|`` within ``rtol S`` of ``u_N / mu``
+    (``u_N`` within ``rtol S`` of 0 where ``mu = 0``), ``|r . u|`` within ``rtol F S``, with ``F`` the largest
+    force and ``S`` the largest velocity term."""
+    force, speed = problem_scales(W, b, r)
+    mu = np.asarray(mu, dtype=np.float64)
+    # hairinv.testing measures the excess of |r_T| over mu r_N divided by max(1, mu), and that of |u_T| over
+    # u_N / mu multiplied by min(1, mu): the bounds carry those factors, so each inequality keeps rtol itself
+    check_cone_qp(W, b, r, mu, primal=rtol * force / np.maximum(1.0, mu),
+                  dual=rtol * speed * np.where(mu > 0.0, np.minimum(1.0, mu), 1.0),
+                  complementarity=rtol * force * speed)
 
 
 # ------------------------------------------------- a hand-made stage file, evaluated independently of hairinv.rod

@@ -21,6 +21,7 @@ from hairinv.dynamics.simulate import Motion, Simulation
 from hairinv.rod.helix import points_at
 from hairinv.rod.statics import gravity_forces, gravity_potential
 from hairinv.solver.rows import ContactRows
+from hairinv.testing import coulomb_violations, in_cone
 
 NO_CONTACTS = dataclasses.replace(Settings().contacts, body=False, hair_hair=False)
 
@@ -242,18 +243,12 @@ def _strands_by_newton(rows, strand, b, gamma, mus, target, iterations):
 
 
 def _desaxce_violation(rows, gamma, b, mu, r):
-    """Largest violation of ``K ∋ r ⟂ u~ ∈ K*`` (u~ = u + mu |u_T| e_N), from dense W assembled here."""
+    """Largest violation of ``K ∋ r ⟂ u~ ∈ K*`` (u~ = u + mu |u_T| e_N; hairinv.testing), from dense W assembled
+    here."""
     Z = rows.to_sparse().toarray()
     W = Z @ Z.T + np.diag(np.repeat(gamma, 3))
-    u = (W @ r.ravel()).reshape(-1, 3) + b
-    slip = np.hypot(u[:, 1], u[:, 2])
-    finite = np.isfinite(mu)
-    un = u[:, 0] + np.where(finite, mu, 0.0) * slip
-    rt = np.hypot(r[:, 1], r[:, 2])
-    cone = np.maximum(np.where(finite, rt - np.where(finite, mu, 0.0) * r[:, 0], 0.0), -r[:, 0])  # inf: r_N >= 0
-    dual = np.where(finite, np.maximum(0.0, np.where(finite, mu, 0.0) * slip - un), np.maximum(-un, slip))
-    gap = np.abs(np.einsum("ij,ij->i", r, np.stack([un, u[:, 1], u[:, 2]], axis=1)))
-    return max(cone.max(), dual.max(), gap.max())
+    worst = coulomb_violations(W, b, r, mu).worst()
+    return max(worst["primal"], worst["dual"], worst["complementarity"])
 
 
 @pytest.mark.parametrize("mu", [0.0, 0.3, 1.0, 2.5, np.inf])
@@ -574,7 +569,7 @@ def test_a_still_groom_meeting_the_contact_law_skips_the_solve_below_the_floor_o
     assert np.max(np.linalg.norm(rows.matvec(sim.v.ravel()), axis=1)) <= tolerance * scale
     r = sim._remember(sim.contacts, dynamics.time_step)[2]  # the last impulses, in the contacts' order and frames
     mu = sim.contacts.mu
-    assert np.all(r[:, 0] >= 0.0) and np.all(np.hypot(r[:, 1], r[:, 2]) <= mu * r[:, 0] * (1 + 1e-12))
+    assert np.all(in_cone(r, mu, rtol=1e-12))
     for a, b in zip(start, _samples(scene.helices, sim.q)):
         assert np.max(np.linalg.norm(a - b, axis=1)) < 1e-12
     # the compliant law alone would have refused these impulses

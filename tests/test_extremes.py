@@ -4,7 +4,7 @@ Every check is against mathematics computed here: the helix about its constant D
 (Rodrigues' formula) and its complex-step derivatives, the circular helix of a coil, the
 closed-form gravity moment of a straight cantilever, the equilibrium as the gradient of an
 energy taken by finite differences (``conftest.energy_gradient``), and the natural map of
-the cone problem on a dense ``W`` assembled here. The extremes: curvature exactly 0 and up to
+the cone problem on a dense ``W`` (hairinv.testing). The extremes: curvature exactly 0 and up to
 1e4 1/m, 1 mm coils, elements from 1e-6 m to 1 m, strands from 1 mm to 2 m, friction 0, 2 and
 infinite, gamma from 1e-12 to 1e9, Young's modulus from 1e6 to 1e12 Pa, no gravity, contacts
 at element ends and at the root, two identical contacts, two strands lying on each other, a
@@ -39,6 +39,7 @@ from hairinv.rod.helix import chain, element_derivatives, element_step, frames_a
 from hairinv.rod.statics import gravity_forces, point_jacobian
 from hairinv.solver.interior import mu_in_range
 from hairinv.solver.local import CODE_OK, solve_contact
+from hairinv.testing import complementarity, delassus_scaling, in_cone, in_dual_cone, natural_residual
 
 EPS = np.finfo(float).eps
 hyp = settings(max_examples=12, deadline=None, derandomize=True)
@@ -227,31 +228,6 @@ def test_gravity_on_a_horizontal_cantilever_of_any_element_lengths(exponents):
 # ------------------------------------------------------------------------------------------ inversion
 
 
-def project(x, mu):
-    """Projection of each row (normal, t1, t2) onto its Coulomb cone, from the definition of the cone
-    (mu = 0: the half-line; mu = inf: the half-space r_N >= 0)."""
-    out = np.zeros_like(x)
-    for i, (v, m) in enumerate(zip(x, mu)):
-        n, t = v[0], np.hypot(v[1], v[2])
-        if m == np.inf:
-            out[i] = [max(n, 0.0), v[1], v[2]]
-        elif n >= 0.0 and t <= m * n:
-            out[i] = v
-        elif m * t > -n:
-            a = (n + m * t) / (1.0 + m * m)
-            out[i] = [a, m * a * v[1] / t, m * a * v[2] / t] if t > 0 else [a, 0.0, 0.0]
-    return out
-
-
-def natural_residual(W, b, r, mu):
-    """The largest ``|r_i - P_K(r_i - u_i / rho_i)|``, ``u = W r + b``, ``rho_i = trace(W_ii) / 3``."""
-    c = len(r)
-    u = (W @ r.ravel() + b).reshape(c, 3)
-    blocks = W.reshape(c, 3, c, 3)[np.arange(c), :, np.arange(c), :]
-    rho = np.trace(blocks, axis1=1, axis2=2) / 3.0
-    return float(np.linalg.norm(r - project(r - u / rho[:, None], mu), axis=1).max()) if c else 0.0
-
-
 def weight_of(helices, mat):
     """The force the tolerance is relative to: the heaviest strand's weight (at 9.81 m/s^2 without gravity)."""
     g = np.linalg.norm(mat.gravity)
@@ -280,9 +256,7 @@ def checked_inversion(helices, contacts, mat, tolerance=1e-8, max_sweeps=20000, 
         contacts = Contacts.empty()
     # the cones the forces were found in: the declared friction less its reserve (inside the declared cones)
     r, mu = model.force, contacts.mu * (1.0 - settings.friction_reserve)
-    assert np.all(r[:, 0] >= 0.0)
-    finite = np.isfinite(mu)
-    assert np.all(np.hypot(r[finite, 1], r[finite, 2]) <= mu[finite] * r[finite, 0] * (1 + 1e-12))
+    assert np.all(in_cone(r, mu, rtol=1e-12))  # exactly: projected onto the cones
     # the equilibrium, from the energy, at the material's stiffness (omega_rest) ...
     grad, _ = energy_gradient(helices, contacts, model, mat)
     load = np.abs(stiffness(helices, mat) * (helices.omega - model.omega_rest).ravel()).max()
@@ -296,7 +270,7 @@ def checked_inversion(helices, contacts, mat, tolerance=1e-8, max_sweeps=20000, 
     # an honest status
     if settings.target != "gravity-only" and contacts.n_contacts:
         W, b, _, _ = dense_problem(helices, contacts, mat, model)
-        residual = natural_residual(W, b, r, mu)
+        residual = float(natural_residual(r, (W @ r.ravel() + b).reshape(-1, 3), mu, delassus_scaling(W)).max())
         target = tolerance * weight_of(helices, mat)
         assert result.status in ("CONVERGED", "MAX_ITERS")
         # the residual reported is that of the forces returned (to the round-off of recomputing it here, a
@@ -433,13 +407,9 @@ def test_a_block_singular_to_working_precision_is_solved_not_refused():
                 u = W @ r + b
                 size_u = np.abs(b).max()
                 size_r = max(np.abs(r).max(), 1e-300)
-                assert r[0] >= 0 and (mu == np.inf or np.hypot(r[1], r[2]) <= mu * r[0] * (1 + 1e-12))
-                assert u[0] >= -1e-9 * size_u
-                if mu < np.inf:
-                    assert mu * np.hypot(u[1], u[2]) <= u[0] + 1e-9 * size_u * (1 + mu)
-                else:
-                    assert np.hypot(u[1], u[2]) <= 1e-9 * size_u
-                assert abs(r @ u) <= 1e-9 * size_r * size_u
+                assert in_cone(r, mu, rtol=1e-12)
+                assert in_dual_cone(u, mu, 1e-9 * size_u)
+                assert abs(complementarity(r, u)) <= 1e-9 * size_r * size_u
 
 
 def test_contacts_at_element_ends_and_at_the_root():

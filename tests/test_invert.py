@@ -10,7 +10,7 @@ places: tests/conftest.py), so every check is independent of contact detection:
   finite differences of the potential and of centerline positions, not from
   the kernels that built the problem;
 - optimality: ``r`` in the Coulomb cones, ``W r + b`` in the dual cones,
-  complementarity, with ``W`` assembled densely here;
+  complementarity (hairinv.testing), with ``W`` assembled densely;
 - the same SOCQP solved by Clarabel (interior point) gives the same forces.
 """
 
@@ -31,6 +31,7 @@ from hairinv.gravity import generalized_gravity
 from hairinv.inverse.problem import target_shape
 from hairinv.invert import invert
 from hairinv.model import Contacts, Material, stiffness
+from hairinv.testing import delassus_scaling, in_cone, natural_residual, project_cone
 
 
 def primal_dual(helices, contacts, mat, model, r, y=None):
@@ -50,7 +51,7 @@ def primal_dual(helices, contacts, mat, model, r, y=None):
     y = t - q0 if y is None else y
     v = (H @ (y / K)).reshape(-1, 3)
     G = -0.5 * y @ y + y @ (t - q + F_g / K) \
-        - np.sum(np.sum(_cone_projection(-v, contacts.mu) ** 2, axis=1) / (2.0 * gamma))
+        - np.sum(np.sum(project_cone(-v, contacts.mu) ** 2, axis=1) / (2.0 * gamma))
     return P, G
 
 
@@ -102,11 +103,11 @@ def test_friction_reserve(scene, reserve):
     r_ref, _ = solve_socqp_clarabel(scipy.sparse.csr_matrix(H), d, gamma, b, reduced, tol=1e-13)
     np.testing.assert_allclose(model.force, r_ref, rtol=0, atol=1e-6 * np.abs(r_ref).max())
     r = model.force
-    assert np.all(np.hypot(r[:, 1], r[:, 2]) <= (1.0 - reserve) * contacts.mu * r[:, 0] * (1 + 1e-12))
+    assert np.all(in_cone(r, reduced, rtol=1e-12))  # exactly: the forces are projected onto the cones
     # the answer changes exactly where the declared problem's optimum uses more friction than the reserve leaves
     declared, _ = solve(helices, contacts, mat, gamma=gamma)
     rd = declared.force
-    beyond = np.hypot(rd[:, 1], rd[:, 2]) > (1.0 - reserve) * contacts.mu * rd[:, 0] * (1 + 1e-6)
+    beyond = ~in_cone(rd, reduced, rtol=1e-6)
     changed = np.abs(declared.force - r).max() > 1e-6 * np.abs(r).max()
     assert changed == bool(np.any(beyond))
     grad, scale = energy_gradient(helices, contacts, model, mat)
@@ -386,7 +387,7 @@ def test_samples_end_to_end(name):
     grad, scale = energy_gradient(scene.helices, scene.contacts, model, mat)
     assert np.abs(grad).max() <= FINITE_DIFFERENCE * scale
     r = model.force
-    assert np.all(np.hypot(r[:, 1], r[:, 2]) <= scene.contacts.mu * r[:, 0] * (1 + 1e-12) + 1e-300)
+    assert np.all(in_cone(r, scene.contacts.mu, atol=1e-300, rtol=1e-12))
     drift = np.sum((model.omega_rest - scene.helices.omega) ** 2)
     drift_gravity = np.sum((baseline.omega_rest - scene.helices.omega) ** 2)
     assert drift <= drift_gravity
@@ -418,22 +419,6 @@ def test_natural_residual_of_a_contact_with_zero_delassus_block_is_nan_not_an_ex
     assert out[1] == pytest.approx(6.0)
 
 
-def _cone_projection(x, mu):
-    """Euclidean projection of each row (normal, t1, t2) onto ``{|t| <= mu n}``, written out here
-    (mu = inf: the half-space ``n >= 0``)."""
-    out = np.zeros_like(x)
-    for i, (v, m) in enumerate(zip(x, mu)):
-        n, t = v[0], np.hypot(v[1], v[2])
-        if np.isinf(m):
-            out[i] = [max(n, 0.0), v[1], v[2]]
-        elif n >= 0.0 and t <= m * n:
-            out[i] = v
-        elif m * t > -n:  # neither inside the cone nor inside its polar: onto the boundary
-            a = (n + m * t) / (1.0 + m * m)
-            out[i] = [a, m * a * v[1] / t, m * a * v[2] / t]
-    return out
-
-
 def test_a_start_far_from_the_optimum_reaches_the_same_optimum():
     """The problem is convex: a warm start (forces out of the cones, ten times too large) is projected onto
     the cones and converges to the optimum a cold start finds; the optimum, given as the start, takes no sweep."""
@@ -448,11 +433,10 @@ def test_a_start_far_from_the_optimum_reaches_the_same_optimum():
     assert any("started from the given forces" in line for line in report.lines())
     W, b, _, _ = dense_problem(helices, contacts, mat, warm)
     # the first residual is the natural map at the projected start, recomputed here from the dense W
-    start = _cone_projection(wild, contacts.mu)
+    start = project_cone(wild, contacts.mu)
     assert not np.allclose(start, wild)
     u = (W @ start.ravel() + b).reshape(-1, 3)
-    rho = np.trace(W.reshape(len(u), 3, len(u), 3)[np.arange(len(u)), :, np.arange(len(u)), :], axis1=1, axis2=2) / 3
-    expected = np.linalg.norm(start - _cone_projection(start - u / rho[:, None], contacts.mu), axis=1).max()
+    expected = natural_residual(start, u, contacts.mu, delassus_scaling(W)).max()
     assert report.result.history[0][1] == pytest.approx(expected, rel=1e-9)
     check_optimality(W, b, warm.force, contacts.mu, rtol=1e-7)
     # the forces need not be unique to the tolerance (W is barely definite), the rest shape and objective are
@@ -519,7 +503,7 @@ def test_rest_gap(scene, mu):
 
     big = np.abs(best.force).max()
     for k in range(5):
-        r = _cone_projection(best.force + rng.normal(size=best.force.shape) * big * 10.0 ** -k, contacts.mu)
+        r = project_cone(best.force + rng.normal(size=best.force.shape) * big * 10.0 ** -k, contacts.mu)
         P, G = primal_dual(helices, contacts, mat, best, r)
         bound = kernel_bound(r)
         assert bound == pytest.approx(np.sqrt(2.0 * (P - G) / E), rel=1e-7)
