@@ -24,7 +24,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import SAMPLES
+from conftest import SAMPLES, TIGHT
 from hairinv import config
 from hairinv.config import MaterialSettings
 from hairinv.features import detect_features, invert_features, simulate_features
@@ -36,8 +36,6 @@ from hairinv.rod.helix import points_at
 GROOM = SAMPLES / "settled_curly.h5"
 HAIRINV = str(Path(sys.executable).with_name("hairinv"))
 BODY_FILE = SAMPLES / "body.obj"
-# the solver's tolerance for the optimality checks (relative to the heaviest strand's weight)
-TIGHT = 1e-10
 # central differences of a centre-line point at step FD_STEP (1/m): round-off ~ 1e-16 |x| / FD_STEP, and
 # truncation ~ FD_STEP^2 times the third derivative; on this groom 5e-12 m against normal rows up to
 # 2e-3 m (3e-10 at a step of 1e-6)

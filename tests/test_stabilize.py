@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROUNDOFF, UP, make_contacts, material, strands
+from conftest import ROUNDOFF, TIGHT, UP, make_contacts, material, strands
 from hairinv import stages
 from hairinv.config import FitSettings, SolverSettings
 from hairinv.gravity import generalized_gravity
@@ -22,7 +22,6 @@ from hairinv.invert import invert
 from hairinv.model import rest_from_group, stiffening_from_group, stiffness
 from hairinv.contacts.rows import contact_rows
 
-TIGHT = 1e-10
 # the element count of the test columns: a column of N constant-curvature elements buckles within
 # about 1 / N^2 of the continuous column's load (the check measured below)
 ELEMENTS = 24
