@@ -48,6 +48,7 @@ from hairinv.invert import invert  # noqa: E402
 from hairinv.solver import gauss_seidel, interior  # noqa: E402
 from hairinv.solver.problem import CONE, ConeProblem, InteriorSettings, SweepSettings  # noqa: E402
 from hairinv.contacts.rows import contact_rows  # noqa: E402
+from hairinv.testing import project_cone  # noqa: E402
 
 TITLE = "Bounded forces: solver.gamma_relative"
 GUIDES = smoke(1000, 30)
@@ -96,7 +97,7 @@ def fractions(g: dict) -> list[dict]:
         res = interior.solve(problem, CONE, InteriorSettings(rest_tolerance=g["settings"].solver.rest_tolerance))
         run.update(ip_steps=res.iterations, ip_seconds=res.seconds, ip_status=res.status, ip_bound=res.rest_bound)
         ref = interior.solve(problem, CONE, InteriorSettings(rest_tolerance=REFERENCE, max_iterations=150))
-        r = ib.project_cones(ref.r, c.mu)
+        r = project_cone(ref.r, c.mu)
         rest = prob.rest(r)
         paper = rest if paper is None else paper
         t = time.perf_counter()

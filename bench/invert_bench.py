@@ -56,6 +56,7 @@ from hairinv.invert import invert  # noqa: E402
 from hairinv.model import Material, stiffness  # noqa: E402
 from hairinv.solver.reference import solve_socqp_clarabel  # noqa: E402
 from hairinv.contacts.rows import contact_rows  # noqa: E402
+from hairinv import testing  # noqa: E402
 
 TITLE = "Inverting a groom: contact forces and rest shapes"
 HERE = Path(__file__).resolve().parent
@@ -207,22 +208,7 @@ class Problem:
     def natural_residual(self, r: np.ndarray) -> float:
         """Largest ``|r_i - P_K(r_i - (W r + b)_i / rho_i)|`` over the contacts, N (the solver's stop test)."""
         u = self.W(r).reshape(-1, 3) + self.b
-        x = r - u / self.rho[:, None]
-        return float(np.max(np.linalg.norm(r - project_cones(x, self.contacts.mu), axis=1), initial=0.0))
-
-
-def project_cones(x: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """Euclidean projection of each row (normal, t1, t2) onto ``{|t| <= mu n}`` (mu finite and > 0)."""
-    n = x[:, 0]
-    tn = np.linalg.norm(x[:, 1:], axis=1)
-    p = x.copy()
-    polar = mu * tn <= -n
-    out = ~(tn <= mu * n) & ~polar
-    p[polar] = 0.0
-    a = (n[out] + mu[out] * tn[out]) / (1.0 + mu[out] ** 2)
-    p[out, 0] = a
-    p[out, 1:] = (mu[out] * a / tn[out])[:, None] * x[out, 1:]
-    return p
+        return float(np.max(testing.natural_residual(r, u, self.contacts.mu, self.rho), initial=0.0))
 
 
 # ---------------------------------------------------------------------------

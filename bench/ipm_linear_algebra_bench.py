@@ -84,16 +84,14 @@ def nt_scaling(r: np.ndarray, u: np.ndarray, mu: np.ndarray, force_shift: float,
     (Vandenberghe, the CVXOPT cone solvers); in force coordinates ``D = T H T``,
     ``T = diag(mu, 1, 1)``. Returns (C, 3, 3).
     """
+    from hairinv.testing import project_cone
+
     J = np.diag([1.0, -1.0, -1.0])
     x = r * np.stack([mu, np.ones_like(mu), np.ones_like(mu)], axis=1)
     z = u / np.stack([mu, np.ones_like(mu), np.ones_like(mu)], axis=1)
-    # the dual point onto its cone first (the sweeps' u is not exactly feasible)
-    zt = np.linalg.norm(z[:, 1:], axis=1)
-    out = zt > np.abs(z[:, 0])
-    a = np.where(out, np.maximum((z[:, 0] + zt) / 2.0, 0.0), 0.0)
-    z = np.where((zt <= -z[:, 0])[:, None], 0.0, z)
-    z[out, 0] = a[out]
-    z[out, 1:] *= (a[out] / zt[out])[:, None]
+    # the dual point onto its cone first (the sweeps' u is not exactly feasible): here the second-order cone,
+    # the Coulomb cone of mu = 1
+    z = project_cone(z, 1.0)
     x[:, 0] += force_shift
     z[:, 0] += velocity_shift
     detx = x[:, 0] ** 2 - np.sum(x[:, 1:] ** 2, axis=1)

@@ -39,6 +39,7 @@ from hairinv.solver import interior  # noqa: E402
 from hairinv.solver.problem import CONE, ConeProblem, InteriorSettings  # noqa: E402
 from hairinv.contacts.rows import contact_rows  # noqa: E402
 from hairinv.solver.rows import ContactRows  # noqa: E402
+from hairinv.testing import project_cone  # noqa: E402
 
 TITLE = "Multiplicative Schwarz over parts of the groom"
 GUIDES = smoke(1000, 40)
@@ -118,7 +119,7 @@ def schwarz(p, rows: ContactRows, part_of_contact: np.ndarray, sweeps: int, dist
             b = p.b[idx] + sub.matvec(np.ascontiguousarray(f[used] - own))
             part = ConeProblem.of(sub, d, gamma[idx], b, c.mu[idx], c.strand[idx], p.helices.n_strands, 1.0)
             res = interior.solve(part, CONE, InteriorSettings(rest_tolerance=PART_TOLERANCE))
-            new = ib.project_cones(res.r, c.mu[idx])
+            new = project_cone(res.r, c.mu[idx])
             f[used] += d * sub.rmatvec(new - r[idx])
             r[idx] = new
         spent += time.perf_counter() - began
@@ -138,7 +139,7 @@ def run() -> str:
     whole_problem = ConeProblem.of(rows, p.d, p.gamma, p.b, c.mu, c.strand, h.n_strands, 1.0)
     interior.solve(whole_problem, CONE, InteriorSettings(rest_tolerance=0.5))  # compiled and warm
     exact = interior.solve(whole_problem, CONE, InteriorSettings(rest_tolerance=1e-4))
-    optimum = p.rest(ib.project_cones(exact.r, c.mu))
+    optimum = p.rest(project_cone(exact.r, c.mu))
 
     def distance(r: np.ndarray) -> float:
         return float(np.sqrt(np.mean(np.sum((p.rest(r) - optimum) ** 2, axis=1))))
@@ -147,8 +148,8 @@ def run() -> str:
     for tol in REST:
         res = interior.solve(whole_problem, CONE, InteriorSettings(rest_tolerance=tol))
         lines.append(["interior point, whole problem", f"rest_tolerance {tol:g}", "", "",
-                      f"{res.iterations} steps", f"{res.seconds:.2f}", f"{distance(ib.project_cones(res.r, c.mu)):.3g}"])
-    whole, whole_distance = res.seconds, distance(ib.project_cones(res.r, c.mu))
+                      f"{res.iterations} steps", f"{res.seconds:.2f}", f"{distance(project_cone(res.r, c.mu)):.3g}"])
+    whole, whole_distance = res.seconds, distance(project_cone(res.r, c.mu))
     order = morton_order(h.root)
     firsts, lasts = [], []
     for grown in (False, True):

@@ -39,6 +39,7 @@ from hairinv.solver.gauss_seidel import split_strands  # noqa: E402
 from hairinv.solver.problem import CONE, ConeProblem, SweepSettings  # noqa: E402
 from hairinv.solver.reference import solve_socqp_clarabel, solve_socqp_dense_clarabel  # noqa: E402
 from hairinv.contacts.rows import contact_rows  # noqa: E402
+from hairinv.testing import natural_residual, project_cone  # noqa: E402
 
 TITLE = "Why the inverse sweeps converge slowly"
 SMALL, LARGE = smoke((300, 1000), (10, 20))  # guide subsets of ruby short
@@ -95,8 +96,7 @@ class Case:
     def residuals(self, r: np.ndarray) -> np.ndarray:
         """Per-contact natural-map residual over the heaviest strand's weight (the solver's stop test)."""
         u = self.prob.W(r).reshape(-1, 3) + self.prob.b
-        x = r - u / self.prob.rho[:, None]
-        return np.linalg.norm(r - ib.project_cones(x, self.contacts.mu), axis=1) / self.force_scale
+        return natural_residual(r, u, self.contacts.mu, self.prob.rho) / self.force_scale
 
     def rest_distance(self, r: np.ndarray, r_ref: np.ndarray) -> float:
         """rms over elements of ``|q0(r) - q0(r_ref)|``, 1/m."""
@@ -124,7 +124,7 @@ def optimum(case: Case) -> dict:
     start = time.perf_counter()
     r, info = solve_socqp_clarabel(p.H, p.d, p.gamma, p.b.ravel(), c.mu, tol=1e-8)
     seconds = time.perf_counter() - start
-    r = ib.project_cones(r, c.mu)
+    r = project_cone(r, c.mu)
     polished = case.sweep(3000, r0=r, tolerance=1e-9)
     return {"clarabel": r, "seconds": seconds, "iterations": info["iterations"], "status": info["status"],
             "r": polished.r, "relres": polished.relative_residual, "sweeps": polished.sweeps}
@@ -191,7 +191,7 @@ def block_rounds(case: Case, size: int, rounds: int) -> dict:
             bS = p.b.ravel()[idx] + HS @ held
             WS = (HS.multiply(p.d[None, :]) @ HS.T).toarray() + np.diag(np.repeat(p.gamma, 3)[idx])
             x, _ = solve_socqp_dense_clarabel(WS, bS, c.mu[S], tol=1e-10)
-            x = ib.project_cones(x, c.mu[S]).ravel()
+            x = project_cone(x, c.mu[S]).ravel()
             solves += 1
             if 0.5 * x @ WS @ x + bS @ x < 0.5 * rS @ WS @ rS + bS @ rS:
                 r[S] = x.reshape(-1, 3)
