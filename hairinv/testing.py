@@ -142,7 +142,7 @@ def dual_cone_violation(u, mu) -> np.ndarray:
     return cone_violation(u, _inverse(_friction(mu, u.shape[:-1])))
 
 
-def in_cone(x, mu, atol=0.0, rtol=0.0) -> np.ndarray:
+def in_cone(x, mu, atol, rtol=0.0) -> np.ndarray:
     """Whether each row lies in ``K_mu`` to the tolerances: :func:`cone_violation` at most ``atol`` (in the
     units of ``x``: a number, or one per row) beyond ``rtol`` times the bound ``mu x_N / max(1, mu)``
     (``atol = 0, rtol = 1e-12``: in the cone to the round-off of the bound, as a projection returns it)."""
@@ -154,7 +154,7 @@ def in_cone(x, mu, atol=0.0, rtol=0.0) -> np.ndarray:
     return cone_violation(x, mu) <= atol + rtol * bound
 
 
-def in_dual_cone(u, mu, atol=0.0, rtol=0.0) -> np.ndarray:
+def in_dual_cone(u, mu, atol, rtol=0.0) -> np.ndarray:
     """Whether each row lies in ``K*_mu`` to the tolerances: :func:`dual_cone_violation` at most ``atol`` beyond
     ``rtol`` times the bound; as :func:`in_cone`."""
     u = _rows(u)

@@ -104,7 +104,7 @@ def test_the_dual_cone_is_the_dual(mu, rng):
         generators = np.stack([np.ones_like(a), mu * np.cos(a), mu * np.sin(a)], axis=1)
     products = u @ generators.T
     scale = np.linalg.norm(u, axis=1)[:, None] * np.linalg.norm(generators, axis=1)
-    inside = in_dual_cone(u, mu)
+    inside = in_dual_cone(u, mu, atol=0.0)
     assert np.all(products[inside] >= -ROUNDOFF * scale[inside])
     # outside by more than the half degree between generators can hide: some product is negative
     clearly = dual_cone_violation(u, mu) > 1e-2 * np.linalg.norm(u, axis=1)
@@ -129,10 +129,11 @@ def test_violations_vanish_on_the_cones_and_are_within_sqrt_2_of_the_distance(mu
 
 def test_exact_membership_with_a_relative_tolerance():
     """``rtol`` loosens only the bound ``mu x_N``: a hair outside it passes, a negative normal never."""
-    assert in_cone([1.0, 0.3 * (1 + 1e-13), 0.0], 0.3, rtol=1e-12)
-    assert not in_cone([1.0, 0.3 * (1 + 1e-11), 0.0], 0.3, rtol=1e-12)
-    assert not in_cone([-1e-300, 0.0, 0.0], 0.3, rtol=1e-12)
-    assert in_cone([0.0, 5.0, 0.0], np.inf, rtol=1e-12) and not in_cone([-1e-300, 0.0, 0.0], np.inf, rtol=1e-12)
+    assert in_cone([1.0, 0.3 * (1 + 1e-13), 0.0], 0.3, atol=0.0, rtol=1e-12)
+    assert not in_cone([1.0, 0.3 * (1 + 1e-11), 0.0], 0.3, atol=0.0, rtol=1e-12)
+    assert not in_cone([-1e-300, 0.0, 0.0], 0.3, atol=0.0, rtol=1e-12)
+    assert in_cone([0.0, 5.0, 0.0], np.inf, atol=0.0, rtol=1e-12)
+    assert not in_cone([-1e-300, 0.0, 0.0], np.inf, atol=0.0, rtol=1e-12)
 
 
 def complementary_pairs(mu, rng):
