@@ -241,6 +241,8 @@ def point_load_potential(root, frame0, omega, length, s, force):
 
 
 def dense_problem(helices, contacts, mat, model):
+    """The model's cone QP assembled densely: ``W = H D H^T + gamma I``, ``b = H D (F_g - K (q - t))`` with
+    ``D = w K^-2``; returns ``(W, b, H, d)``, ``d`` the diagonal of ``D``."""
     rows = contact_rows(helices, contacts)
     H = rows.to_sparse().toarray()
     K = stiffness(helices, mat)
