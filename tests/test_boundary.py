@@ -20,11 +20,10 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import SAMPLES
+from conftest import SAMPLES, hairinv
 from hairinv import config, stages
 from hairinv.dynamics.scene import Scene
 from hairinv.errors import InputError
-from test_cli import hairinv
 
 
 @pytest.fixture(scope="module")
