@@ -423,14 +423,20 @@ class SolverProgress(Progress):
     """A bar of Gauss-Seidel sweeps showing the relative residual and the rest-shape bound (1/m), or of
     interior-point steps showing the bound."""
 
-    def __init__(self, total: int, enabled: bool, unit: str = "sweep", measure: str = "residual"):
+    def __init__(self, total: int, enabled: bool, unit: str = "sweep", measure: str = "residual",
+                 stops: dict | None = None):
         super().__init__(total, "invert", enabled, unit=unit)
         self.measure = measure
+        self.stops = stops or {}
+        """what stops each method before its cap, by unit ("sweep", "step"): the count shown is a cap, not a
+        forecast (the interior point's 100 steps at most usually end near 20)"""
 
     def __call__(self, sweeps: int, relative: float, bound: float = float("nan")) -> None:
         shown = f"{self.measure} {relative:.1e}"
         if bound == bound:  # not NaN: the sweeps' own bound
             shown += f", rest shape within {bound:.2g} 1/m"
+        if self.unit in self.stops:
+            shown += f"; {self.stops[self.unit]}"
         if self.bar is not None:
             self.bar.update(sweeps - self.bar.n)
             self.bar.set_postfix_str(shown)
@@ -444,6 +450,13 @@ class SolverProgress(Progress):
             self.bar.unit = "step"
             self.bar.reset(total=steps)
         return self
+
+
+def solver_stops(solver) -> dict:
+    """What stops the inversion's methods before their caps (``SolverProgress.stops``), from its settings."""
+    return {"step": f"stops within {solver.rest_tolerance:g} 1/m, {solver.max_iterations} steps at most",
+            "sweep": f"stops within {solver.rest_tolerance:g} 1/m or at residual {solver.tolerance:g}, "
+                     f"{solver.max_sweeps} sweeps at most"}
 
 
 def _contact_extra(body_distance, hair_distance, mu, no_hair_hair) -> dict:
@@ -599,10 +612,12 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
                                                 prepared.helices.n_strands)
         if line:
             _say(obj, line)
+    stops = solver_stops(settings.solver)
     if settings.solver.method == "interior-point":
-        bar = SolverProgress(settings.solver.max_iterations, obj["progress"], "step", "rest shape within (1/m)")
+        bar = SolverProgress(settings.solver.max_iterations, obj["progress"], "step", "rest shape within (1/m)",
+                             stops=stops)
     else:
-        bar = SolverProgress(settings.solver.max_sweeps, obj["progress"])
+        bar = SolverProgress(settings.solver.max_sweeps, obj["progress"], stops=stops)
     try:
         model, report = run_invert(prepared.helices, prepared.contacts, material, settings.solver, progress=bar,
                                    start=start, prior_sweeps=prior, stiffening=factor)
@@ -615,6 +630,17 @@ def invert(obj, style, body, output, target, gamma, stabilize, no_stability_chec
     stages.write_stage(output, model_groups(prepared, model, settings, features), "invert", record)
     _say(obj, f"wrote {output}")
     _say_timings(obj, {**prepared.timings, "invert": report.seconds})
+    _say(obj, next_commands(output, body))
+
+
+def next_commands(model: Path, body: Path | None) -> str:
+    """What a user runs on a model once ``invert`` wrote it: the still check, a motion, an export."""
+    import shlex
+
+    args = " ".join(shlex.quote(str(p)) for p in (model, body) if p is not None)
+    usd = shlex.quote(str(Path(model).with_suffix("").with_suffix(".usda")))
+    return (f"next: `hairinv verify {args}` (does it stay still), `hairinv simulate {args} --scene motion` "
+            f"(the head turns), `hairinv export {shlex.quote(str(model))} -o {usd}` (for Blender, Houdini, ...)")
 
 
 def _init_option(fn):

@@ -391,6 +391,17 @@ def test_plain_progress_lines_when_stderr_is_not_a_terminal(tmp_path):
     assert {"fit", "invert"} <= stages_seen, run.stderr
     for stage, n, total, _unit, share in lines:
         assert int(n) <= int(total) and int(share) == round(100 * int(n) / int(total))
+    # the count is a cap: each invert line says what stops the method before it
+    solver_lines = [line for line in run.stderr.splitlines() if line.startswith("invert: ")]
+    assert solver_lines and all("stops within 0.05 1/m" in line and "at most" in line for line in solver_lines)
+    # and the run ends by saying what to run next, each a command that takes this model
+    last = run.stdout.strip().splitlines()[-1]
+    assert last.startswith("next: ") and "hairinv verify every.model.h5 " in last, last
+    assert "hairinv simulate every.model.h5 " in last and str(SAMPLES / "body.obj") in last, last
+    export = last.split("`hairinv export ")[1].split("`")[0].split()
+    done = subprocess.run([sys.executable, "-m", "hairinv_cli.main", "export", *export], cwd=tmp_path,
+                          capture_output=True, text=True, env=env, timeout=600, check=False)
+    assert done.returncode == 0 and (tmp_path / "every.usda").is_file(), done.stderr
     quiet = subprocess.run(args + ["quiet.model.h5", "-q"], cwd=tmp_path, capture_output=True, text=True, env=env,
                            timeout=600, check=False)
     assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == ""
