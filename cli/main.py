@@ -221,8 +221,11 @@ def import_options(fn):
         click.option("--flip", default=None, metavar="AXES",
                      help="Axes to negate on import, e.g. z for a left-handed export."),
         click.option("--guides", type=click.IntRange(min=0), default=None,
-                     help="Keep N guide strands, a seeded random subset spread evenly over the scalp."),
-        click.option("--seed", type=int, default=None, help="Seed of the guide selection."),
+                     help="Keep N guide strands, a seeded random subset spread evenly over the scalp "
+                          "[import.guides; default: every strand, as 0 also says]."),
+        click.option("--seed", type=int, default=None,
+                     help="Seed of the guide selection: the same seed picks the same strands [import.seed; "
+                          "default 0]."),
     ]
     for option in reversed(options):
         fn = option(fn)
@@ -279,15 +282,17 @@ def _up_to_date(obj, if_stale: bool, output: Path, record: dict, check=None) -> 
     return False
 
 
-def settings_options(fn):
-    """--quality, --config and --set."""
+def settings_options(fn=None, *, example: str = "fit.tolerance=0.1mm"):
+    """--quality, --config and --set (``example``: a setting the command uses)."""
+    if fn is None:
+        return functools.partial(settings_options, example=example)
     options = [
         click.option("--quality", type=click.Choice(["draft", "default", "final"]), default="default",
                      show_default=True, help="Preset trading speed for accuracy (configs/quality/)."),
         click.option("--config", "config_file", type=click.Path(dir_okay=False), default=None,
                      help="TOML settings file ([import], [fit], ...)."),
         click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
-                     help="Override one setting, e.g. --set fit.tolerance=0.1mm (repeatable); lengths take a unit "
+                     help=f"Override one setting, e.g. --set {example} (repeatable); lengths take a unit "
                           "or are metres."),
     ]
     for option in reversed(options):
@@ -478,12 +483,13 @@ def contact_options(fn):
     options = [
         click.option("--body-distance", type=LENGTH, default=None,
                      help="A length with its unit (4mm) or in metres: a strand closer than this to the body "
-                          "touches it [contacts.body_distance]."),
+                          "touches it [contacts.body_distance; default 4mm]."),
         click.option("--hair-distance", type=LENGTH, default=None,
                      help="A length with its unit (1mm) or in metres: strands closer than this touch each other "
-                          "[contacts.hair_distance]."),
+                          "[contacts.hair_distance; default 1mm]."),
         click.option("--mu", type=FINITE, default=None,
-                     help="Friction coefficient of every contact (sets contacts.mu_body and contacts.mu_hair)."),
+                     help="Friction coefficient of every contact (sets contacts.mu_body and contacts.mu_hair; "
+                          "default 0.3 each)."),
         click.option("--no-hair-hair", is_flag=True, help="Declare no hair-hair contacts."),
     ]
     for option in reversed(options):
@@ -541,7 +547,7 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
               help="Output stage file [default: ./<name>.model.h5].")
 @click.option("--target", type=click.Choice(["actual", "zero", "uniform", "tip", "gravity-only"]), default=None,
               help="Rest shape the inversion draws towards [solver.target, default actual: the input shape].")
-@click.option("--gamma", type=FINITE, default=None, help="Weight of the contact forces, N^-2 m^-2 [solver.gamma].")
+@click.option("--gamma", type=FINITE, default=None, help="Weight of the contact forces, N^-2 m^-2 [solver.gamma; default 0.001].")
 @click.option("--stabilize", type=click.Choice(["stiffen", "off"]), default=None,
               help="Strands whose equilibrium is unstable under their contact forces held fixed: stiffen each just "
                    "enough to hold (the default), or off: keep the material and only report them "
@@ -666,7 +672,7 @@ def _simulation_progress(obj, run):
 @click.option("--seconds", type=FINITE, default=None, help="Simulated time, s [default: the scene's].")
 @click.option("--fps", type=FINITE, default=None, help="Frames written per second [default: the scene's].")
 @body_options
-@settings_options
+@settings_options(example="dynamics.time_step=0.005")
 @if_stale_option
 @click.pass_obj
 @handle_errors
@@ -757,7 +763,7 @@ def _verdict_lines(verdict, every_strand: bool, rows: int = VERIFY_ROWS) -> list
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
               help="Also write the frames simulated to this stage file, as `simulate` does [default: none].")
 @body_options
-@settings_options
+@settings_options(example="dynamics.time_step=0.005")
 @if_stale_option
 @click.pass_obj
 @handle_errors

@@ -507,3 +507,23 @@ def test_invert_and_info_count_the_same_contacts_carrying_force(tmp_path):
     with h5py.File(tmp_path / "m.h5", "r") as fh:
         normal = fh["model/force"][:, 0]
         assert printed == int((normal > fh["model"].attrs["carrying_threshold"]).sum())
+
+
+def test_help_pages_state_the_defaults_in_effect(tmp_path):
+    """The defaults the help pages state are those the default preset resolves to (read here from the settings,
+    not from the help's own text), each length with its unit; simulate's --set example is a setting it uses."""
+    import re
+
+    settings = config.resolve()
+    detect = " ".join(hairinv(tmp_path, "detect", "--help").stdout.split())
+    stated = {key: value for key, value in re.findall(r"\[contacts\.(\w+); default ([0-9.]+mm)\]", detect)}
+    assert stated.keys() == {"body_distance", "hair_distance"}, detect
+    for key, text in stated.items():
+        assert config.parse_length(text) == pytest.approx(getattr(settings.contacts, key), rel=1e-12)
+    mu = float(re.search(r"default ([0-9.]+) each", detect).group(1))
+    assert mu == settings.contacts.mu_body == settings.contacts.mu_hair
+    assert f"[import.seed; default {settings.import_.seed}]" in detect and "default: every strand" in detect
+    invert = " ".join(hairinv(tmp_path, "invert", "--help").stdout.split())
+    assert float(re.search(r"\[solver\.gamma; default ([0-9.e-]+)\]", invert).group(1)) == settings.solver.gamma
+    simulate = " ".join(hairinv(tmp_path, "simulate", "--help").stdout.split())
+    assert "--set dynamics." in simulate and "--set fit." not in simulate
