@@ -63,6 +63,9 @@ def rng():
 # ------------------------------------------------------------------------------------- the hairinv command
 
 
+# no plain progress lines unless a test asks for them (HAIRINV_PROGRESS_SECONDS=0): on a busy machine a stage
+# may outlast the 5 s between two lines, and a refusal's stderr would then hold more than its one sentence
+os.environ.setdefault("HAIRINV_PROGRESS_SECONDS", "1e9")
 ENV = {k: v for k, v in os.environ.items() if k != "HAIRINV_DEBUG"}
 ENV["HAIRINV_THREADS"] = "2"
 
