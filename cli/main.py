@@ -706,7 +706,8 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
         bar.close()
     last = frames.log[-1]
     _say(obj, f"simulated {last.time:g} s in {sum(f.seconds for f in frames.log):.1f} s; largest displacement "
-              f"{1e3 * max(f.displacement for f in frames.log):.3f} mm")
+              f"{1e3 * max(f.displacement for f in frames.log):.3f} mm (of any strand point from where it started, "
+              "in the body's frame: the motion the body carries is not counted)")
     run.write(output)
     _say(obj, f"wrote {output}")
     _say_timings(obj, {"simulate": sum(f.seconds for f in frames.log)})
