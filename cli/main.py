@@ -198,11 +198,20 @@ class Length(click.ParamType):
         from hairinv.config import parse_length
         from hairinv.errors import InputError
 
+        from hairinv.config import LENGTH_UNITS, _LENGTH
+
         if isinstance(value, float):
             return value
         try:
             return parse_length(str(value), "length", bare_metres=True)
         except InputError as error:
+            # a length written right but not > 0 goes on to its setting's range, whose refusal names the
+            # setting in one sentence; what is not a length at all is a usage error here
+            match = _LENGTH.fullmatch(str(value))
+            if match is not None and (match.group(2) or "m") in LENGTH_UNITS:
+                number = float(match.group(1)) * LENGTH_UNITS[match.group(2) or "m"]
+                if number == number and abs(number) != float("inf"):
+                    return number
             self.fail(error.message.removeprefix("length: "), param, ctx)
 
 

@@ -435,7 +435,10 @@ def range_error(where: str, value) -> str | None:
     if (isinstance(value, int) or math.isfinite(value)) and lo <= value <= hi:
         return None
     zero = f" (or {ZERO_MEANS[where]})" if where in ZERO_MEANS else ""
-    return f"{where} is {value!r}; it must be a number from {lo:g} to {hi:g}{' ' + unit if unit else ''}{zero}"
+    # a quantity that cannot be zero or negative says so first: "> 0" is the rule a user remembers
+    positive = "> 0, " if lo > 0 and isinstance(value, (int, float)) and value <= 0 else ""
+    return (f"{where} is {value!r}; it must be {positive}a number from {lo:g} to {hi:g}{' ' + unit if unit else ''}"
+            f"{zero}")
 
 
 def _coerce(value, typ, where: str, source: str):
