@@ -245,13 +245,13 @@ def test_a_suggested_fix_puts_the_roots_on_the_body(case):
     as_hair, to_groom = body_read_with(BodySettings())
     lines = root_distance_lines(roots, as_hair, "bust.obj", Y_UP, BodySettings(), to_groom)
     assert len(lines) == 1 and "roots lie" in lines[0], lines
-    if right is None:
+    if right is None:  # no option puts the roots on a body they are not on: none is offered
         assert "(try" not in lines[0] and "check that the groom and the body share" in lines[0], lines[0]
-        return
-    suggested = lines[0].split("(try ")[1].split(")")[0]
-    assert suggested == right, lines[0]
-    words = suggested.split()
-    options = dict(zip((w.removeprefix("--body-") for w in words[::2]), words[1::2]))
-    fixed, _ = body_read_with(BodySettings(**options))
-    assert np.median(np.abs(fixed.closest(np.ascontiguousarray(roots))[0])) <= ROOTS_FAR
-    assert root_distance_lines(roots, fixed, "bust.obj", Y_UP, BodySettings(**options), None) == []
+    else:
+        suggested = lines[0].split("(try ")[1].split(")")[0]
+        assert suggested == right, lines[0]
+        words = suggested.split()
+        options = dict(zip((w.removeprefix("--body-") for w in words[::2]), words[1::2]))
+        fixed, _ = body_read_with(BodySettings(**options))
+        assert np.median(np.abs(fixed.closest(np.ascontiguousarray(roots))[0])) <= ROOTS_FAR
+        assert root_distance_lines(roots, fixed, "bust.obj", Y_UP, BodySettings(**options), None) == []
