@@ -189,8 +189,9 @@ class FiniteFloat(click.ParamType):
 
 
 class Length(click.ParamType):
-    """A length > 0 in metres, written with its unit (``0.2mm``, ``4 mm``, ``1e-4m``) or as a bare number of
-    metres: the rule of every length setting (:func:`hairinv.config.parse_length`)."""
+    """A length in metres, written with its unit (``0.2mm``, ``4 mm``, ``1e-4m``) or as a bare number of
+    metres: the rule of every length setting (:func:`hairinv.config.parse_length`); its setting's range
+    then judges its size and sign."""
 
     name = "length"
 
@@ -198,20 +199,13 @@ class Length(click.ParamType):
         from hairinv.config import parse_length
         from hairinv.errors import InputError
 
-        from hairinv.config import LENGTH_UNITS, _LENGTH
-
         if isinstance(value, float):
             return value
         try:
-            return parse_length(str(value), "length", bare_metres=True)
-        except InputError as error:
             # a length written right but not > 0 goes on to its setting's range, whose refusal names the
-            # setting in one sentence; what is not a length at all is a usage error here
-            match = _LENGTH.fullmatch(str(value))
-            if match is not None and (match.group(2) or "m") in LENGTH_UNITS:
-                number = float(match.group(1)) * LENGTH_UNITS[match.group(2) or "m"]
-                if number == number and abs(number) != float("inf"):
-                    return number
+            # setting in one sentence; what is not a finite length at all is a usage error here
+            return parse_length(str(value), "length", bare_metres=True, positive=False)
+        except InputError as error:
             self.fail(error.message.removeprefix("length: "), param, ctx)
 
 

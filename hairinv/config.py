@@ -330,13 +330,14 @@ LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "in":
 _LENGTH = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\s\d.+-][^\s]*)?\s*")
 
 
-def parse_length(text: str, option: str = "length", bare_metres: bool = False) -> float:
+def parse_length(text: str, option: str = "length", bare_metres: bool = False, positive: bool = True) -> float:
     """Metres from a length written with its unit: ``0.1mm``, ``1e-4m``, ``0.01 cm``, ``100um``.
 
     One rule for every length hairinv reads: a unit may always be given. A bare number is metres where
     ``bare_metres`` (the settings, and options whose help says metres); elsewhere it is refused, since
     ``0.1`` could mean 0.1 m or 0.1 mm, and a check a thousand times too lax would pass silently. The
-    length must be finite and > 0.
+    length must be finite, and > 0 where ``positive`` (else a setting's own range judges its sign, and
+    its refusal names the setting).
 
     Raises
     ------
@@ -353,8 +354,9 @@ def parse_length(text: str, option: str = "length", bare_metres: bool = False) -
     if unit is not None and unit not in LENGTH_UNITS:
         raise InputError(f"{option}: unknown unit {unit!r} in {text!r}; use one of {units}")
     value = float(number) * LENGTH_UNITS[unit or "m"]
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(f"{option}: {text!r} must be a length > 0")
+    if not (math.isfinite(value) and (value > 0 or not positive)):
+        raise InputError(f"{option}: {text!r} must be a length > 0" if positive else
+                         f"{option}: {text!r} must be a finite length")
     return value
 
 

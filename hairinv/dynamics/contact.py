@@ -369,7 +369,7 @@ def solve_coulomb(problem: ConeProblem, settings: CoulombSettings, start: np.nda
     r = np.array(start, dtype=np.float64, copy=True)
     if Wd is None and rows.n_contacts:
         Wd = delassus_blocks(rows, gamma)
-    best_r, best = r.copy(), desaxce_residual(rows, gamma, b, mu, r, Wd)
+    best_r, best = r.copy(), gauss_seidel.residual(problem, COULOMB, r, Wd)
     history = [(0, best)]
     if not np.isfinite(best):  # non-finite data (b, W or the warm start): nothing to solve
         return SolverResult(r, Status.NUMERICAL_ERROR, 0, best, best / velocity_scale, history,
@@ -381,7 +381,7 @@ def solve_coulomb(problem: ConeProblem, settings: CoulombSettings, start: np.nda
     def record(point: np.ndarray) -> float:
         """The De Saxce residual of ``point`` after ``sweeps``, kept if it is the best so far."""
         nonlocal best, best_r, status
-        residual = desaxce_residual(rows, gamma, b, mu, point, Wd)
+        residual = gauss_seidel.residual(problem, COULOMB, point, Wd)
         history.append((sweeps, residual))
         if residual < best:
             best, best_r = residual, point.copy()
