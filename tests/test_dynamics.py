@@ -31,7 +31,7 @@ def _free_step(helices, q0, mat, v, settings: DynamicsSettings, motion: Motion):
     sim.v = v.copy()
     v_free = np.zeros_like(sim.q)
     _free_chunk(helices.root, helices.frame0, helices.offsets, helices.length, sim.q, sim.v, sim.rest, sim.stiff,
-                sim.lam, sim.rot, settings.damping, settings.air_damping, H, motion.packed(), sim.gx, sim.gw,
+                sim.lam, sim.rot, settings.damping, settings.air_damping, H, motion.per_strand(helices.n_strands), sim.gx, sim.gw,
                 sim.chol, sim.chol_ptr, v_free, sim.kinetic, sim.hess, sim.mass, np.ones(helices.n_strands, np.bool_),
                 sim.factored_h, np.zeros_like(sim.hess), 0, helices.n_strands)
     return sim, v_free
@@ -132,7 +132,7 @@ def test_a_kept_gravity_hessian_gives_the_same_step():
     sim, v_free = _free_step(helices, helices.omega, mat, v, settings, Motion.still(mat.gravity))
     again = np.zeros_like(v_free)
     _free_chunk(helices.root, helices.frame0, helices.offsets, helices.length, sim.q, v, sim.rest, sim.stiff,
-                sim.lam, sim.rot, settings.damping, settings.air_damping, H, Motion.still(mat.gravity).packed(),
+                sim.lam, sim.rot, settings.damping, settings.air_damping, H, Motion.still(mat.gravity).per_strand(helices.n_strands),
                 sim.gx, sim.gw, sim.chol, sim.chol_ptr, again, sim.kinetic, sim.hess, sim.mass,
                 np.zeros(helices.n_strands, np.bool_), sim.factored_h, np.zeros_like(sim.hess), 0, helices.n_strands)
     assert np.array_equal(again, v_free)

@@ -158,6 +158,11 @@ class Motion:
         """(5, 3): gravity, accel, velocity, spin, spin_rate, for the kernels."""
         return np.ascontiguousarray(np.stack([self.gravity, self.accel, self.velocity, self.spin, self.spin_rate]))
 
+    def per_strand(self, n: int) -> np.ndarray:
+        """(n, 5, 3): :meth:`packed` for each of ``n`` strands, as the kernels take it (a deforming body gives
+        each strand its own, :class:`hairinv.dynamics.skin.SkinStep`)."""
+        return np.ascontiguousarray(np.broadcast_to(self.packed(), (n, 5, 3)))
+
 
 # A halved attempt is kept, although an element turns further than max_turn, when it turns more than
 # _HALVING_GAIN times as far as the attempt it replaces (a smooth motion turns half as far in half the
@@ -377,7 +382,7 @@ def _free_chunk(root, frame0, offsets, length, q, v, q0, stiff, lam, rot, dampin
         a = offsets[k]
         z = offsets[k + 1]
         kinetic[k] = strand_dynamics(root[k], frame0[k], q[a:z], v[a:z], q0[a:z], stiff[3 * a:3 * z], length[a:z],
-                                     lam, rot, damping, air, h, motion, gx, gw,
+                                     lam, rot, damping, air, h, motion[k], gx, gw,
                                      chol[chol_ptr[k]:chol_ptr[k + 1]], v_free[a:z],
                                      hess[chol_ptr[k]:chol_ptr[k + 1]], mass[chol_ptr[k]:chol_ptr[k + 1]],
                                      fresh[k], factored_h[k], held[chol_ptr[k]:chol_ptr[k + 1]])
@@ -493,15 +498,36 @@ class Simulation:
         self._strand_length = (np.add.reduceat(helices.length, helices.offsets[:-1]) if helices.n_elements
                                else np.zeros(helices.n_strands))
         self.last = None
+        # each strand's rigid motion from its bind pose, x = R x_bind + c: the identity until a deforming body
+        # moves the roots (a SkinnedBody given to step); a rigid scene keeps it, the groom in the body's frame
+        self.R = np.broadcast_to(np.eye(3), (helices.n_strands, 3, 3)).copy()
+        self.c = np.zeros((helices.n_strands, 3))
+        self.time = 0.0  # s, of the state
+        self._skin = None  # the SkinStep of the step being taken, None for a rigid one
+        self._placed = False  # whether any strand has left its bind pose
         # halvings a step starts with (see step), and the strand that last made a step halve
         self.start_depth = 0
         self._halved_by = -1
 
     # ------------------------------------------------------------------ geometry
     def current(self) -> Helices:
-        """The strands at the current ``q`` (body frame)."""
+        """The strands at the current ``q``: in the body's frame, or, under a deforming body, placed by their
+        own frames (during a step, those at its end: contacts are found where the body will be)."""
         h = self.helices
+        if self._skin is not None:
+            return self._posed(self._skin.R, self._skin.c)
+        if self._placed:
+            return self._posed(self.R, self.c)
         return Helices(h.root, h.frame0, h.offsets, h.length, self.q, h.fit_error)
+
+    def _posed(self, R: np.ndarray, c: np.ndarray) -> Helices:
+        h = self.helices
+        return Helices(np.einsum("nij,nj->ni", R, h.root) + c, np.einsum("nij,nkj->nik", h.frame0, R), h.offsets,
+                       h.length, self.q, h.fit_error)
+
+    def _moving(self) -> bool:
+        """Whether the body moves the strands' frames or itself over the step being taken."""
+        return self._skin is not None and self._skin.moves
 
     def _detect(self) -> Contacts:
         """This step's contacts: detected afresh once any strand point may have moved by more than a
@@ -517,7 +543,8 @@ class Simulation:
         """
         h = self.helices
         S = h.n_strands
-        if self._last_found is not None and h.n_elements:
+        moving = self._moving()
+        if self._last_found is not None and h.n_elements and not moving:
             reach = 0.25 * self._detect_distance
             # first the cheap bound: every element's turn |d omega_e| l_e swings the whole strand
             turn = np.linalg.norm(self.q - self._q_detected, axis=1) * h.length
@@ -538,10 +565,11 @@ class Simulation:
                 return self._detect_strands(np.flatnonzero(redo))
         # the first detection is the model's own, on the starting shape: the same rules as the contacts it was
         # inverted with (the hair layer and wisps included), so the first step meets them again
-        rules = self.contact_settings if self._last_found is None and self._initial is not None else \
-            self._detect_settings
+        # (and so is a first step the body moves: the model's contacts, remembered, are measured again)
+        first = self._last_found is None or (self._first and moving)
+        rules = self.contact_settings if first and self._initial is not None else self._detect_settings
         found, _ = detect_contacts(self.current(), self.body, rules, up=self._up,
-                                   refine_iterations=REFINE_ITERATIONS if self._last_found is None else _MOVING_REFINE)
+                                   refine_iterations=REFINE_ITERATIONS if first else _MOVING_REFINE)
         self._stale = np.zeros(found.n_contacts, dtype=np.bool_)
         self._redetected = S
         self._last_found, self._q_detected = found, self.q.copy()
@@ -625,7 +653,8 @@ class Simulation:
         Returns the contacts and their anchors (point, normal, gap; NaN points for
         hair-hair contacts), for :meth:`_step` to remember.
         """
-        if self._first or not (len(self._keys) or self._stale.any()):
+        moving = self._moving()
+        if (self._first and not moving) or not (len(self._keys) or self._stale.any()):
             # the first step meets the starting contacts as detected (see _remember), and so does a
             # fresh detection with nothing remembered
             return found, self._anchors_of(found, np.arange(found.n_contacts))
@@ -657,7 +686,7 @@ class Simulation:
         anchor_gap[had] = self._anchor[2][remembered[had]]
         point = np.concatenate([found.point, np.zeros((len(extra), 3))])
         normal = old_frame[:, 0].copy()  # remembered contacts get theirs measured below
-        h = self.helices
+        h = self.current()
         xa = points_on(h, self.q, strand[redo, 0], arc[redo, 0])
         point[redo] = xa
         body = strand[redo, 1] < 0
@@ -670,6 +699,8 @@ class Simulation:
                 shift = xa[body] - anchor_point[at]
                 # NaN (no anchor) compares False: measured
                 near = np.linalg.norm(shift, axis=1) <= 0.25 * self.settings.tolerance * self.velocity_scale * dt * dt
+                if moving:
+                    near[:] = False  # the body has moved under every anchor
                 held = at[near]
                 normal[held] = anchor_normal[held]
                 gap[held] = anchor_gap[held] + np.einsum("ij,ij->i", anchor_normal[held], shift[near])
@@ -747,17 +778,19 @@ class Simulation:
     def _stale_hessians(self, gravity: np.ndarray) -> np.ndarray:
         """Strands whose gravity Hessian and mass matrix must be taken again, (S,) bool: they only shape
         the implicit matrix, so they (and its factor) are kept while no element has turned by more than
-        0.01 rad since, and gravity (in the body frame) has not turned by more than 0.01 rad. A still
-        groom then costs a gravity evaluation and two triangular solves per strand and step."""
+        0.01 rad since, and gravity (in the strand's frame, ``gravity`` (S, 3)) has not turned by more than
+        0.01 rad. A still groom then costs a gravity evaluation and two triangular solves per strand and step."""
         n = self.helices.n_strands
-        if self._hess_q is None or np.linalg.norm(np.cross(gravity, self._hess_gravity)) > \
-                1e-2 * np.linalg.norm(gravity) * np.linalg.norm(self._hess_gravity):
+        if self._hess_q is None:
             fresh = np.ones(n, dtype=np.bool_)
+            turned = fresh
         else:
+            turned = np.linalg.norm(np.cross(gravity, self._hess_gravity), axis=1) > \
+                1e-2 * np.linalg.norm(gravity, axis=1) * np.linalg.norm(self._hess_gravity, axis=1)
             turn = np.linalg.norm(self.q - self._hess_q, axis=1) * self.helices.length
-            fresh = np.zeros(n, dtype=np.bool_)
+            fresh = turned.copy()
             if len(turn):
-                fresh = np.maximum.reduceat(turn, self.helices.offsets[:-1]) > 1e-2 if n else fresh
+                fresh |= np.maximum.reduceat(turn, self.helices.offsets[:-1]) > 1e-2
         if fresh.any():
             if self._hess_q is None or fresh.all():
                 self._hess_q = self.q.copy()
@@ -765,6 +798,7 @@ class Simulation:
             else:
                 mask = np.repeat(fresh, np.diff(self.helices.offsets))
                 self._hess_q[mask] = self.q[mask]
+                self._hess_gravity[turned] = gravity[turned]
         return fresh
 
     def _contact_hessians(self, fresh: np.ndarray) -> np.ndarray:
@@ -796,7 +830,8 @@ class Simulation:
         order = np.lexsort((arc, strand))
         strand, arc, load = strand[order], arc[order], load[order]
         bounds = np.searchsorted(strand, np.arange(self.helices.n_strands + 1))
-        h = self.helices
+        # the remembered forces are in the frame the strands were placed in (the body's, or the groom's)
+        h = self._posed(self.R, self.c) if self._placed else self.helices
         loaded_strands = np.flatnonzero(np.diff(bounds)).astype(np.int64)
         arc, load = np.ascontiguousarray(arc), np.ascontiguousarray(load)
         run_chunks(lambda lo, hi: _load_hessians(loaded_strands, lo, hi, bounds, h.root, h.frame0, self.q, h.length,
@@ -805,8 +840,12 @@ class Simulation:
         return held
 
     # ------------------------------------------------------------------ stepping
-    def step(self, motion: Motion, h: float | None = None) -> StepReport:
+    def step(self, motion, h: float | None = None, t: float | None = None) -> StepReport:
         """Advance by ``h`` (default: the settings' time step) under ``motion``.
+
+        ``motion`` is a :class:`Motion`, the body frame's, for the whole groom; or a
+        :class:`~hairinv.dynamics.skin.SkinnedBody`, a deforming body that moves each root with its own
+        triangle, asked for each (sub)step from ``t`` (default: where the last step ended).
 
         The step is linearised at its start, so it is split in halves (up to
         ``dynamics.max_substeps`` times) while any element would turn by more
@@ -829,6 +868,8 @@ class Simulation:
         """
         started = time.perf_counter()
         h = float(self.settings.time_step if h is None else h)
+        if t is not None:
+            self.time = float(t)
         start = min(self.start_depth, self.settings.max_substeps)
         report = self._step(motion, h / 2 ** start, start)
         for _ in range(2 ** start - 1):
@@ -846,12 +887,20 @@ class Simulation:
         self.last = report
         return report
 
-    def _step(self, motion: Motion, h: float, depth: int, parent_turn: float = np.inf) -> StepReport:
+    def _step(self, motion, h: float, depth: int, parent_turn: float = np.inf) -> StepReport:
         helices = self.helices
         offsets = helices.offsets
         v_free = np.zeros_like(self.q)
-        packed = motion.packed()
-        fresh = self._stale_hessians(packed[0])
+        skin = None
+        if isinstance(motion, Motion):
+            packed = motion.per_strand(helices.n_strands)
+        else:
+            skin = motion.step(self.time, h)
+            packed = skin.motion
+            if skin.body is not None:
+                self.body = skin.body
+        self._skin = skin
+        fresh = self._stale_hessians(packed[:, 0])
 
         def free(lo: int, hi: int) -> None:
             _free_chunk(helices.root, helices.frame0, offsets, helices.length, self.q, self.v, self.rest,
@@ -875,8 +924,14 @@ class Simulation:
             Wd = factored_blocks(rows, found.strand, offsets, self.chol, self.chol_ptr, run=contact_run)
             gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
             push = np.zeros((found.n_contacts, 3))
-            push[:, 0] = np.maximum((gap - thickness) / h, -self.settings.push_speed)
+            drift = self._drift(found, skin) if self._moving() else None
+            # a body that comes closer within the step may push that much faster than push_speed: its gap is
+            # measured where it will be
+            slowest = -self.settings.push_speed + (np.minimum(drift[:, 0], 0.0) if drift is not None else 0.0)
+            push[:, 0] = np.maximum((gap - thickness) / h, slowest)
             b = rows.matvec(v_free.ravel()) + reachable(Wd, push)
+            if drift is not None:
+                b[:, 1:] += drift[:, 1:]  # the tangential slip of the frames (their approach is in the gap)
             gamma = compliance(Wd)
             Wd[:, [0, 1, 2], [0, 1, 2]] += gamma[:, None]
             # the last step's impulses may already meet the tolerance (a groom still at its equilibrium):
@@ -915,6 +970,7 @@ class Simulation:
         if (failed or turn > self.settings.max_turn) and not futile and depth < self.settings.max_substeps:
             # nothing is kept of this attempt: two half steps instead
             replaced = np.inf if failed else turn
+            self._skin = None
             first = self._step(motion, 0.5 * h, depth + 1, replaced)
             joined = _joined(first, self._step(motion, 0.5 * h, depth + 1, replaced))
             joined.rejected += 1
@@ -936,7 +992,28 @@ class Simulation:
         self.contacts = found
         self.v = v_new
         self.q = self.q + h * v_new
+        self.time += h
+        if skin is not None:
+            self.R, self.c = skin.R, skin.c
+            self._placed = True
+        self._skin = None
         return report
+
+    def _drift(self, found: Contacts, skin) -> np.ndarray:
+        """(C, 3) m/s, in the contacts' frames: how fast the strands' frames carry each contact's first side
+        against its second (the skin, for a body contact; the other strand's frame) over the step."""
+        posed = self.current()
+        xa = points_on(posed, self.q, found.strand[:, 0], found.s[:, 0])
+        world = skin.frame_velocity(found.strand[:, 0], xa)
+        body = found.strand[:, 1] < 0
+        if body.any() and skin.body is not None:
+            _, _, _, face = skin.body.closest(xa[body])
+            world[body] -= skin.skin_velocity(face, xa[body])
+        hair = np.flatnonzero(~body)
+        if len(hair):
+            xb = points_on(posed, self.q, found.strand[hair, 1], found.s[hair, 1])
+            world[hair] -= skin.frame_velocity(found.strand[hair, 1], xb)
+        return np.einsum("cji,ci->cj", found.frame, world)
 
     def _mass_solve(self, y: np.ndarray, factored: bool = False) -> np.ndarray:
         """``M^-1 y`` strand by strand through the strands' Cholesky factors ``M = L L^T`` (``L^-T y``
