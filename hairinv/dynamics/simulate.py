@@ -504,6 +504,10 @@ class Simulation:
         self.c = np.zeros((helices.n_strands, 3))
         self.time = 0.0  # s, of the state
         self._skin = None  # the SkinStep of the step being taken, None for a rigid one
+        self._margin = (0.0, 0.0)  # m, how much closer than detected the body and strands come within it
+        self._tips = strand_points(helices.root, helices.frame0, helices.offsets, self.q, helices.length,
+                                   np.arange(helices.n_strands, dtype=np.int64), self._strand_length.copy()) \
+            if helices.n_strands else np.zeros((0, 3))
         self._placed = False  # whether any strand has left its bind pose
         # halvings a step starts with (see step), and the strand that last made a step halve
         self.start_depth = 0
@@ -512,10 +516,8 @@ class Simulation:
     # ------------------------------------------------------------------ geometry
     def current(self) -> Helices:
         """The strands at the current ``q``: in the body's frame, or, under a deforming body, placed by their
-        own frames (during a step, those at its end: contacts are found where the body will be)."""
+        own frames."""
         h = self.helices
-        if self._skin is not None:
-            return self._posed(self._skin.R, self._skin.c)
         if self._placed:
             return self._posed(self.R, self.c)
         return Helices(h.root, h.frame0, h.offsets, h.length, self.q, h.fit_error)
@@ -568,6 +570,9 @@ class Simulation:
         # (and so is a first step the body moves: the model's contacts, remembered, are measured again)
         first = self._last_found is None or (self._first and moving)
         rules = self.contact_settings if first and self._initial is not None else self._detect_settings
+        if moving:  # what comes within reach during the step: the body's and the frames' sweep
+            rules = dataclasses.replace(rules, body_distance=rules.body_distance + self._margin[0],
+                                        hair_distance=rules.hair_distance + self._margin[1])
         found, _ = detect_contacts(self.current(), self.body, rules, up=self._up,
                                    refine_iterations=REFINE_ITERATIONS if first else _MOVING_REFINE)
         self._stale = np.zeros(found.n_contacts, dtype=np.bool_)
@@ -690,7 +695,8 @@ class Simulation:
         xa = points_on(h, self.q, strand[redo, 0], arc[redo, 0])
         point[redo] = xa
         body = strand[redo, 1] < 0
-        limit = np.where(body, self.contact_settings.body_distance, self.contact_settings.hair_distance)
+        limit = np.where(body, self.contact_settings.body_distance + self._margin[0],
+                         self.contact_settings.hair_distance + self._margin[1])
         if body.any():
             if self.body is None:
                 gap[redo[body]] = np.inf
@@ -900,6 +906,7 @@ class Simulation:
             if skin.body is not None:
                 self.body = skin.body
         self._skin = skin
+        self._margin = skin.margins(self.helices.root, self._tips) if skin is not None else (0.0, 0.0)
         fresh = self._stale_hessians(packed[:, 0])
 
         def free(lo: int, hi: int) -> None:
@@ -924,14 +931,10 @@ class Simulation:
             Wd = factored_blocks(rows, found.strand, offsets, self.chol, self.chol_ptr, run=contact_run)
             gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
             push = np.zeros((found.n_contacts, 3))
-            drift = self._drift(found, skin) if self._moving() else None
-            # a body that comes closer within the step may push that much faster than push_speed: its gap is
-            # measured where it will be
-            slowest = -self.settings.push_speed + (np.minimum(drift[:, 0], 0.0) if drift is not None else 0.0)
-            push[:, 0] = np.maximum((gap - thickness) / h, slowest)
+            push[:, 0] = np.maximum((gap - thickness) / h, -self.settings.push_speed)
+            if self._moving():  # and how the frames carry each contact's sides against each other
+                push += self._drift(found, skin)
             b = rows.matvec(v_free.ravel()) + reachable(Wd, push)
-            if drift is not None:
-                b[:, 1:] += drift[:, 1:]  # the tangential slip of the frames (their approach is in the gap)
             gamma = compliance(Wd)
             Wd[:, [0, 1, 2], [0, 1, 2]] += gamma[:, None]
             # the last step's impulses may already meet the tolerance (a groom still at its equilibrium):
@@ -1001,7 +1004,8 @@ class Simulation:
 
     def _drift(self, found: Contacts, skin) -> np.ndarray:
         """(C, 3) m/s, in the contacts' frames: how fast the strands' frames carry each contact's first side
-        against its second (the skin, for a body contact; the other strand's frame) over the step."""
+        against its second (the skin, for a body contact; the other strand's frame) over the step, from
+        where they are at its start."""
         posed = self.current()
         xa = points_on(posed, self.q, found.strand[:, 0], found.s[:, 0])
         world = skin.frame_velocity(found.strand[:, 0], xa)

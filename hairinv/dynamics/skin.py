@@ -156,7 +156,7 @@ class SkinStep:
     motion : (S, 5, 3) float64, each strand's :meth:`Motion.packed` at ``t``, in its bind-pose coordinates
     R, c : (S, 3, 3), (S, 3) the strands' frames at ``t + h`` (``x = R x_bind + c``)
     R_start, c_start : the same at ``t``
-    body : BodyMesh or None, the body at ``t + h``
+    body : BodyMesh or None, the body at ``t``
     vertices, vertices_start : (V, 3) the body's vertices at ``t + h`` and at ``t``
     faces : (F, 3) int64
     moves : bool, whether anything moved over the step (the skin, or any frame)
@@ -176,22 +176,39 @@ class SkinStep:
     h: float
 
     def frame_velocity(self, strand: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """(n, 3) m/s: how fast strand ``strand``'s frame carries the point at ``x`` (its position at the
-        step's end) over the step: ``(x - x_start) / h``, ``x_start`` where that frame held the same point
-        at the step's start."""
-        local = np.einsum("nji,nj->ni", self.R[strand], x - self.c[strand])
-        start = np.einsum("nij,nj->ni", self.R_start[strand], local) + self.c_start[strand]
-        return (x - start) / self.h
+        """(n, 3) m/s: how fast strand ``strand``'s frame carries the point at ``x`` (at the step's start)
+        over the step: ``(x_end - x) / h``, ``x_end`` where that frame holds the same point at its end."""
+        local = np.einsum("nji,nj->ni", self.R_start[strand], x - self.c_start[strand])
+        end = np.einsum("nij,nj->ni", self.R[strand], local) + self.c[strand]
+        return (end - x) / self.h
 
     def skin_velocity(self, face: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """(n, 3) m/s: how fast the skin near ``x`` moves over the step, the faces ``face`` carrying ``x``
-        rigidly in their own frames (a rigid body: its velocity at ``x``)."""
+        """(n, 3) m/s: how fast the skin near ``x`` (at the step's start) moves over the step, the faces
+        ``face`` carrying ``x`` rigidly in their own frames (a rigid body: its velocity at ``x``)."""
         third = np.full((len(face), 3), 1.0 / 3.0)
         p1, T1 = triangle_frames(self.vertices, self.faces, face, third)
         p0, T0 = triangle_frames(self.vertices_start, self.faces, face, third)
-        local = np.einsum("nji,nj->ni", T1, x - p1)
-        start = np.einsum("nij,nj->ni", T0, local) + p0
-        return (x - start) / self.h
+        local = np.einsum("nji,nj->ni", T0, x - p0)
+        end = np.einsum("nij,nj->ni", T1, local) + p1
+        return (end - x) / self.h
+
+    def margins(self, root: np.ndarray, tip: np.ndarray) -> tuple[float, float]:
+        """m: how much closer than at the step's start a strand may come to the body, and two strands to each
+        other, within the step as their frames and the skin move (bounds, the strands taken as rigid in their
+        frames; ``root``, ``tip`` (S, 3) their ends in the bind pose). Motion shared by all (the roots'
+        median displacement) does not count."""
+        if not self.moves or not len(root):
+            return 0.0, 0.0
+
+        def carried(x, R, c):
+            return np.einsum("nij,nj->ni", R, x) + c
+
+        d_root = carried(root, self.R, self.c) - carried(root, self.R_start, self.c_start)
+        d_tip = carried(tip, self.R, self.c) - carried(tip, self.R_start, self.c_start)
+        shared = np.median(d_root, axis=0)
+        sweep = float(max(np.linalg.norm(d_root - shared, axis=1).max(), np.linalg.norm(d_tip - shared, axis=1).max()))
+        skin = float(np.linalg.norm(self.vertices - self.vertices_start - shared, axis=1).max())
+        return skin + sweep, 2.0 * sweep
 
 
 class SkinnedBody:
@@ -214,7 +231,7 @@ class SkinnedBody:
         self.gravity = np.asarray(gravity, dtype=np.float64)
         self.contacts = contacts
         self._cache: dict[float, tuple] = {}
-        self._topology = None
+        self._bodies: dict[float, BodyMesh] = {}
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(vertices, R, c)`` at time ``t``: the mesh and the strands' frames."""
@@ -248,10 +265,15 @@ class SkinnedBody:
         for i, vec in enumerate((np.broadcast_to(self.gravity, (S, 3)), accel, velocity, spin, spin_rate)):
             motion[:, i] = np.einsum("nji,nj->ni", R1, vec)
         moves = not (np.array_equal(v1, v2) and np.array_equal(R1, R2) and np.array_equal(c1, c2))
-        body = None
-        if self.contacts:
-            body = self._body(v2)
+        body = self.body_at(t) if self.contacts else None
         return SkinStep(motion, R2, c2, R1, c1, body, v2, v1, self.faces, moves, h)
 
-    def _body(self, vertices: np.ndarray) -> BodyMesh:
-        return BodyMesh.from_mesh(_Mesh(vertices, self.faces))
+    def body_at(self, t: float) -> BodyMesh:
+        """The body at time ``t``, prepared for contact queries (the last few kept)."""
+        t = float(t)
+        hit = self._bodies.get(t)
+        if hit is None:
+            if len(self._bodies) > 2:
+                self._bodies.clear()
+            hit = self._bodies[t] = BodyMesh.from_mesh(_Mesh(self.pose(t)[0], self.faces))
+        return hit
