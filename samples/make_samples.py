@@ -64,11 +64,13 @@ def smoothstep(e0, e1, x):
     return t * t * (3.0 - 2.0 * t)
 
 
-def profile(y):
-    """Ring shape at heights ``y``.
+def profile_parts(y):
+    """The three parts the bust is blended from, at heights ``y``: head, neck and torso.
 
-    Returns half-width along x ``a``, half-widths toward the front (+z)
-    ``bf`` and the back (-z) ``bb``, and the superellipse exponent ``n``.
+    Returns ``(a, bf, bb, n)`` per part: half-width along x, half-widths toward the
+    front (+z) and the back (-z), each an array shaped like ``y``, and the part's
+    superellipse exponent. ``profile`` blends them (a smooth maximum);
+    ``make_rigs.py`` weights the mannequin's skin by them.
     """
     y = np.asarray(y, float)
     # Head: an ellipsoid centred at HEAD_C, a little longer below the centre
@@ -91,6 +93,17 @@ def profile(y):
     a_t = (0.200 - 0.030 * smoothstep(1.36, 1.20, y)) * f
     bf_t = (0.100 + 0.008 * smoothstep(1.38, 1.25, y)) * f
     bb_t = 0.098 * f
+    return (a_h, bf_h, bb_h, 2.0), (a_n, bf_n, bb_n, 2.0), (a_t, bf_t, bb_t, 2.6)
+
+
+def profile(y):
+    """Ring shape at heights ``y``.
+
+    Returns half-width along x ``a``, half-widths toward the front (+z)
+    ``bf`` and the back (-z) ``bb``, and the superellipse exponent ``n``.
+    """
+    y = np.asarray(y, float)
+    (a_h, bf_h, bb_h, _), (a_n, bf_n, bb_n, _), (a_t, bf_t, bb_t, _) = profile_parts(y)
     k = 8.0
     comps_a = np.stack([a_h, a_n, a_t])
     tiny = 1e-9
