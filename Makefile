@@ -14,13 +14,14 @@ BLENDER_VENV  ?= .venv-blender
 BLENDER_PY    := $(BLENDER_VENV)/bin/python
 BLENDER_STAMP := $(BLENDER_VENV)/.installed-bpy-$(BPY_VERSION)
 
-.PHONY: demo test bench samples blender clean help
+.PHONY: demo test bench samples rigs blender clean help
 
 help:
 	@echo "make demo    set up .venv, fit and invert the sample wavy groom, print where the outputs are"
 	@echo "make test    set up .venv and .venv-blender and run the tests"
 	@echo "make bench   run the benchmarks and rewrite docs/benchmarks.md"
-	@echo "make samples regenerate samples/ (body mesh and grooms)"
+	@echo "make samples regenerate samples/ (body mesh, grooms and turn.glb, the bust turning its head)"
+	@echo "make rigs    write the rigged mannequin's shots to out/rigs (GLB, USD, OBJ sequence and groom each)"
 	@echo "make blender set up .venv-blender: Blender $(BPY_VERSION) as the bpy module, to read the USD export"
 
 $(STAMP): pyproject.toml
@@ -55,6 +56,11 @@ bench: $(STAMP) $(BLENDER_STAMP)
 
 samples: $(STAMP)
 	$(PY) samples/make_samples.py
+	$(PY) samples/make_rigs.py --sample
+
+# every variant of samples/make_rigs.py (about a minute, 120 MB of OBJ frames), each read back and checked
+rigs: $(STAMP)
+	$(PY) samples/make_rigs.py -o out/rigs
 
 clean:
 	rm -rf out .pytest_cache

@@ -16,9 +16,10 @@ The skeleton (all joints on the body's vertical axis x = z = 0, unrotated in the
 Skin weights follow the parts the bust is blended from (``make_samples.profile_parts``): a vertex's share
 of the head, neck and torso parts is ``r_part^8 / sum r^8``, ``r_part`` being the part's own radius in the
 vertex's direction (the bust is the smooth maximum of the three with the same exponent), so the weights
-blend smoothly over the neck and under the chin; the torso's share goes to the chest above y = 1.34 and to
-the root below y = 1.24, blended between. Shares under 0.002 are dropped and the rest renormalised: the
-skull (above y = 1.60 or so) is weighted to the head alone, rigidly.
+blend smoothly over the neck (into the chest from y = 1.41 to 1.47, into the head from y = 1.51 to 1.60)
+and under the chin; below y = 1.36 only the torso counts. The torso's share goes to the chest above
+y = 1.34 and to the root below y = 1.24, blended between. Shares under 0.002 are dropped and the rest
+renormalised: the skull (above y = 1.60 or so) is weighted to the head alone, rigidly.
 
 Motions (each a function returning a :class:`Motion`: the root's translation and every joint's local
 rotation at each frame, 30 fps unless asked otherwise; every one starts with ``lead`` seconds still in the
@@ -143,10 +144,16 @@ def skin_weights(p, sharpness=8.0, prune=0.002) -> np.ndarray:
     """Weights (V, 4) of the joints at points ``p`` on the undeformed bust (see the module's docstring)."""
     theta = np.arctan2(p[:, 2], p[:, 0])
     y = p[:, 1]
-    radii = np.stack([ms.ring_radius(theta, a, bf, bb, n) for a, bf, bb, n in ms.profile_parts(y)])  # head, neck, torso
+    # each part's radius in the vertex's direction (0 where the part has shrunk to nothing: the neck above the
+    # head's centre, everything at the pole, which goes to the head)
+    radii = np.stack([np.where(np.maximum(a, np.maximum(bf, bb)) > 0, ms.ring_radius(theta, a, bf, bb, n), 0.0)
+                      for a, bf, bb, n in ms.profile_parts(y)])  # head, neck, torso
     power = radii**sharpness
     total = power.sum(axis=0)
     share = np.where(total > 0, power / np.where(total > 0, total, 1.0), np.array([[1.0], [0.0], [0.0]]))
+    # below the shoulders (and at the centre of the cap) only the torso counts
+    share[:2] *= smoothstep(1.36, 1.40, y)
+    share[2] = 1.0 - share[0] - share[1]
     chest = smoothstep(1.24, 1.34, y)
     w = np.stack([share[2] * (1.0 - chest), share[2] * chest, share[1], share[0]], axis=1)
     w[w < prune] = 0.0
