@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import ROOT, ROUNDOFF, SAMPLES
+from conftest import ROOT, ROUNDOFF, SAMPLES, real_path
 from hairinv.formats import read_animated_body
 
 sys.path.insert(0, str(SAMPLES))
@@ -215,3 +215,27 @@ def test_blender_poses_the_glb_as_the_generator_does(tmp_path, name):
         as_z_up = np.c_[ours[:, 0], -ours[:, 2], ours[:, 1]]  # Blender turns glTF's +Y up onto +Z
         np.testing.assert_allclose(blender[f"f{k}"], as_z_up, rtol=0, atol=BLENDER_SKINNING)
     assert np.abs(blender[f"f{frames[2]}"] - blender["f0"]).max() > 0.05  # it moved
+
+
+def test_a_bob_grown_on_cesiummans_head_sits_on_it():
+    """bench/cesiumman_groom.py on the real CesiumMan (skipped without the real data): roots on the head's triangles,
+    on the skin; no point inside the body; 10-20 cm strands."""
+    path = real_path("cesiumman", "CesiumMan.glb")
+    sys.path.insert(0, str(ROOT / "bench"))
+    import cesiumman_groom as cg
+    import grooms
+    import trimesh
+
+    rest = read_animated_body(path)
+    body = grooms.Mannequin(trimesh.Trimesh(rest.vertices, rest.faces, process=False))
+    head = cg.Head(rest.vertices)
+    assert head.r == pytest.approx(0.169, abs=0.002) and head.yc == pytest.approx(1.338, abs=0.002)
+    points, offsets = cg.grow(body, head, n_strands=60, seed=2)
+    d = body.distance(points)
+    roots = points[offsets[:-1]]
+    assert np.abs(d[offsets[:-1]]).max() < 1e-6
+    assert np.all(head.scalp(roots)) and roots[:, 1].min() > head.yc - 0.07
+    assert d.min() > -1e-7
+    lengths = np.array([np.linalg.norm(np.diff(points[a:b], axis=0), axis=1).sum()
+                        for a, b in zip(offsets[:-1], offsets[1:])])
+    assert lengths.min() > 0.099 and lengths.max() < 0.201
