@@ -672,20 +672,26 @@ def _simulation_progress(obj, run):
 @click.option("--scene", "scene_name", default="still", show_default=True, metavar="NAME|FILE.toml",
               help="What the body does: still, motion, remove-body, trim, or a scene file (docs/scenes.md).")
 @_init_option
-@click.option("--seconds", type=FINITE, default=None, help="Simulated time, s [default: the scene's].")
-@click.option("--fps", type=FINITE, default=None, help="Frames written per second [default: the scene's].")
+@click.option("--seconds", type=FINITE, default=None, help="Simulated time, s [default: the scene's; an animated body's length].")
+@click.option("--fps", type=FINITE, default=None,
+              help="Frames written per second [default: the scene's; an animated body's own rate].")
+@click.option("--preroll", type=FINITE, default=None, metavar="SECONDS",
+              help="Animated body: seconds taken to move it from the groom's pose to the shot's first frame "
+                   "before recording [default: 0.5 where they differ, else 0].")
 @body_options
 @settings_options(example="dynamics.time_step=0.005")
 @if_stale_option
 @click.pass_obj
 @handle_errors
-def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, config_file, sets, if_stale,
+def simulate(obj, model, body, output, scene_name, init, seconds, fps, preroll, quality, config_file, sets, if_stale,
              body_frame):
     """Simulate an inverted MODEL under a scene and write its frames.
 
     MODEL is a stage file written by `hairinv invert`. BODY is the body mesh
     in the hairstyle's original units; without it, the body the model was
-    inverted against is used if it is still where it was. Writes the model's
+    inverted against is used if it is still where it was. An animated body
+    (glTF/GLB with skin and animation, USD, an OBJ/PLY sequence) plays its
+    animation: each root follows the triangle it sits on (docs/shots.md). Writes the model's
     groups and /frames; each frame's contacts, solver residual, energies and
     largest displacement are printed as it is done.
     """
@@ -694,7 +700,7 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, quality, 
     output = output or _default_output(model, "frames")
     sources = config.Sources(quality, config_file, sets, {"body": body_frame})
     run = simulation.load(model, body, sources, scene_name, init, seconds, fps, output,
-                          say=functools.partial(_say, obj))
+                          say=functools.partial(_say, obj), preroll=preroll)
     run.record = simulation.simulate_record(run, scene_name)
     if _up_to_date(obj, if_stale, output, run.record):
         return

@@ -149,7 +149,7 @@ def invert_features(contacts: ContactSettings, solver: SolverSettings, gravity, 
 
 
 def simulate_features(contacts: ContactSettings, gravity, body: bool, scene, init: str,
-                      stiffened: bool) -> Features:
+                      stiffened: bool, animated: str | None = None) -> Features:
     """What ``simulate`` (and ``verify``) models: gravity (the model's), the contacts (as the model
     declared them, unless the scene removes the body), friction, the scene's body motion and trim, and the
     model's stiffening (``stiffened``: its file holds factors above 1 and the run starts from them)."""
@@ -160,7 +160,9 @@ def simulate_features(contacts: ContactSettings, gravity, body: bool, scene, ini
     else:
         _contact_features(out, contacts, body)
     _friction(out, contacts)
-    if scene.moving:
+    if animated:
+        out.model("body_motion", f"animated ({animated}): each root follows the triangle it sits on")
+    elif scene.moving:
         out.model("body_motion", f"{len(scene.keyframes)} keyframes")
     elif scene.body == "removed":
         out.skip("body_motion", "the scene removes the body")

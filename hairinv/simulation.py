@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import stages
+from . import formats, stages
 from .config import Settings, Sources, simulation_settings
 from .errors import InputError, RunError
 from .features import Features, simulate_features
@@ -34,6 +34,8 @@ __all__ = ["Run", "load", "check_equilibrium", "simulate_record", "verify_record
 #: m, the largest distance a strand point may move in a still check, as ``hairinv verify`` takes it by
 #: default (``--tolerance 0.1mm``): a hair's diameter (material.radius is 50 um).
 STILL_TOLERANCE = 1e-4
+#: s, the longest pre-roll
+MAX_PREROLL = 60.0
 
 
 @dataclass
@@ -72,12 +74,17 @@ class Run:
     fps: float
     record: dict | None = None
     frames: Frames | None = None
+    shot: object = None
+    """:class:`hairinv.dynamics.skin.Shot` when the body file is animated, else None"""
+    say: object = None
 
     @property
     def steps(self) -> int:
-        """The time steps the run takes (each frame's, times the frames after the first)."""
+        """The time steps the run takes (each frame's, times the frames after the first, and the pre-roll's)."""
         per_frame = max(1, round(1.0 / (self.fps * self.settings.dynamics.time_step)))
-        return per_frame * max(0, round(self.seconds * self.fps))
+        h = 1.0 / (self.fps * per_frame)
+        preroll = int(np.ceil(self.shot.preroll / h - 1e-9)) if self.shot is not None else 0
+        return per_frame * max(0, round(self.seconds * self.fps)) + preroll
 
     def features(self) -> Features:
         """What the simulation models and skips, and why."""
@@ -85,7 +92,8 @@ class Run:
         factor = stiffening_from_group(model, self.helices.n_strands)
         return simulate_features(self.settings.contacts, np.asarray(model.attrs["gravity"], dtype=np.float64),
                                  self.mesh is not None, self.scene, self.init,
-                                 factor is not None and bool(np.any(factor > 1.0)))
+                                 factor is not None and bool(np.any(factor > 1.0)),
+                                 None if self.shot is None else f"{self.shot.body.n_frames} frames")
 
     def simulate(self, on_frame=None, on_step=None) -> Frames:
         """Run the scene (:func:`hairinv.dynamics.run.run_scene`); the frames, also kept in :attr:`frames`.
@@ -103,7 +111,8 @@ class Run:
         try:
             self.frames = run_scene(self.helices, self.stage[stages.MODEL], self.contacts, self.mesh, self.scene,
                                     self.settings, init=self.init, seconds=self.seconds, fps=self.fps,
-                                    on_frame=on_frame, on_step=on_step, body_path=self.body)
+                                    on_frame=on_frame, on_step=on_step, body_path=self.body, shot=self.shot,
+                                    say=self.say)
         except FloatingPointError as exc:
             raise RunError(f"the simulation diverged {exc}; no output was written; try a smaller "
                            "dynamics.time_step") from None
@@ -137,7 +146,8 @@ class Run:
 
 
 def load(model, body=None, sources: Sources | None = None, scene: str = "still", init: str = "inverted",
-         seconds: float | None = None, fps: float | None = None, output=None, say=None) -> Run:
+         seconds: float | None = None, fps: float | None = None, output=None, say=None,
+         preroll: float | None = None) -> Run:
     """Read an inverted model for a simulation of ``scene``.
 
     Parameters
@@ -151,6 +161,8 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
     seconds, fps : s and 1/s, or None for the scene's
     output : path the frames will be written to, checked here to be none of the inputs; or None
     say : callable(str), optional, gets the lines about the body
+    preroll : s, for an animated body: the time taken from the groom's pose to the shot's first frame; None:
+        :data:`hairinv.dynamics.skin.PREROLL` where the first frame is another pose, else 0
 
     Raises
     ------
@@ -164,7 +176,7 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
     body = None if body is None else Path(body)
     if not model.exists():
         raise InputError("no such file", model)
-    if body is not None and not body.exists():
+    if body is not None and not (body.exists() or "#" in body.name):
         raise InputError("no such file", body)
     if not stages.is_stage_file(model):
         raise InputError("is not a hairinv stage file: run `hairinv invert` on the hairstyle first", model)
@@ -178,6 +190,13 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
     from .groom import load_body, simulation_body
 
     loaded = Scene.load(scene)
+    animated = None
+    if body is not None and formats.is_animated_body(body):
+        animated = formats.read_animated_body(body)
+        seconds = animated.end - animated.start if seconds is None else seconds
+        fps = (animated.fps or loaded.fps) if fps is None else fps
+    if preroll is not None and not (np.isfinite(preroll) and 0.0 <= preroll <= MAX_PREROLL):
+        raise InputError(f"--preroll is {preroll!r}; it must be a number of seconds from 0 to {MAX_PREROLL:g}")
     seconds = loaded.seconds if seconds is None else seconds
     fps = loaded.fps if fps is None else fps
     check_run_length(seconds, fps, None, "--seconds", "--fps")
@@ -193,15 +212,27 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
         check_equilibrium(model, helices, contacts, stage[stages.MODEL])
     body, to_groom, notes, read = simulation_body(settings.body, body, stage, model, curves)
     mesh = None
+    shot = None
     if body is not None:
         for line in notes:
             say(line)
         mesh = load_body(body, to_groom, read)
         say(f"body: {body}")
+        if animated is None and formats.is_animated_body(body):  # the recorded body
+            animated = formats.read_animated_body(body)
+        if animated is not None:
+            from .dynamics.skin import PREROLL, Shot
+
+            moved = animated.transformed(to_groom)
+            if preroll is None:
+                preroll = PREROLL if Shot.needs_preroll(moved) else 0.0
+            shot = Shot(moved, float(preroll))
+            say(f"shot: {animated.n_frames} frames of {Path(body).name} over {shot.length:.3g} s"
+                + (f", after a pre-roll of {shot.preroll:g} s from the groom's pose" if shot.preroll else ""))
     elif loaded.body != "removed":
         say("no body: only hair-hair contacts")
     return Run(model, stage, helices, contacts, mesh, body, to_groom, loaded, settings, init, float(seconds),
-               float(fps))
+               float(fps), shot=shot, say=say)
 
 
 def check_equilibrium(path, helices: Helices, contacts: Contacts | None, model: stages.Group) -> None:
@@ -226,7 +257,8 @@ def simulate_record(run: Run, scene: str) -> dict:
     scene_file = Path(scene) if Path(scene).suffix == ".toml" else None
     return command_record("simulate", [run.model_path, run.body, scene_file], run.settings,
                           ("body", "contacts", "dynamics"),
-                          {"scene": scene, "init": run.init, "seconds": run.seconds, "fps": run.fps})
+                          {"scene": scene, "init": run.init, "seconds": run.seconds, "fps": run.fps,
+                           **({"preroll": run.shot.preroll} if run.shot is not None else {})})
 
 
 def verify_record(run: Run, tolerance: float, full: bool) -> dict:
@@ -256,10 +288,10 @@ def recorded_verdict(path, tolerance: float, seconds: float) -> Verdict:
 
 def simulate(model, body=None, sources: Sources | None = None, scene: str = "still", init: str = "inverted",
              seconds: float | None = None, fps: float | None = None, output=None, on_frame=None, on_step=None,
-             say=None) -> Run:
+             say=None, preroll: float | None = None) -> Run:
     """``hairinv simulate``: :func:`load` the model, simulate ``scene``, and write the frames to ``output``
     (with the command's record) when it is given. The run, its frames in :attr:`Run.frames`."""
-    run = load(model, body, sources, scene, init, seconds, fps, output, say)
+    run = load(model, body, sources, scene, init, seconds, fps, output, say, preroll)
     if output is not None:
         run.record = simulate_record(run, scene)
     run.simulate(on_frame=on_frame, on_step=on_step)

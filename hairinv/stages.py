@@ -83,6 +83,12 @@ LAYOUT = {
         "frame_seconds": ("f", ("F",)),
         "offsets": ("i", ("S+1",)),
         "length": ("f", ("Ef",)),
+        "body_vertices": ("f", ("F", "V", 3)),
+        "body_faces": ("i", ("T", 3)),
+        "binding_triangle": ("i", ("S",)),
+        "binding_barycentric": ("f", ("S", 3)),
+        "binding_offset": ("f", ("S", 3)),
+        "binding_distance": ("f", ("S",)),
     },
 }
 
@@ -137,6 +143,8 @@ ATTRS = {
         "trimmed": ("bool", False),
         "stopped": ("bool", False),
         "seconds": ("nonnegative", False),
+        "preroll": ("nonnegative", False),
+        "body_animated": ("bool", False),
     },
 }
 
@@ -188,7 +196,16 @@ class StageFile:
 
 
 def sha256_file(path) -> str:
-    """SHA-256 hex digest of a file's bytes."""
+    """SHA-256 hex digest of a file's bytes; of a sequence of frames (a folder, a ``body.####.obj`` pattern),
+    of its frame numbers and their files' digests."""
+    path = Path(path)
+    if path.is_dir() or "#" in path.name:
+        from .formats.sequence import sequence_frames
+
+        digest = hashlib.sha256()
+        for number, frame in sequence_frames(path):
+            digest.update(f"{number} {sha256_file(frame)}\n".encode())
+        return digest.hexdigest()
     digest = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
@@ -608,6 +625,13 @@ def _check_layout(path, shapes: dict, attrs: dict, ends: dict) -> dict:
         if "offsets" in f:
             _check_offset_ends(path, FRAMES, ends[FRAMES], f["length"][0], "length")
             counts["Ef"] = (ends[FRAMES][1], "elements of the frames' strands (/frames/offsets)")
+        # a shot's body: its own vertex and triangle counts
+        counts["V"] = (f["body_vertices"][1] if len(f.get("body_vertices", ())) > 1 else 0,
+                       "body vertices (/frames/body_vertices)")
+        counts["T"] = (f["body_faces"][0] if "body_faces" in f else 0, "body triangles (/frames/body_faces)")
+        if ("body_vertices" in f) != ("body_faces" in f):
+            raise InputError("/frames holds one of body_vertices and body_faces without the other (a shot stores "
+                             "both)", path)
         if isinstance(trimmed, (bool, np.bool_)) and bool(trimmed) != ("offsets" in f):
             raise InputError(f"/frames says trimmed = {bool(trimmed)} but "
                              f"{'holds no' if trimmed else 'holds its own'} offsets and length", path)

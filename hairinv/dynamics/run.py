@@ -79,6 +79,11 @@ class Frames:
     attrs: dict = field(default_factory=dict)
     stopped: bool = False
     """``on_frame`` stopped the run: the arrays and the log hold only the frames done."""
+    body_vertices: np.ndarray | None = None
+    """(F, V, 3) float32, m: an animated body at each frame (a shot), else None."""
+    body_faces: np.ndarray | None = None
+    binding: object = None
+    """:class:`hairinv.dynamics.skin.Binding` of a shot's roots, else None."""
 
     def group(self, config: dict, inputs: list[dict]) -> stages.Group:
         data = {"time": self.time, "omega": self.omega, "root": self.root, "frame0": self.frame0,
@@ -91,6 +96,11 @@ class Frames:
                 "frame_seconds": np.array([f.seconds for f in self.log])}
         if self.log and all(f.strand_displacement is not None for f in self.log):
             data["strand_displacement"] = np.array([f.strand_displacement for f in self.log], dtype=np.float64)
+        if self.body_vertices is not None:
+            data["body_vertices"] = self.body_vertices
+            data["body_faces"] = np.asarray(self.body_faces, dtype=np.int64)
+        if self.binding is not None:
+            data.update({f"binding_{key}": value for key, value in self.binding.arrays().items()})
         if self.trimmed:
             data["offsets"] = self.helices.offsets
             data["length"] = self.helices.length
@@ -139,7 +149,7 @@ def _samples(helices: Helices, q: np.ndarray, per_element: int = 2) -> list[np.n
 
 def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts | None, body_mesh,
               scene: Scene, settings: Settings, init: str = "inverted", seconds: float | None = None,
-              fps: float | None = None, on_frame=None, on_step=None, body_path=None) -> Frames:
+              fps: float | None = None, on_frame=None, on_step=None, body_path=None, shot=None, say=None) -> Frames:
     """Simulate ``scene`` from the model.
 
     Parameters
@@ -153,6 +163,9 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
     on_frame : callable(FrameLog), optional, after every frame; returning True stops the run there
     on_step : callable(), optional, after every step
     body_path : the body mesh's file, named by a refusal of its data (a mesh of degenerate triangles only)
+    shot : :class:`hairinv.dynamics.skin.Shot` or None: an animated body that moves each root with the
+        triangle it is bound to (then ``body_mesh`` is its rest pose, and the scene must not move the body)
+    say : callable(str), optional, gets what the binding found
     """
     seconds = float(scene.seconds if seconds is None else seconds)
     fps = float(scene.fps if fps is None else fps)
@@ -176,6 +189,9 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
         rest = rest[element_map]
         trimmed = True
         contacts, force = None, None  # the cut groom starts from its own contacts, unloaded
+    if shot is not None and scene.moving:
+        raise InputError(f"{scene.source}: the scene moves the body by keyframes, and the body file is animated: "
+                         "its animation is the body's motion; choose a scene without keyframes (still, trim)")
     body_removed = scene.body == "removed"
     contact_settings = settings.contacts
     if body_removed:
@@ -190,6 +206,9 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
                                                  and contact_settings.body) else None
     sim = Simulation(helices, rest, material, body, contact_settings, settings.dynamics,
                      initial=contacts, initial_force=force, stiffening=factor)
+    skinned = None
+    if shot is not None:
+        skinned = _skinned(helices, shot, body, material.gravity, body_path, say)
 
     steps_per_frame = max(1, int(round(1.0 / (fps * settings.dynamics.time_step))))
     h = 1.0 / (fps * steps_per_frame)
@@ -214,15 +233,27 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
                  attrs={"time_step": h, "steps_per_frame": steps_per_frame, "fps": fps, "init": init,
                         "scene": scene.name})
 
+    if shot is not None:
+        out.body_vertices = np.zeros((F, len(shot.bind), 3), dtype=np.float32)
+        out.body_faces = shot.faces
+        out.binding = skinned.binding
+        out.attrs.update(preroll=float(shot.preroll), body_animated=True)
+
     def record(index: int, t: float, reports: list[StepReport], seconds_used: float) -> bool:
-        R, c, _ = state(t)
         out.time[index] = t
         out.omega[index] = sim.q
-        out.root[index] = helices.root @ R.T + c
-        out.frame0[index] = helices.frame0 @ R.T
-        out.body_transform[index] = np.eye(4)
-        out.body_transform[index, :3, :3] = R
-        out.body_transform[index, :3, 3] = c
+        if shot is None:
+            R, c, _ = state(t)
+            out.root[index] = helices.root @ R.T + c
+            out.frame0[index] = helices.frame0 @ R.T
+            out.body_transform[index] = np.eye(4)
+            out.body_transform[index, :3, :3] = R
+            out.body_transform[index, :3, 3] = c
+        else:  # each strand in its own frame; the body deforms (its vertices are kept, its transform is none)
+            out.root[index] = np.einsum("nij,nj->ni", sim.R, helices.root) + sim.c
+            out.frame0[index] = np.einsum("nij,nkj->nik", helices.frame0, sim.R)
+            out.body_transform[index] = np.eye(4)
+            out.body_vertices[index] = shot.vertices_at(t)
         now, _ = _sample_points(helices, sim.q)
         distance = np.linalg.norm(now - start_points, axis=1)
         per_strand = np.maximum.reduceat(distance, sample_ptr[:-1]) if len(distance) else np.zeros(0)
@@ -238,17 +269,29 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
         out.log.append(log)
         return on_frame is not None and bool(on_frame(log))
 
-    stop = record(0, 0.0, [], 0.0)
     t = 0.0
+    if shot is not None and shot.preroll > 0:
+        # the pre-roll: from the groom's pose to the shot's first frame, not recorded
+        n_pre = int(np.ceil(shot.preroll / h - 1e-9))
+        for k in range(n_pre):
+            t = -shot.preroll + k * shot.preroll / n_pre
+            try:
+                sim.step(skinned, shot.preroll / n_pre, t)
+            except FloatingPointError as exc:
+                raise FloatingPointError(f"in the pre-roll's step from t = {t:.4g} s: {exc}") from None
+            if on_step is not None:
+                on_step()
+        t = 0.0
+    stop = record(0, 0.0, [], 0.0)
     for index in range(1, n_frames):
         if stop:
             break
         began = time.perf_counter()
         reports = []
         for _ in range(steps_per_frame):
-            _, _, motion = state(t)
+            motion = skinned if shot is not None else state(t)[2]
             try:
-                reports.append(sim.step(motion, h))
+                reports.append(sim.step(motion, h, t if shot is not None else None))
             except FloatingPointError as exc:
                 raise FloatingPointError(f"in the step from t = {t:.4g} s: {exc}") from None
             t += h
@@ -260,4 +303,33 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
         out.stopped = True
         out.time, out.omega, out.root = out.time[:done], out.omega[:done], out.root[:done]
         out.frame0, out.body_transform = out.frame0[:done], out.body_transform[:done]
+        if out.body_vertices is not None:
+            out.body_vertices = out.body_vertices[:done]
     return out
+
+
+def _skinned(helices: Helices, shot, body: BodyMesh | None, gravity, body_path, say):
+    """The shot's body with the roots bound to its rest pose; roots far from it named, none near refused."""
+    from .skin import ROOT_REACH, Binding, SkinnedBody
+
+    with in_file(body_path):
+        bind_body = BodyMesh.from_mesh(_Vertices(shot.bind, shot.faces))
+    binding = Binding.bind(helices.root, shot.bind, shot.faces, body=bind_body)
+    far = np.abs(binding.distance) > ROOT_REACH
+    if len(far) and far.all():
+        raise InputError(f"no root is within {1e3 * ROOT_REACH:g} mm of the animated body (the nearest is "
+                         f"{1e3 * np.abs(binding.distance).min():.3g} mm away): check its units and axes "
+                         "(--body-units, --body-up)", body_path)
+    if far.any() and say is not None:
+        say(f"warning: {int(far.sum())} of {len(far)} roots are more than {1e3 * ROOT_REACH:g} mm from the body "
+            f"(farthest {1e3 * np.abs(binding.distance).max():.3g} mm, strand {int(np.argmax(np.abs(binding.distance)))}): "
+            "each follows its nearest triangle")
+    if say is not None:
+        say(f"roots bound to {len(np.unique(binding.triangle))} triangles of the body "
+            f"(largest distance {1e3 * np.abs(binding.distance).max(initial=0.0):.3g} mm)")
+    return SkinnedBody(shot.vertices_at, shot.faces, binding, gravity, contacts=body is not None)
+
+
+class _Vertices:
+    def __init__(self, vertices, faces):
+        self.vertices, self.faces = vertices, faces

@@ -25,7 +25,7 @@ import numpy as np
 from ..contacts.body import BodyMesh
 from ..errors import InputError
 
-__all__ = ["Binding", "SkinnedBody", "SkinStep", "triangle_frames", "rotation_log"]
+__all__ = ["Binding", "PREROLL", "Shot", "SkinnedBody", "SkinStep", "triangle_frames", "rotation_log"]
 
 
 def triangle_frames(vertices: np.ndarray, faces: np.ndarray, triangle: np.ndarray,
@@ -277,3 +277,59 @@ class SkinnedBody:
                 self._bodies.clear()
             hit = self._bodies[t] = BodyMesh.from_mesh(_Mesh(self.pose(t)[0], self.faces))
         return hit
+
+
+#: s, the pre-roll when the groom's pose is not the shot's first (docs/shots.md)
+PREROLL = 0.5
+#: m: roots farther than this from every triangle of the body are named (they follow their nearest one)
+ROOT_REACH = 5e-3
+
+
+@dataclass(frozen=True, eq=False)
+class Shot:
+    """An animated body driving a simulation, in the groom's frame and metres.
+
+    Shot time 0 is the animation's first frame. Before it, over the pre-roll, the body moves from the pose
+    the groom was made on (``bind``: the file's rest pose, a skinned mesh's bind pose) to that first frame,
+    each vertex along a smoothstep in time, so that the hair is carried there rather than jerked.
+
+    Attributes
+    ----------
+    body : AnimatedBody, already in the groom's frame (:meth:`AnimatedBody.transformed`)
+    preroll : float, s
+    """
+
+    body: object
+    preroll: float
+
+    @property
+    def bind(self) -> np.ndarray:
+        return self.body.vertices
+
+    @property
+    def faces(self) -> np.ndarray:
+        return self.body.faces
+
+    @property
+    def length(self) -> float:
+        """s, the animation's length."""
+        return float(self.body.end - self.body.start)
+
+    def vertices_at(self, t: float) -> np.ndarray:
+        """(V, 3) m, the body at shot time ``t`` (negative: within the pre-roll)."""
+        body = self.body
+        if t >= 0.0:
+            return body.vertices_at(body.start + t)
+        first = body.vertices_at(body.start)
+        if self.preroll <= 0.0:
+            return first
+        u = min(max((t + self.preroll) / self.preroll, 0.0), 1.0)
+        w = u * u * (3.0 - 2.0 * u)
+        return (1.0 - w) * body.vertices + w * first
+
+    @staticmethod
+    def needs_preroll(body) -> bool:
+        """Whether the animation's first frame is another pose than its rest pose."""
+        first = body.vertices_at(body.start)
+        size = float(np.linalg.norm(np.ptp(body.vertices, axis=0))) or 1.0
+        return bool(np.abs(first - body.vertices).max() > 1e-9 * size)

@@ -50,7 +50,14 @@ def read_curves(path) -> RawCurves:
 
 
 def read_mesh(path):
-    """Read a body mesh (``trimesh.Trimesh``, triangles) from any registered format."""
+    """Read a body mesh (``trimesh.Trimesh``, triangles) from any registered format; of a sequence of frames
+    (a folder, a ``body.####.obj`` pattern), its first frame."""
+    path = Path(path)
+    if path.is_dir() or "#" in path.name:
+        import trimesh
+
+        body = read_animated_body(path)
+        return trimesh.Trimesh(body.vertices, body.faces, process=False)
     path = _existing(path)
     return mesh_reader_for(path)(path)
 
