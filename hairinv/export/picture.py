@@ -400,7 +400,10 @@ def draw(source: ExportSource, color: str | None, output: Path):
     paint = None if name is None else coloring(source, name, output)
     axes = OutputAxes.onto(source.up, "y")
     points = axes.points(source.points)
-    mesh, body_note = source.body()
+    if source.body_animated:  # a shot: the body as its first frame shows it
+        mesh, body_note = source.body_mesh(0), "body: the shot's animated body, as the frames keep it"
+    else:
+        mesh, body_note = source.body()
     body = None if mesh is None else Body.posed(mesh, axes)
     lines = [body_note if mesh is not None else f"no body drawn: {body_note}"]
     rows = 2 if source.n_frames else 1
@@ -453,12 +456,19 @@ def _before_after(fig, grid, source: ExportSource, axes: OutputAxes, mesh, heigh
     last = source.n_frames - 1
     frame = source.frame(last)
     pose = source.body_transform(last)
-    carried = source.points @ pose[:3, :3].T + pose[:3, 3]  # the input where the body has taken it
-    turned = not np.allclose(pose, np.eye(4), rtol=0.0, atol=1e-12)
+    if source.body_animated:  # each strand carried by its own root's frame
+        carried = source.carried(last)
+        turned = not np.allclose(carried, source.points, rtol=0.0, atol=1e-12)
+    else:
+        carried = source.points @ pose[:3, :3].T + pose[:3, 3]  # the input where the body has taken it
+        turned = not np.allclose(pose, np.eye(4), rtol=0.0, atol=1e-12)
     moved = None
     if frame.points.shape == carried.shape:
         moved = 1e3 * float(np.linalg.norm(frame.points - carried, axis=1).max())
-    body = None if mesh is None or source.body_removed else Body.posed(mesh, axes, pose)
+    if source.body_animated and not source.body_removed:
+        body = Body.posed(source.body_mesh(last), axes)
+    else:
+        body = None if mesh is None or source.body_removed else Body.posed(mesh, axes, pose)
     before, after = axes.points(carried), axes.points(frame.points)
     for column, (side, label, horizontal) in enumerate(VIEWS):
         ax = fig.add_subplot(grid[1, column])
@@ -472,14 +482,15 @@ def _before_after(fig, grid, source: ExportSource, axes: OutputAxes, mesh, heigh
                     f"before/after, {label} view", horizontal)
         ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
     scene = source.frames.attrs.get("scene", "")
-    note = f"{scene} scene, " if scene else ""
+    note = "a shot (animated body), " if source.body_animated else (f"{scene} scene, " if scene else "")
     if source.body_removed:
         note += "the body removed, "
     if moved is not None:
         note += f"the last frame's vertices are at most {moved:.3g} mm from the input's"
     else:
         note += "the last frame is on the trimmed strands"
-    carried_note = ", moved with the body," if turned else ""
+    carried_note = (", each strand carried by its root's triangle," if source.body_animated else
+                    ", moved with the body,") if turned else ""
     fig.text(0.5, 1.0 - (TITLE_IN + ROW_IN - 0.25) / (height / DPI), f"before/after: the input (grey){carried_note} "
              f"against {frame.label} (red)\n{note}", ha="center", va="center", fontsize=11)
     return f"before/after: the input{carried_note} against {frame.label}; {note}"

@@ -349,6 +349,28 @@ class ExportSource:
     def body_transform(self, k: int) -> np.ndarray:
         return np.asarray(self.frames["body_transform"][k], dtype=np.float64)
 
+    @property
+    def body_animated(self) -> bool:
+        """Whether the frames keep a deforming body's vertices (a shot): ``/frames/body_vertices``."""
+        return self.frames is not None and "body_vertices" in self.frames.datasets
+
+    def body_mesh(self, k: int):
+        """The shot's body at frame ``k`` as a mesh (``vertices``, ``faces``; m, the groom's frame)."""
+        import trimesh
+
+        return trimesh.Trimesh(np.asarray(self.frames["body_vertices"][k], dtype=np.float64),
+                               np.asarray(self.frames["body_faces"], dtype=np.int64), process=False)
+
+    def carried(self, k: int) -> np.ndarray:
+        """(P, 3) m: the input's points carried to frame ``k`` by their strands' root frames alone (the body's
+        motion, rigid or each root with its own triangle), as if the hair did not move relative to them."""
+        f = self.frames
+        F0, Fk = np.asarray(f["frame0"][0], dtype=np.float64), np.asarray(f["frame0"][k], dtype=np.float64)
+        R = np.einsum("nji,njk->nik", Fk, F0)  # frame0_k = frame0_0 R^T
+        c = np.asarray(f["root"][k], dtype=np.float64) - np.einsum("nij,nj->ni", R, np.asarray(f["root"][0]))
+        strand = np.repeat(np.arange(len(R)), np.diff(self.offsets))
+        return np.einsum("nij,nj->ni", R[strand], self.points) + c[strand]
+
     # ------------------------------------------------------------------ per-strand and per-vertex quantities
 
     def strand_values(self) -> dict[str, tuple[np.ndarray, str]]:

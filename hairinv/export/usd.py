@@ -159,6 +159,9 @@ class _Writer:
     def body(self, codes: list[float] | None, frame: int | None, mesh, note: str) -> None:
         from pxr import Gf, Usd, UsdGeom, Vt
 
+        if self.source.body_animated:  # a shot: the body as the frames keep it
+            mesh = self.source.body_mesh(frame if frame is not None else 0)
+            note = "the shot's animated body"
         if mesh is None:
             self.report.warnings.append(f"warning: {self.source.name}: {note}; the USD file has no body mesh")
             return
@@ -172,7 +175,13 @@ class _Writer:
         body.CreateExtentAttr(UsdGeom.Mesh.ComputeExtent(points))
         body.GetPrim().SetDocumentation(f"the body mesh {self.source.name} was made with, in the groom's units")
         moved = None
-        if codes is not None:
+        if codes is not None and self.source.body_animated:
+            attr = body.GetPointsAttr()
+            for k, code in enumerate(codes):
+                attr.Set(self._vec3(np.asarray(self.source.frames["body_vertices"][k], dtype=np.float64)),
+                         Usd.TimeCode(code))
+            moved = "its animated points at each frame as time samples"
+        elif codes is not None:
             op = body.AddTransformOp()
             for k, code in enumerate(codes):
                 op.Set(Gf.Matrix4d(self.axes.transform(self.source.body_transform(k)).T.tolist()),
@@ -181,6 +190,10 @@ class _Writer:
             if self.source.body_removed:
                 body.CreateVisibilityAttr().Set(UsdGeom.Tokens.invisible, Usd.TimeCode(codes[0]))
                 moved = "hidden during the frames (the scene removed it)"
+        elif frame is not None and self.source.body_animated:
+            body.GetPointsAttr().Set(self._vec3(np.asarray(self.source.frames["body_vertices"][frame],
+                                                           dtype=np.float64)))
+            moved = f"as in frame {frame}"
         elif frame is not None:
             body.AddTransformOp().Set(Gf.Matrix4d(self.axes.transform(self.source.body_transform(frame)).T.tolist()))
             moved = f"placed as in frame {frame}"
