@@ -661,7 +661,7 @@ def _init_option(fn):
 
 def _simulation_progress(obj, run):
     """A bar of the time steps of ``run`` (:class:`hairinv.simulation.Run`)."""
-    return Progress(run.steps, run.scene.name, obj["progress"], unit="step")
+    return Progress(run.steps, "shot" if run.shot is not None else run.scene.name, obj["progress"], unit="step")
 
 
 @main.command()
@@ -705,8 +705,12 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, preroll, 
     if _up_to_date(obj, if_stale, output, run.record):
         return
     scene = run.scene
-    _say(obj, f"scene {scene.name}, {run.seconds:g} s at {run.fps:g} frames per second"
-         + (f": {scene.description}" if scene.description else ""))
+    if run.shot is not None:
+        _say(obj, f"shot: {run.body.name} animated, {run.seconds:g} s at {run.fps:g} frames per second"
+             + (f" after a pre-roll of {run.shot.preroll:g} s from the groom's pose" if run.shot.preroll else ""))
+    else:
+        _say(obj, f"scene {scene.name}, {run.seconds:g} s at {run.fps:g} frames per second"
+             + (f": {scene.description}" if scene.description else ""))
     _say(obj, run.features().line())
     bar = _simulation_progress(obj, run)
     try:

@@ -1,0 +1,112 @@
+"""A shot end to end: a groom inverted on the mannequin's bind pose, simulated under its animation (the sample
+head turn, a hold), from the command line; what /frames keeps checked against the geometry it claims."""
+
+from __future__ import annotations
+
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import SAMPLES, hairinv
+from hairinv import formats
+from hairinv.contacts.body import BodyMesh
+from hairinv.rod.helix import strand_points
+
+sys.path.insert(0, str(SAMPLES))
+import make_rigs as mr  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def shot_model(tmp_path_factory):
+    """Eight strands of the sample straight groom inverted on samples/turn.glb (its bind pose)."""
+    folder = tmp_path_factory.mktemp("shot")
+    curves = formats.read_curves(SAMPLES / "straight.h5")
+    keep = np.linspace(0, curves.n_strands - 1, 8).astype(int)
+    pieces = [curves.points[curves.offsets[k]:curves.offsets[k + 1]] for k in keep]
+    formats.write_curves(folder / "eight.h5", np.concatenate(pieces), np.r_[0, np.cumsum([len(p) for p in pieces])])
+    done = hairinv(folder, "invert", "eight.h5", str(SAMPLES / "turn.glb"), "-o", "eight.model.h5")
+    assert done.returncode == 0, done.stderr
+    return folder
+
+
+def _frames(path):
+    with h5py.File(path, "r") as fh:
+        f = fh["frames"]
+        out = {key: f[key][()] for key in f}
+        out["attrs"] = dict(f.attrs)
+        h = fh["helices"]
+        out["helices"] = {key: h[key][()] for key in h}
+    return out
+
+
+def _roots_on_triangles(vertices, faces, triangle, barycentric, offset):
+    """The bound roots from the binding's definition (docs/stage-files.md), written out here."""
+    a, b, c = (vertices[faces[triangle, i]] for i in range(3))
+    p = barycentric[:, :1] * a + barycentric[:, 1:2] * b + barycentric[:, 2:] * c
+    e = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return p + offset[:, :1] * e + offset[:, 1:2] * np.cross(n, e) + offset[:, 2:] * n
+
+
+def _points(frames, k, per=12):
+    h = frames["helices"]
+    S = len(h["offsets"]) - 1
+    strand = np.repeat(np.arange(S), per)
+    total = np.add.reduceat(h["length"], h["offsets"][:-1])
+    s = np.tile(np.linspace(0.0, 1.0, per), S) * total[strand]
+    return strand_points(frames["root"][k], frames["frame0"][k], h["offsets"], frames["omega"][k], h["length"],
+                         strand, s)
+
+
+def test_a_head_turn_carries_the_roots_on_their_triangles_and_keeps_the_hair_out_of_the_body(shot_model):
+    done = hairinv(shot_model, "simulate", "eight.model.h5", str(SAMPLES / "turn.glb"), "--seconds", "0.6",
+                   "-o", "turn.frames.h5")
+    assert done.returncode == 0, done.stderr
+    assert "roots bound to" in done.stdout + done.stderr
+    f = _frames(shot_model / "turn.frames.h5")
+    assert f["attrs"]["body_animated"] and f["attrs"]["preroll"] == 0.0  # turn.glb starts in its bind pose
+    assert len(f["time"]) == round(0.6 * f["attrs"]["fps"]) + 1
+    # the body in /frames is the file's animation at those times
+    body = formats.read_animated_body(SAMPLES / "turn.glb")
+    for k in (0, len(f["time"]) // 2, len(f["time"]) - 1):
+        assert np.abs(f["body_vertices"][k] - body.vertices_at(body.start + f["time"][k])).max() < 1e-6
+    # every root where its binding puts it on its triangle, at every frame (float32 vertices: 1e-6 m)
+    for k in range(len(f["time"])):
+        expected = _roots_on_triangles(f["body_vertices"][k].astype(np.float64), f["body_faces"],
+                                       f["binding_triangle"], f["binding_barycentric"], f["binding_offset"])
+        assert np.abs(f["root"][k] - expected).max() < 1e-6
+    # the head turned (the roots moved), and the hair stayed out of the body: no strand point deeper than
+    # the contacts' own room allows at any frame
+    assert np.linalg.norm(f["root"][-1] - f["root"][0], axis=1).max() > 0.05
+    deepest = min(BodyMesh.from_mesh(_Mesh(f["body_vertices"][k], f["body_faces"])).closest(_points(f, k))[0].min()
+                  for k in range(len(f["time"])))
+    assert deepest > -2e-3, deepest
+
+
+def test_an_animation_that_holds_its_bind_pose_keeps_the_groom_still(shot_model):
+    rig, motion = mr.variant("hold")
+    mr.write_glb(shot_model / "hold.glb", rig, motion)
+    done = hairinv(shot_model, "simulate", "eight.model.h5", "hold.glb", "--seconds", "2", "-o", "hold.frames.h5")
+    assert done.returncode == 0, done.stderr
+    f = _frames(shot_model / "hold.frames.h5")
+    assert f["time"][-1] == pytest.approx(2.0)
+    assert f["displacement"].max() < 1e-4  # 0.1 mm over 2 s
+    assert np.abs(f["root"] - f["root"][0]).max() < 1e-6  # the skinning in float32 of the bind pose
+
+
+def test_a_scene_that_moves_the_body_is_refused_with_an_animated_body(shot_model):
+    before = sorted(p.name for p in shot_model.iterdir())
+    done = hairinv(shot_model, "simulate", "eight.model.h5", str(SAMPLES / "turn.glb"), "--scene", "motion",
+                   "-o", "refused.h5")
+    assert done.returncode == 2
+    assert "animated" in done.stderr and "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+    assert sorted(p.name for p in shot_model.iterdir()) == before
+
+
+class _Mesh:
+    def __init__(self, vertices, faces):
+        self.vertices, self.faces = np.asarray(vertices, dtype=np.float64), faces
