@@ -646,10 +646,15 @@ def next_commands(model: Path, body: Path | None) -> str:
     """What a user runs on a model once ``invert`` wrote it: the still check, a motion, an export."""
     import shlex
 
+    from hairinv import formats
+
     args = " ".join(shlex.quote(str(p)) for p in (model, body) if p is not None)
     usd = shlex.quote(str(Path(model).with_suffix("").with_suffix(".usda")))
-    return (f"next: `hairinv verify {args}` (does it stay still), `hairinv simulate {args} --scene motion` "
-            f"(the head turns), `hairinv export {shlex.quote(str(model))} -o {usd}` (for Blender, Houdini, ...)")
+    animated = body is not None and formats.is_animated_body(body)
+    motion = f"`hairinv simulate {args}` (plays its animation)" if animated else \
+        f"`hairinv simulate {args} --scene motion` (the head turns)"
+    return (f"next: `hairinv verify {args}` (does it stay still), {motion}, "
+            f"`hairinv export {shlex.quote(str(model))} -o {usd}` (for Blender, Houdini, ...)")
 
 
 def _init_option(fn):

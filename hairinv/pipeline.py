@@ -210,9 +210,9 @@ def animated_body_lines(body) -> list[str]:
         return []
     motion = formats.read_animated_body(body)
     joints = f", {len(motion.joints)} joints" if motion.joints else ""
-    return [f"warning: {Path(body).name} is animated ({motion.n_frames} frames over {motion.end - motion.start:.3g} s"
-            f"{joints}): its skin and animation are ignored here, the groom is placed on the mesh as the file "
-            "stores it (its bind pose); `hairinv info` shows the animation"]
+    return [f"note: {Path(body).name} is animated ({motion.n_frames} frames over {motion.end - motion.start:.3g} s"
+            f"{joints}): the groom is placed on the mesh as the file stores it (its rest pose, a skinned mesh's bind "
+            "pose); `hairinv simulate` plays the animation from there"]
 
 
 def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Prepared:
