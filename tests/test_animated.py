@@ -539,14 +539,16 @@ def test_info_on_an_animated_body(tmp_path, rig):
 
 
 def test_an_animated_body_given_where_a_static_one_is_read_is_said_to_be_read_in_its_bind_pose(tmp_path, rig):
-    """Until the stages play a body's animation, a skinned GLB given as the body says so in one warning (its
-    frames, length and joints, counted independently here from the rig written), and a static mesh says nothing."""
+    """A skinned GLB given as the body of invert says in one note that the groom is placed on its bind pose and
+    that simulate plays the animation (its frames, length and joints, counted independently here from the rig
+    written); a static mesh says nothing."""
     from hairinv.pipeline import animated_body_lines
 
     glb = tmp_path / "rig.glb"
     write_glb(glb, *rig, channels())
     lines = animated_body_lines(glb)
-    assert len(lines) == 1 and lines[0].startswith("warning: rig.glb is animated"), lines
+    assert len(lines) == 1 and lines[0].startswith("note: rig.glb is animated"), lines
+    assert "simulate` plays the animation" in lines[0]
     assert f"{len(KEYS)} frames over {KEYS[-1] - KEYS[0]:.3g} s, 3 joints" in lines[0] and "bind pose" in lines[0]
     obj = tmp_path / "still.obj"
     write_obj(obj, rig[0], rig[1])
