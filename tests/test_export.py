@@ -452,10 +452,10 @@ def test_an_existing_hairstyle_output_is_replaced(real, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.h5", "out.obj"]
 
 
-def test_the_readme_export_examples_run_as_written(real, tmp_path):
-    """The commands of the README's export section, on the curly model and a run of it."""
-    readme = (SAMPLES.parent / "README.md").read_text()
-    section = readme.split("### Exporting for other tools", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
+def test_the_docs_export_examples_run_as_written(real, tmp_path):
+    """The commands of docs/export.md's examples, on the curly model and a run of it."""
+    page = (SAMPLES.parent / "docs" / "export.md").read_text()
+    section = page.split("\n## Examples\n", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
     commands = [line.split() for line in section.strip().splitlines()]
     assert len(commands) == 7 and all(c[:2] == ["hairinv", "export"] for c in commands)
     shutil.copyfile(real / "model.h5", tmp_path / "curly.model.h5")
