@@ -999,7 +999,7 @@ def status(obj, stage_file, inputs, quality, config_file, sets, check_data):
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="A running Dask scheduler (tcp://host:8786, tls://...) [default: a local cluster on 127.0.0.1].")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
-              help="Local cluster: worker processes [default: as many as grooms, at most the cores].")
+              help="Local cluster: worker processes [default: as many as grooms and shots, at most the cores].")
 @click.option("--tls-ca-file", type=click.Path(dir_okay=False), default=None, help="TLS: the CA certificate.")
 @click.option("--tls-cert", type=click.Path(dir_okay=False), default=None, help="TLS: this client's certificate.")
 @click.option("--tls-key", type=click.Path(dir_okay=False), default=None, help="TLS: the certificate's key.")
@@ -1009,23 +1009,27 @@ def batch(obj, manifest, outdir, scheduler, workers, tls_ca_file, tls_cert, tls_
     """Run every groom of MANIFEST (TOML: hair, body, units, settings, stages, exports) as one task on a
     Dask cluster, each with its own log and stage files in OUTPUT, and print a summary table (also
     written to OUTPUT/batch.json). A groom that fails is reported with its message; the others go on.
-    Exit 1 if any failed. A second run redoes only what changed. docs/batch.md has the manifest format.
+    Exit 1 if any failed. A second run redoes only what changed. Shots ([[shot]]: a groom's model simulated
+    under an animated body, then exported) run once their groom's model is made. docs/batch.md has the
+    manifest format.
     """
     from hairinv.atomic import write_bytes
-    from hairinv.batch import read_manifest, run_batch, security_from, table
+    from hairinv.batch import read_manifest_shots, run_batch, security_from, table
 
-    grooms, tls = read_manifest(manifest)
+    grooms, shots, tls = read_manifest_shots(manifest)
     security = security_from(tls, tls_ca_file, tls_cert, tls_key)
     if security is not None and not scheduler:
         _say(obj, "note: TLS settings apply to a scheduler given with --scheduler; the local cluster listens "
                   "on 127.0.0.1 only")
         security = None
-    _say(obj, f"{len(grooms)} grooms from {manifest}" + (f" on {scheduler}" if scheduler else ", local cluster"))
+    _say(obj, f"{len(grooms)} grooms" + (f" and {len(shots)} shots" if shots else "") + f" from {manifest}"
+         + (f" on {scheduler}" if scheduler else ", local cluster"))
 
     def done(row):
         _say(obj, f"{row['groom']}: {row['status']}" + (f" ({row['message']})" if row["message"] else ""))
 
-    rows = run_batch(grooms, outdir, scheduler=scheduler, workers=workers, security=security, on_row=done)
+    rows = run_batch(grooms, outdir, scheduler=scheduler, workers=workers, security=security, on_row=done,
+                     shots=shots)
     _say(obj, table(rows))
     summary = {"manifest": str(manifest), "grooms": rows, "failed": sum(r["status"] != "ok" for r in rows)}
     write_bytes(Path(outdir) / "batch.json", json.dumps(summary, indent=2).encode())

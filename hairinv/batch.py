@@ -3,7 +3,8 @@
 A manifest (TOML) lists the grooms: hair file, body file, their units and axes, settings overrides and
 options, and what to make of each (``invert``, ``verify``, exports). Each groom is one task: it runs the
 ``hairinv`` commands a user would type, on the worker, with its own log, and returns one row of the
-summary. The cluster is a :class:`distributed.LocalCluster` on the loopback interface by default, or the
+summary. Shots (``[[shot]]``: a groom's model simulated under an animated body) are tasks of their own, each
+started once its groom's model is made. The cluster is a :class:`distributed.LocalCluster` on the loopback interface by default, or the
 scheduler at an address given (with TLS when certificates are given). A groom that fails is reported
 with its message and never stops the others.
 
@@ -33,6 +34,9 @@ STAGES = ("invert", "verify", "export")
 EXPORT_SUFFIXES = ("usda", "usdc", "usd", "hair", "data", "obj", "json", "png", "html")
 _GROOM_KEYS = {"name", "hair", "body", "units", "scale", "up", "flip", "body_units", "body_scale", "body_up",
                "body_flip", "guides", "quality", "set", "options", "stages", "exports", "verify_seconds"}
+_SHOT_KEYS = {"name", "groom", "body", "seconds", "fps", "preroll", "options", "exports"}
+#: What a shot's frames may be exported to.
+SHOT_EXPORTS = ("usda", "usdc", "usd", "png", "gif", "html", "json")
 #: How long to wait for a scheduler given by address.
 CONNECT_TIMEOUT = "20s"
 _OPTION_OF = {"units": "--units", "scale": "--scale", "up": "--up", "flip": "--flip", "body_units": "--body-units",
@@ -54,6 +58,19 @@ class BatchItem:
     verify_seconds: float | None = None
 
 
+@dataclass
+class ShotItem:
+    """One shot of a manifest (a ``[[shot]]`` table): a groom's model simulated under an animated body."""
+
+    name: str
+    groom: str
+    """the name of the ``[[groom]]`` whose model it simulates"""
+    body: str
+    options: list[str] = field(default_factory=list)
+    """command-line options of ``hairinv simulate`` (--seconds, --fps, --preroll, ...)"""
+    exports: list[str] = field(default_factory=list)
+
+
 def read_manifest(path) -> tuple[list[BatchItem], dict]:
     """The grooms of a manifest and its ``[tls]`` table (empty when absent).
 
@@ -62,6 +79,19 @@ def read_manifest(path) -> tuple[list[BatchItem], dict]:
     InputError
         Not TOML, no grooms, an unknown key, a missing hair file, two grooms of one name.
     """
+    grooms, _, tls = read_manifest_shots(path)
+    return grooms, tls
+
+
+def read_manifest_shots(path) -> tuple[list[BatchItem], list[ShotItem], dict]:
+    """The grooms and shots of a manifest and its ``[tls]`` table (empty when absent).
+
+    Raises
+    ------
+    InputError
+        Not TOML, no grooms, an unknown key, a missing hair file, two grooms or shots of one name, a shot of a
+        groom the manifest does not list, a shot's missing body file.
+    """
     path = Path(path)
     if not path.exists():
         raise InputError("no such file", path)
@@ -69,9 +99,10 @@ def read_manifest(path) -> tuple[list[BatchItem], dict]:
         data = tomllib.loads(path.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"is not valid TOML ({exc})", path) from None
-    unknown = set(data) - {"defaults", "groom", "tls"}
+    unknown = set(data) - {"defaults", "groom", "shot", "tls"}
     if unknown:
-        raise InputError(f"has unknown table(s) {', '.join(sorted(unknown))}; known: defaults, groom, tls", path)
+        raise InputError(f"has unknown table(s) {', '.join(sorted(unknown))}; known: defaults, groom, shot, tls",
+                         path)
     defaults = data.get("defaults", {})
     entries = data.get("groom", [])
     if not isinstance(entries, list) or not entries:
@@ -112,7 +143,51 @@ def read_manifest(path) -> tuple[list[BatchItem], dict]:
             wanted.append("export")
         grooms.append(BatchItem(name, str(hair), None if body is None else str(body), options, wanted, exports,
                                 merged.get("verify_seconds")))
-    return grooms, data.get("tls", {})
+    return grooms, _read_shots(data.get("shot", []), {g.name for g in grooms}, seen, path), data.get("tls", {})
+
+
+def _read_shots(entries, groom_names: set, taken: set, path: Path) -> list[ShotItem]:
+    """The ``[[shot]]`` tables: each a name, the groom it simulates and an animated body file."""
+    if not isinstance(entries, list):
+        raise InputError("has a shot table that is not a list: write [[shot]] tables", path)
+    shots = []
+    for k, entry in enumerate(entries, 1):
+        if not isinstance(entry, dict):
+            raise InputError(f"shot {k}: is not a table", path)
+        bad = set(entry) - _SHOT_KEYS
+        if bad:
+            raise InputError(f"shot {k}: unknown key(s) {', '.join(sorted(bad))}; known: "
+                             f"{', '.join(sorted(_SHOT_KEYS))}", path)
+        name = str(entry.get("name", ""))
+        if not name or "/" in name or name.startswith("."):
+            raise InputError(f"shot {k}: needs a name usable as a file name, got {name!r}", path)
+        if name in taken:
+            raise InputError(f"shot {k}: the name {name!r} is used twice (grooms and shots share file names)", path)
+        taken.add(name)
+        groom = str(entry.get("groom", ""))
+        if groom not in groom_names:
+            raise InputError(f"shot {name!r}: names groom {groom!r}, which the manifest does not list "
+                             f"(grooms: {', '.join(sorted(groom_names))})", path)
+        if not entry.get("body"):
+            raise InputError(f"shot {name!r}: needs a body file (the animated body)", path)
+        body = (path.parent / str(entry["body"])).resolve()
+        if not (body.exists() or "#" in body.name):
+            raise InputError(f"shot {name!r}: its body {entry['body']} does not exist", path)
+        options = []
+        for key in ("seconds", "fps", "preroll"):
+            if key in entry:
+                value = entry[key]
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise InputError(f"shot {name!r}: {key} must be a number, got {value!r}", path)
+                options += [f"--{key}", str(value)]
+        options += [str(o) for o in entry.get("options", [])]
+        exports = [str(e).lstrip(".").lower() for e in entry.get("exports", [])]
+        bad_exports = [e for e in exports if e not in SHOT_EXPORTS]
+        if bad_exports:
+            raise InputError(f"shot {name!r}: unknown export(s) {', '.join(bad_exports)}; a shot exports to "
+                             f"{', '.join(SHOT_EXPORTS)}", path)
+        shots.append(ShotItem(name, groom, str(body), options, exports))
+    return shots
 
 
 def _hairinv() -> list[str]:
@@ -177,6 +252,65 @@ def run_groom(groom: BatchItem, outdir: str, threads: int) -> dict:
     return row
 
 
+def run_shot(shot: ShotItem, outdir: str, threads: int, groom_row: dict) -> dict:
+    """One shot's commands (``simulate`` of its groom's model, then its exports), run where this task runs, once
+    its groom's task has made the model (``groom_row``); the summary row. Never raises: a failure is a row."""
+    out = Path(outdir)
+    log_path = out / f"{shot.name}.log"
+    frames = out / f"{shot.name}.frames.h5"
+    row = {"groom": shot.name, "status": "ok", "seconds": 0.0, "strands": groom_row.get("strands"), "contacts": None,
+           "solver": None, "verify": None, "message": "", "log": str(log_path), "model": str(frames), "skipped": [],
+           "shot_of": shot.groom}
+    if groom_row.get("status") != "ok":
+        row.update(status="failed", message=f"its groom {shot.groom} failed")
+        return row
+    env = {**os.environ, "HAIRINV_THREADS": str(threads), "OMP_NUM_THREADS": str(threads),
+           "OPENBLAS_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads), "NUMBA_NUM_THREADS": str(threads)}
+    started = time.perf_counter()
+    with open(log_path, "w") as log:
+
+        def run(args: list[str]) -> subprocess.CompletedProcess:
+            log.write(f"$ hairinv {shlex.join(args)}\n")
+            log.flush()
+            result = subprocess.run(_hairinv() + args, env=env, capture_output=True, text=True)
+            log.write(result.stdout + result.stderr + f"(exit {result.returncode})\n\n")
+            log.flush()
+            return result
+
+        try:
+            result = run(["simulate", groom_row["model"], shot.body, "-o", str(frames), "--if-stale", *shot.options])
+            if result.returncode != 0:
+                lines = (result.stderr or result.stdout).strip().splitlines()
+                row.update(status="failed", message=f"simulate: {lines[-1] if lines else result.returncode}")
+                return row
+            if "is current" in result.stdout:
+                row["skipped"].append("simulate")
+            digest = stages.sha256_file(frames)
+            made_path = out / f"{shot.name}.exports.json"
+            made = json.loads(made_path.read_text()) if made_path.exists() else {}
+            for suffix in shot.exports:
+                target = out / f"{shot.name}.{suffix}"
+                if target.exists() and made.get(suffix) == digest:
+                    row["skipped"].append(f"export {suffix}")
+                    continue
+                result = run(["export", str(frames), "-o", str(target)])
+                if result.returncode != 0:
+                    lines = (result.stderr or result.stdout).strip().splitlines()
+                    row.update(status="failed", message=f"export {suffix}: {lines[-1] if lines else ''}")
+                    return row
+                made[suffix] = digest
+                write_bytes(made_path, json.dumps(made, indent=2).encode())
+            stage = stages.read_stage(frames)
+            row["contacts"] = int(stage[stages.FRAMES]["contact_count"][-1]) \
+                if "contact_count" in stage[stages.FRAMES].datasets else None
+            row["solver"] = f"{len(stage[stages.FRAMES]['time'])} frames"
+        except Exception as exc:  # a task must report, not raise: the others go on
+            row.update(status="failed", message=f"{type(exc).__name__}: {exc}")
+        finally:
+            row["seconds"] = time.perf_counter() - started
+    return row
+
+
 def _describe(model: Path, row: dict) -> None:
     stage = stages.read_stage(model)
     row["strands"] = int(len(stage[stages.HELICES]["root"]))
@@ -228,11 +362,12 @@ def security_from(tls: dict, ca_file=None, cert=None, key=None):
 
 
 def run_batch(grooms: list[BatchItem], outdir, scheduler: str | None = None, workers: int | None = None,
-              security=None, on_row=None) -> list[dict]:
-    """Every groom as one task on a Dask cluster; the rows in manifest order.
+              security=None, on_row=None, shots: list[ShotItem] | None = None) -> list[dict]:
+    """Every groom as one task on a Dask cluster, and every shot as one task started once its groom's model is
+    made; the rows in manifest order (the grooms', then the shots').
 
     ``scheduler``: the address of a running scheduler, else a LocalCluster on 127.0.0.1 with ``workers``
-    processes (default: as many as grooms, at most the cores), one task at a time each, and the cores
+    processes (default: as many as grooms and shots, at most the cores), one task at a time each, and the cores
     shared out among them as hairinv's threads (``HAIRINV_THREADS``), so that numba and BLAS do not
     oversubscribe. ``on_row(row)`` is called as each groom ends.
     """
@@ -252,7 +387,7 @@ def run_batch(grooms: list[BatchItem], outdir, scheduler: str | None = None, wor
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
         threads = int(os.environ.get("HAIRINV_THREADS", 0)) or 1
     else:
-        n_workers = max(1, min(workers or cores, len(grooms), cores))
+        n_workers = max(1, min(workers or cores, len(grooms) + len(shots or []), cores))
         threads = max(1, cores // n_workers)
         cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                                dashboard_address=None, silence_logs=40)
@@ -260,6 +395,10 @@ def run_batch(grooms: list[BatchItem], outdir, scheduler: str | None = None, wor
     try:
         futures = {client.submit(run_groom, groom, str(outdir.resolve()), threads, key=f"groom-{groom.name}",
                                  pure=False): groom for groom in grooms}
+        of_groom = {groom.name: future for future, groom in futures.items()}
+        for shot in shots or []:  # a shot waits for its groom's row (Dask passes the result of the future)
+            futures[client.submit(run_shot, shot, str(outdir.resolve()), threads, of_groom[shot.groom],
+                                  key=f"shot-{shot.name}", pure=False)] = shot
         rows = {}
         for future in as_completed(futures):
             groom = futures[future]
@@ -272,7 +411,7 @@ def run_batch(grooms: list[BatchItem], outdir, scheduler: str | None = None, wor
             rows[groom.name] = row
             if on_row is not None:
                 on_row(row)
-        return [rows[g.name] for g in grooms]
+        return [rows[g.name] for g in grooms] + [rows[s.name] for s in shots or []]
     finally:
         client.close()
         if cluster is not None:

@@ -83,6 +83,64 @@ def test_a_bad_manifest_is_refused_in_one_sentence(folder):
     assert len(result.stderr.strip().splitlines()) == 1 and not (folder / "batch").exists()
 
 
+SHOTS = """
+[[groom]]
+name = "straight"
+hair = "straight.h5"
+body = "turn.glb"
+guides = 3
+stages = ["invert"]
+
+[[shot]]
+name = "turn"
+groom = "straight"
+body = "turn.glb"
+seconds = 0.15
+exports = ["json"]
+
+[[shot]]
+name = "start"
+groom = "straight"
+body = "turn.glb"
+seconds = 0.1
+fps = 20
+"""
+
+
+def test_shots_of_a_groom_run_once_its_model_is_made_and_resume(folder):
+    shutil.copyfile(SAMPLES / "turn.glb", folder / "turn.glb")
+    (folder / "shots.toml").write_text(SHOTS)
+    first = hairinv(folder, "batch", "shots.toml", "-o", "out", "--workers", "2")
+    assert first.returncode == 0, first.stdout + first.stderr
+    summary = json.loads((folder / "out" / "batch.json").read_text())
+    rows = {r["groom"]: r for r in summary["grooms"]}
+    assert list(rows) == ["straight", "turn", "start"] and summary["failed"] == 0
+    for name, seconds, fps in (("turn", 0.15, None), ("start", 0.1, 20.0)):
+        assert rows[name]["status"] == "ok" and rows[name]["shot_of"] == "straight"
+        with h5py.File(folder / "out" / f"{name}.frames.h5", "r") as fh:
+            frames = fh["frames"]
+            assert frames.attrs["body_animated"] and len(frames["binding_triangle"]) == 3
+            assert frames["time"][-1] == pytest.approx(seconds)
+            if fps is not None:
+                assert frames.attrs["fps"] == fps
+            assert rows[name]["solver"] == f"{len(frames['time'])} frames"
+            record = json.loads(fh.attrs["command"])
+        assert record["inputs"][0]["name"] == "straight.model.h5" and record["inputs"][1]["name"] == "turn.glb"
+    assert (folder / "out" / "turn.json").exists() and not (folder / "out" / "start.json").exists()
+    second = hairinv(folder, "batch", "shots.toml", "-o", "out")
+    again = {r["groom"]: r for r in json.loads((folder / "out" / "batch.json").read_text())["grooms"]}
+    assert second.returncode == 0
+    assert again["turn"]["skipped"] == ["simulate", "export json"] and again["start"]["skipped"] == ["simulate"]
+
+
+def test_a_shot_of_a_groom_the_manifest_does_not_list_is_refused(folder):
+    (folder / "bad.toml").write_text('[[groom]]\nname = "x"\nhair = "wavy.h5"\n\n'
+                                     '[[shot]]\nname = "s"\ngroom = "y"\nbody = "body.obj"\n')
+    result = hairinv(folder, "batch", "bad.toml")
+    assert result.returncode == 2 and "bad.toml" in result.stderr and "'y'" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and not (folder / "batch").exists()
+
+
 def _certificate(folder):
     """A self-signed certificate, its own CA, for the scheduler, the workers and the client."""
     subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "key.pem", "-out",

@@ -97,6 +97,43 @@ def test_an_animation_that_holds_its_bind_pose_keeps_the_groom_still(shot_model)
     assert np.abs(f["root"] - f["root"][0]).max() < 1e-6  # the skinning in float32 of the bind pose
 
 
+def test_the_gif_of_a_shot_shows_every_frame_and_what_moves(shot_model):
+    """The animated GIF of the head turn: one image per frame at the run's rate; the head turning shows between
+    the first and the last image, and a still run's images are all the same."""
+    from PIL import Image, ImageChops
+
+    frames = shot_model / "turn.frames.h5"
+    if not frames.exists():
+        done = hairinv(shot_model, "simulate", "eight.model.h5", str(SAMPLES / "turn.glb"), "--seconds", "0.6",
+                       "-o", "turn.frames.h5")
+        assert done.returncode == 0, done.stderr
+    done = hairinv(shot_model, "export", "turn.frames.h5", "-o", "turn.gif")
+    assert done.returncode == 0, done.stderr
+    f = _frames(frames)
+    with Image.open(shot_model / "turn.gif") as gif:
+        assert gif.n_frames == len(f["time"])
+        assert abs(gif.info["duration"] - 1000.0 / f["attrs"]["fps"]) <= 10  # GIF counts in 10 ms
+        gif.seek(0)
+        first = gif.convert("RGB")
+        gif.seek(gif.n_frames - 1)
+        last = gif.convert("RGB")
+    changed = np.asarray(ImageChops.difference(first, last).convert("L")) > 40
+    assert changed.mean() > 0.002  # the head and the hair moved on screen
+    rig, motion = mr.variant("hold")
+    mr.write_glb(shot_model / "still.glb", rig, motion)
+    done = hairinv(shot_model, "simulate", "eight.model.h5", "still.glb", "--seconds", "0.2", "-o", "still.frames.h5")
+    assert done.returncode == 0, done.stderr
+    done = hairinv(shot_model, "export", "still.frames.h5", "-o", "still.gif")
+    assert done.returncode == 0, done.stderr
+    with Image.open(shot_model / "still.gif") as gif:
+        images = []
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            images.append(np.asarray(gif.convert("RGB"), dtype=np.int16))
+    # the title changes (frame and time); the views do not
+    assert all(np.abs(image[60:] - images[0][60:]).max() == 0 for image in images)
+
+
 def test_a_scene_that_moves_the_body_is_refused_with_an_animated_body(shot_model):
     before = sorted(p.name for p in shot_model.iterdir())
     done = hairinv(shot_model, "simulate", "eight.model.h5", str(SAMPLES / "turn.glb"), "--scene", "motion",

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import InputError
 
 # Each module of an output kind registers its writer when imported.
-from . import compare, data, hair, obj, page, picture, summary, usd  # noqa: F401
+from . import animation, compare, data, hair, obj, page, picture, summary, usd  # noqa: F401
 from .base import COMPARISONS, EXPORTERS, ExportReport, check_export_path, exporter_for
 from .source import ExportSource, Shape, parse_shape
 
