@@ -110,16 +110,7 @@ def read_manifest_shots(path) -> tuple[list[BatchItem], list[ShotItem], dict]:
     grooms, seen = [], set()
     for k, entry in enumerate(entries, 1):
         merged = {**defaults, **entry, "set": {**defaults.get("set", {}), **entry.get("set", {})}}
-        bad = set(merged) - _GROOM_KEYS
-        if bad:
-            raise InputError(f"groom {k}: unknown key(s) {', '.join(sorted(bad))}; known: "
-                             f"{', '.join(sorted(_GROOM_KEYS))}", path)
-        name = str(merged.get("name", ""))
-        if not name or "/" in name or name.startswith("."):
-            raise InputError(f"groom {k}: needs a name usable as a file name, got {name!r}", path)
-        if name in seen:
-            raise InputError(f"groom {k}: the name {name!r} is used twice", path)
-        seen.add(name)
+        name = _entry_name("groom", k, merged, _GROOM_KEYS, seen, path)
         if "hair" not in merged:
             raise InputError(f"groom {name!r}: needs a hair file", path)
         hair = (path.parent / merged["hair"]).resolve()
@@ -146,6 +137,23 @@ def read_manifest_shots(path) -> tuple[list[BatchItem], list[ShotItem], dict]:
     return grooms, _read_shots(data.get("shot", []), {g.name for g in grooms}, seen, path), data.get("tls", {})
 
 
+def _entry_name(kind: str, k: int, table: dict, known: set, taken: set, path: Path) -> str:
+    """The name of the ``k``-th ``[[kind]]`` table, refused if it has unknown keys or a name that is not a file
+    name or is taken already (grooms and shots share the output's file names); added to ``taken``."""
+    bad = set(table) - known
+    if bad:
+        raise InputError(f"{kind} {k}: unknown key(s) {', '.join(sorted(bad))}; known: {', '.join(sorted(known))}",
+                         path)
+    name = str(table.get("name", ""))
+    if not name or "/" in name or name.startswith("."):
+        raise InputError(f"{kind} {k}: needs a name usable as a file name, got {name!r}", path)
+    if name in taken:
+        raise InputError(f"{kind} {k}: the name {name!r} is used twice (grooms and shots name the output's files)",
+                         path)
+    taken.add(name)
+    return name
+
+
 def _read_shots(entries, groom_names: set, taken: set, path: Path) -> list[ShotItem]:
     """The ``[[shot]]`` tables: each a name, the groom it simulates and an animated body file."""
     if not isinstance(entries, list):
@@ -154,16 +162,7 @@ def _read_shots(entries, groom_names: set, taken: set, path: Path) -> list[ShotI
     for k, entry in enumerate(entries, 1):
         if not isinstance(entry, dict):
             raise InputError(f"shot {k}: is not a table", path)
-        bad = set(entry) - _SHOT_KEYS
-        if bad:
-            raise InputError(f"shot {k}: unknown key(s) {', '.join(sorted(bad))}; known: "
-                             f"{', '.join(sorted(_SHOT_KEYS))}", path)
-        name = str(entry.get("name", ""))
-        if not name or "/" in name or name.startswith("."):
-            raise InputError(f"shot {k}: needs a name usable as a file name, got {name!r}", path)
-        if name in taken:
-            raise InputError(f"shot {k}: the name {name!r} is used twice (grooms and shots share file names)", path)
-        taken.add(name)
+        name = _entry_name("shot", k, entry, _SHOT_KEYS, taken, path)
         groom = str(entry.get("groom", ""))
         if groom not in groom_names:
             raise InputError(f"shot {name!r}: names groom {groom!r}, which the manifest does not list "
@@ -194,6 +193,53 @@ def _hairinv() -> list[str]:
     return [sys.executable, "-m", "hairinv_cli.main"]
 
 
+def _env(threads: int) -> dict:
+    """The environment of a task's commands: its share of the cores for hairinv, numba and BLAS."""
+    return {**os.environ, "HAIRINV_THREADS": str(threads), "OMP_NUM_THREADS": str(threads),
+            "OPENBLAS_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads), "NUMBA_NUM_THREADS": str(threads)}
+
+
+def _runner(log, env: dict):
+    """``run(args)``: ``hairinv args`` as a subprocess, the command, its output and exit code written to ``log``."""
+
+    def run(args: list[str]) -> subprocess.CompletedProcess:
+        log.write(f"$ hairinv {shlex.join(args)}\n")
+        log.flush()
+        result = subprocess.run(_hairinv() + args, env=env, capture_output=True, text=True)
+        log.write(result.stdout + result.stderr + f"(exit {result.returncode})\n\n")
+        log.flush()
+        return result
+
+    return run
+
+
+def _failed(row: dict, result: subprocess.CompletedProcess, what: str) -> dict:
+    """``row`` marked failed with the last line the command printed."""
+    lines = (result.stderr or result.stdout).strip().splitlines()
+    row.update(status="failed", message=f"{what}: {lines[-1] if lines else f'exit {result.returncode}'}")
+    return row
+
+
+def _export_all(name: str, source: Path, suffixes: list[str], out: Path, run, row: dict) -> bool:
+    """Each export ``out/<name>.<suffix>`` of ``source``, kept while ``source`` is unchanged (its SHA-256 is
+    recorded in ``<name>.exports.json``); False, with ``row`` failed, when one fails."""
+    made_path = out / f"{name}.exports.json"
+    made = json.loads(made_path.read_text()) if made_path.exists() else {}
+    digest = stages.sha256_file(source)
+    for suffix in suffixes:
+        target = out / f"{name}.{suffix}"
+        if target.exists() and made.get(suffix) == digest:
+            row["skipped"].append(f"export {suffix}")
+            continue
+        result = run(["export", str(source), "-o", str(target)])
+        if result.returncode != 0:
+            _failed(row, result, f"export {suffix}")
+            return False
+        made[suffix] = digest
+        write_bytes(made_path, json.dumps(made, indent=2).encode())
+    return True
+
+
 def run_groom(groom: BatchItem, outdir: str, threads: int) -> dict:
     """One groom's commands, run where this task runs; the summary row. Never raises: a failure is a row."""
     out = Path(outdir)
@@ -201,50 +247,22 @@ def run_groom(groom: BatchItem, outdir: str, threads: int) -> dict:
     model = out / f"{groom.name}.model.h5"
     row = {"groom": groom.name, "status": "ok", "seconds": 0.0, "strands": None, "contacts": None,
            "solver": None, "verify": None, "message": "", "log": str(log_path), "model": str(model), "skipped": []}
-    env = {**os.environ, "HAIRINV_THREADS": str(threads), "OMP_NUM_THREADS": str(threads),
-           "OPENBLAS_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads), "NUMBA_NUM_THREADS": str(threads)}
     started = time.perf_counter()
     with open(log_path, "w") as log:
-
-        def run(args: list[str]) -> subprocess.CompletedProcess:
-            log.write(f"$ hairinv {shlex.join(args)}\n")
-            log.flush()
-            result = subprocess.run(_hairinv() + args, env=env, capture_output=True, text=True)
-            log.write(result.stdout + result.stderr + f"(exit {result.returncode})\n\n")
-            log.flush()
-            return result
-
-        def failed(result: subprocess.CompletedProcess, what: str) -> dict:
-            lines = (result.stderr or result.stdout).strip().splitlines()
-            row.update(status="failed", message=f"{what}: {lines[-1] if lines else f'exit {result.returncode}'}")
-            return row
-
+        run = _runner(log, _env(threads))
         try:
             args = ["invert", groom.hair] + ([groom.body] if groom.body else []) + ["-o", str(model), "--if-stale",
                                                                                   *groom.options]
             result = run(args)
             if result.returncode != 0:
-                return failed(result, "invert")
+                return _failed(row, result, "invert")
             if "is current" in result.stdout:
                 row["skipped"].append("invert")
             _describe(model, row)
             if "verify" in groom.stages:
                 verify_row(groom, model, out, run, row)
             if groom.exports:
-                # each export's model, by SHA-256: an export of an unchanged model is kept
-                made_path = out / f"{groom.name}.exports.json"
-                made = json.loads(made_path.read_text()) if made_path.exists() else {}
-                digest = stages.sha256_file(model)
-                for suffix in groom.exports:
-                    target = out / f"{groom.name}.{suffix}"
-                    if target.exists() and made.get(suffix) == digest:
-                        row["skipped"].append(f"export {suffix}")
-                        continue
-                    result = run(["export", str(model), "-o", str(target)])
-                    if result.returncode != 0:
-                        return failed(result, f"export {suffix}")
-                    made[suffix] = digest
-                    write_bytes(made_path, json.dumps(made, indent=2).encode())
+                _export_all(groom.name, model, groom.exports, out, run, row)
         except Exception as exc:  # a task must report, not raise: the others go on
             row.update(status="failed", message=f"{type(exc).__name__}: {exc}")
         finally:
@@ -264,42 +282,17 @@ def run_shot(shot: ShotItem, outdir: str, threads: int, groom_row: dict) -> dict
     if groom_row.get("status") != "ok":
         row.update(status="failed", message=f"its groom {shot.groom} failed")
         return row
-    env = {**os.environ, "HAIRINV_THREADS": str(threads), "OMP_NUM_THREADS": str(threads),
-           "OPENBLAS_NUM_THREADS": str(threads), "MKL_NUM_THREADS": str(threads), "NUMBA_NUM_THREADS": str(threads)}
     started = time.perf_counter()
     with open(log_path, "w") as log:
-
-        def run(args: list[str]) -> subprocess.CompletedProcess:
-            log.write(f"$ hairinv {shlex.join(args)}\n")
-            log.flush()
-            result = subprocess.run(_hairinv() + args, env=env, capture_output=True, text=True)
-            log.write(result.stdout + result.stderr + f"(exit {result.returncode})\n\n")
-            log.flush()
-            return result
-
+        run = _runner(log, _env(threads))
         try:
             result = run(["simulate", groom_row["model"], shot.body, "-o", str(frames), "--if-stale", *shot.options])
             if result.returncode != 0:
-                lines = (result.stderr or result.stdout).strip().splitlines()
-                row.update(status="failed", message=f"simulate: {lines[-1] if lines else result.returncode}")
-                return row
+                return _failed(row, result, "simulate")
             if "is current" in result.stdout:
                 row["skipped"].append("simulate")
-            digest = stages.sha256_file(frames)
-            made_path = out / f"{shot.name}.exports.json"
-            made = json.loads(made_path.read_text()) if made_path.exists() else {}
-            for suffix in shot.exports:
-                target = out / f"{shot.name}.{suffix}"
-                if target.exists() and made.get(suffix) == digest:
-                    row["skipped"].append(f"export {suffix}")
-                    continue
-                result = run(["export", str(frames), "-o", str(target)])
-                if result.returncode != 0:
-                    lines = (result.stderr or result.stdout).strip().splitlines()
-                    row.update(status="failed", message=f"export {suffix}: {lines[-1] if lines else ''}")
-                    return row
-                made[suffix] = digest
-                write_bytes(made_path, json.dumps(made, indent=2).encode())
+            if not _export_all(shot.name, frames, shot.exports, out, run, row):
+                return row
             stage = stages.read_stage(frames)
             row["contacts"] = int(stage[stages.FRAMES]["contact_count"][-1]) \
                 if "contact_count" in stage[stages.FRAMES].datasets else None

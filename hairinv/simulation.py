@@ -227,8 +227,6 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
             if preroll is None:
                 preroll = PREROLL if Shot.needs_preroll(moved) else 0.0
             shot = Shot(moved, float(preroll))
-            say(f"shot: {animated.n_frames} frames of {Path(body).name} over {shot.length:.3g} s"
-                + (f", after a pre-roll of {shot.preroll:g} s from the groom's pose" if shot.preroll else ""))
     elif loaded.body != "removed":
         say("no body: only hair-hair contacts")
     return Run(model, stage, helices, contacts, mesh, body, to_groom, loaded, settings, init, float(seconds),

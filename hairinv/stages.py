@@ -849,6 +849,19 @@ def _check_run(path, frames: Group) -> None:
     for key in ("displacement", "strand_displacement", "contact_count"):
         if key in frames.datasets and np.any(frames[key] < 0):
             raise InputError(f"/frames/{key} holds a negative value", path)
+    # a shot's body and binding: triangles of existing vertices, roots on existing triangles
+    if "body_faces" in frames.datasets:
+        faces, n_vertices = frames["body_faces"], frames["body_vertices"].shape[1]
+        if len(faces) and (faces.min() < 0 or faces.max() >= n_vertices):
+            raise InputError(f"/frames/body_faces names vertices outside the {n_vertices} of /frames/body_vertices",
+                             path)
+    if "binding_triangle" in frames.datasets:
+        if "body_faces" not in frames.datasets:
+            raise InputError("/frames holds a binding without the body it binds to (body_vertices, body_faces)", path)
+        triangle, n_faces = frames["binding_triangle"], len(frames["body_faces"])
+        if len(triangle) and (triangle.min() < 0 or triangle.max() >= n_faces):
+            raise InputError(f"/frames/binding_triangle names triangles outside the {n_faces} of /frames/body_faces",
+                             path)
 
 
 def _check_attrs(path, name, attrs: dict) -> None:

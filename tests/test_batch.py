@@ -95,7 +95,7 @@ stages = ["invert"]
 name = "turn"
 groom = "straight"
 body = "turn.glb"
-seconds = 0.15
+seconds = 0.2
 exports = ["json"]
 
 [[shot]]
@@ -115,7 +115,7 @@ def test_shots_of_a_groom_run_once_its_model_is_made_and_resume(folder):
     summary = json.loads((folder / "out" / "batch.json").read_text())
     rows = {r["groom"]: r for r in summary["grooms"]}
     assert list(rows) == ["straight", "turn", "start"] and summary["failed"] == 0
-    for name, seconds, fps in (("turn", 0.15, None), ("start", 0.1, 20.0)):
+    for name, seconds, fps in (("turn", 0.2, None), ("start", 0.1, 20.0)):
         assert rows[name]["status"] == "ok" and rows[name]["shot_of"] == "straight"
         with h5py.File(folder / "out" / f"{name}.frames.h5", "r") as fh:
             frames = fh["frames"]

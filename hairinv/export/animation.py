@@ -101,7 +101,9 @@ def export_gif(source, path, shape, report) -> None:
     fps = float(source.frames.attrs.get("fps", 24.0))
     step = (shown[1] - shown[0]) if len(shown) > 1 else 1
     duration = max(20, int(round(1000.0 * step / fps)))  # ms per frame shown (GIF counts in 10 ms)
-    palette = [image.quantize(colors=128, method=Image.Quantize.MEDIANCUT) for image in images]
+    # one palette for every frame (the first's: the body's greys and the hair's colour), so nothing flickers
+    first = images[0].quantize(colors=128, method=Image.Quantize.MEDIANCUT)
+    palette = [first] + [image.quantize(palette=first, dither=Image.Dither.NONE) for image in images[1:]]
     out = io.BytesIO()
     palette[0].save(out, format="GIF", save_all=True, append_images=palette[1:], duration=duration, loop=0,
                     disposal=1)
