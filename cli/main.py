@@ -2,7 +2,7 @@
 
 Arguments become settings, settings go to the library, results go to stage
 files. This is the only layer that prints, draws progress bars and chooses
-exit codes: 0 success, 1 a run that failed, 2 bad input or usage.
+exit codes: 0 success, 1 a run that failed, 2 bad input or usage, 130 interrupted (Ctrl-C).
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import json
 import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -20,8 +21,8 @@ from hairinv import __version__
 
 from ._memory import keep_freed_memory
 
-# Exit codes
-OK, FAILED, BAD_INPUT = 0, 1, 2
+# Exit codes (130: 128 + SIGINT, as shells report a job stopped by Ctrl-C)
+OK, FAILED, BAD_INPUT, INTERRUPTED = 0, 1, 2, 130
 
 
 #: --log-json: one JSON object per event on stderr (set once the options are read; one command per process)
@@ -69,6 +70,57 @@ def _say_timings(ctx_obj, timings: dict) -> None:
     _say(ctx_obj, "timings: " + ", ".join(parts))
 
 
+#: Whether this process received Ctrl-C (SIGINT, :func:`_on_interrupt`). Where the KeyboardInterrupt cannot
+#: propagate (numba compiling a kernel calls back into Python through ctypes, which drops it), the command
+#: still ends as interrupted, not with the error that may follow nor as a success.
+INTERRUPT = {"received": False}
+
+
+def _on_interrupt(signum, frame):
+    """SIGINT: note it, and raise KeyboardInterrupt as Python's own handler does."""
+    INTERRUPT["received"] = True
+    raise KeyboardInterrupt
+
+
+def _quiet_unraisable(default):
+    """A ``sys.unraisablehook`` that says nothing of a KeyboardInterrupt raised where Python cannot pass it on
+    (a ctypes callback): the command's one line says it was interrupted."""
+    def hook(unraisable):
+        if issubclass(unraisable.exc_type, KeyboardInterrupt):
+            INTERRUPT["received"] = True
+            return
+        default(unraisable)
+    hook.quiet_interrupts = True
+    return hook
+
+
+def _quiet_excepthook(default):
+    """A ``sys.excepthook`` that prints no traceback of a KeyboardInterrupt: a compiled module that fails to
+    import prints its error so (numpy's ``import_array``), then raises an ImportError the command reports."""
+    def hook(kind, value, traceback):
+        if issubclass(kind, KeyboardInterrupt):
+            INTERRUPT["received"] = True
+            return
+        default(kind, value, traceback)
+    hook.quiet_interrupts = True
+    return hook
+
+
+def _catch_interrupts() -> None:
+    """Route Ctrl-C through :func:`_on_interrupt` (in the main thread, where signals are handled), and keep
+    the tracebacks of interrupts that libraries print instead of raising off stderr."""
+    INTERRUPT["received"] = False
+    try:
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, _on_interrupt)
+    except ValueError:  # not the main thread (a test's runner): Python's own handler stays
+        return
+    if not getattr(sys.unraisablehook, "quiet_interrupts", False):
+        sys.unraisablehook = _quiet_unraisable(sys.unraisablehook)
+    if not getattr(sys.excepthook, "quiet_interrupts", False):
+        sys.excepthook = _quiet_excepthook(sys.excepthook)
+
+
 def handle_errors(fn):
     """Turn library errors into one sentence on stderr and an exit code."""
 
@@ -79,9 +131,24 @@ def handle_errors(fn):
         started = time.perf_counter()
         _event("start", command=fn.__name__, argv=sys.argv[1:])
         code = OK
+
+        def interrupted(line: str = "interrupted; no output was written"):
+            nonlocal code
+            _event("error", text=line, exit=INTERRUPTED)
+            click.echo(f"hairinv: {line}", err=True)
+            code = INTERRUPTED
+            sys.exit(INTERRUPTED)
+
+        _catch_interrupts()
         try:
-            return fn(*args, **kwargs)
+            result = fn(*args, **kwargs)
+            if INTERRUPT["received"]:  # swallowed where Python cannot raise it (numba compiling: a ctypes callback)
+                interrupted("interrupted, but Ctrl-C came where it could not stop the command (in compiled code): "
+                            "it ran to its end, and what it wrote is complete")
+            return result
         except HairinvError as exc:
+            if INTERRUPT["received"]:  # the error of a library that swallowed Ctrl-C
+                interrupted()
             _event("error", text=str(exc), exit=exc.exit_code)
             click.echo(f"hairinv: error: {exc}", err=True)
             code = exc.exit_code
@@ -89,15 +156,16 @@ def handle_errors(fn):
         except SystemExit as exc:
             code = exc.code if isinstance(exc.code, int) else FAILED
             raise
-        except KeyboardInterrupt:
-            click.echo("hairinv: interrupted; no output was written", err=True)
-            code = 130
-            sys.exit(130)
+        except KeyboardInterrupt as exc:
+            # Ctrl-C: what the command kept (``simulate``: the frames done), else that nothing was written
+            interrupted(getattr(exc, "kept", None) or "interrupted; no output was written")
         except click.exceptions.Exit:
             raise
         except click.ClickException:
             raise
         except Exception as exc:  # an internal failure: one sentence, the traceback only on request
+            if INTERRUPT["received"]:  # the error of a library that swallowed Ctrl-C
+                interrupted()
             if os.environ.get("HAIRINV_DEBUG"):
                 raise
             _event("error", text=f"internal error: {type(exc).__name__}: {exc}", exit=FAILED)

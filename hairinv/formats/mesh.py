@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._trimesh import load as load_trimesh
 from ..errors import InputError
 from .base import register_mesh_reader
 from .obj import parse_obj
@@ -28,7 +29,7 @@ CORNER_UV = "hairinv_corner_uv"
 
 
 def _checked(vertices, faces, path: Path, corner_uv=None):
-    import trimesh
+    trimesh = load_trimesh()
 
     vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
@@ -82,7 +83,7 @@ def read_trimesh(path: Path):
         ``vertices`` (V, 3) float64 in the file's units, ``faces`` (T, 3)
         int64, unprocessed.
     """
-    import trimesh
+    trimesh = load_trimesh()
 
     path = Path(path)
     try:

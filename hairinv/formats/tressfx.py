@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._trimesh import load as load_trimesh
 from ..errors import InputError
 from .base import check_strands, register_curves_reader, register_mesh_reader
 
@@ -195,7 +196,7 @@ def read_tfxmesh(path: Path):
         ``vertices`` (V, 3) float64 in the file's units, ``faces`` (T, 3)
         int64, unprocessed.
     """
-    import trimesh
+    trimesh = load_trimesh()
 
     path = Path(path)
     lines = [ln.split() for ln in path.read_text(errors="replace").splitlines()]
