@@ -769,6 +769,7 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, preroll, 
     largest displacement are printed as it is done.
     """
     from hairinv import config, simulation
+    from hairinv.errors import Interrupted
 
     output = output or _default_output(model, "frames")
     sources = config.Sources(quality, config_file, sets, {"body": body_frame})
@@ -788,6 +789,11 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, preroll, 
     bar = _simulation_progress(obj, run)
     try:
         frames = run.simulate(on_frame=lambda log: _say(obj, log.line()), on_step=bar)
+    except Interrupted as stop:  # Ctrl-C: keep the frames done
+        bar.close()
+        run.write(output)
+        stop.kept = f"{_interrupted_at(run)}: {_kept_in(run, output)}"
+        raise
     finally:
         bar.close()
     last = frames.log[-1]
@@ -797,6 +803,18 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, preroll, 
     run.write(output)
     _say(obj, f"wrote {output}")
     _say_timings(obj, {"simulate": sum(f.seconds for f in frames.log)})
+
+
+def _interrupted_at(run) -> str:
+    """``interrupted after 12 of 61 frames (0.367 s of 2 s)``: where Ctrl-C stopped ``run``."""
+    frames = run.frames
+    return (f"interrupted after {len(frames.log)} of {frames.requested} frames ({frames.log[-1].time:.3g} s of "
+            f"{run.seconds:g} s)")
+
+
+def _kept_in(run, output: Path) -> str:
+    """``the 12 frames computed are in out.h5, marked interrupted``."""
+    return f"the {len(run.frames.log)} frames computed are in {output}, marked interrupted"
 
 
 # Rows of the table of moved strands that `verify` prints.
@@ -870,6 +888,7 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
     """
     from hairinv import config, simulation
     from hairinv.config import parse_length
+    from hairinv.errors import Interrupted
 
     tolerance = parse_length(tolerance_text, "--tolerance")
     if if_stale and output is None:
@@ -887,6 +906,10 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
         bar = _simulation_progress(obj, run)
         try:
             verdict = run.check_still(tolerance, full, on_step=bar)
+        except Interrupted as stop:  # Ctrl-C: no verdict; what the frames done showed, and them in -o
+            bar.close()
+            stop.kept = _verify_interrupted(run, tolerance, output)
+            raise
         finally:
             bar.close()
         if output is not None:
@@ -907,6 +930,22 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
             _say(obj, line)
     if not verdict.passed:
         sys.exit(FAILED)
+
+
+def _verify_interrupted(run, tolerance: float, output: Path | None) -> str:
+    """The line of a still check stopped by Ctrl-C: no verdict, what the frames done showed; their file
+    (written here) with ``-o``."""
+    from hairinv._text import counted
+    from hairinv.dynamics.verify import judge
+
+    moved = len(judge(run.frames, tolerance, run.seconds).moved)
+    line = (f"verify {_interrupted_at(run)}, no verdict: "
+            + (f"no strand point had moved more than {1e3 * tolerance:g} mm" if not moved
+               else f"{counted(moved, 'strand', 'strands')} had moved more than {1e3 * tolerance:g} mm"))
+    if output is not None:
+        run.write(output)
+        line += f"; {_kept_in(run, output)}"
+    return line
 
 
 @main.command()

@@ -60,3 +60,15 @@ class RunError(HairinvError):
     """A run on valid input that could not finish (solver failure and the like)."""
 
     exit_code = 1
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C (SIGINT) stopped a run that keeps what it had computed: ``result`` (a simulation's frames so far).
+
+    A ``KeyboardInterrupt``, so that code unaware of it stops as on any interrupt; a caller that knows it
+    can keep the result (``hairinv simulate`` writes the frames done).
+    """
+
+    def __init__(self, result):
+        super().__init__()
+        self.result = result

@@ -19,7 +19,7 @@ import numpy as np
 
 from . import formats, stages
 from .config import Settings, Sources, simulation_settings
-from .errors import InputError, RunError
+from .errors import InputError, Interrupted, RunError
 from .features import Features, simulate_features
 from .model import Contacts, Helices, stiffening_from_group
 
@@ -105,6 +105,9 @@ class Run:
         ------
         RunError
             The simulation diverged: no output is written.
+        Interrupted
+            Ctrl-C once a frame was done: the frames done are in :attr:`frames` (``interrupted`` set), and
+            :meth:`write` writes them.
         """
         from .dynamics.run import run_scene
 
@@ -113,6 +116,9 @@ class Run:
                                     self.settings, init=self.init, seconds=self.seconds, fps=self.fps,
                                     on_frame=on_frame, on_step=on_step, body_path=self.body, shot=self.shot,
                                     say=self.say)
+        except Interrupted as stop:
+            self.frames = stop.result
+            raise
         except FloatingPointError as exc:
             raise RunError(f"the simulation diverged {exc}; no output was written; try a smaller "
                            "dynamics.time_step") from None
@@ -288,11 +294,18 @@ def simulate(model, body=None, sources: Sources | None = None, scene: str = "sti
              seconds: float | None = None, fps: float | None = None, output=None, on_frame=None, on_step=None,
              say=None, preroll: float | None = None) -> Run:
     """``hairinv simulate``: :func:`load` the model, simulate ``scene``, and write the frames to ``output``
-    (with the command's record) when it is given. The run, its frames in :attr:`Run.frames`."""
+    (with the command's record) when it is given. The run, its frames in :attr:`Run.frames`. On Ctrl-C
+    (:class:`~hairinv.errors.Interrupted`) the frames done are written to ``output``, marked interrupted,
+    before the interrupt goes on."""
     run = load(model, body, sources, scene, init, seconds, fps, output, say, preroll)
     if output is not None:
         run.record = simulate_record(run, scene)
-    run.simulate(on_frame=on_frame, on_step=on_step)
+    try:
+        run.simulate(on_frame=on_frame, on_step=on_step)
+    except Interrupted:
+        if output is not None:
+            run.write(output)
+        raise
     if output is not None:
         run.write(output)
     return run
@@ -302,7 +315,8 @@ def verify(model, body=None, sources: Sources | None = None, init: str = "invert
            fps: float | None = None, tolerance: float = STILL_TOLERANCE, full: bool = False, output=None,
            on_step=None, say=None) -> tuple[Verdict, Run]:
     """``hairinv verify``: the still scene from the model, judged to ``tolerance`` (m), stopped at the first
-    frame past it unless ``full``; the frames written to ``output`` when it is given.
+    frame past it unless ``full``; the frames written to ``output`` when it is given (on Ctrl-C, the frames
+    done, marked interrupted, before the interrupt goes on).
 
     Returns
     -------
@@ -311,7 +325,12 @@ def verify(model, body=None, sources: Sources | None = None, init: str = "invert
     run = load(model, body, sources, "still", init, seconds, fps, output, say)
     if output is not None:
         run.record = verify_record(run, tolerance, full)
-    verdict = run.check_still(tolerance, full, on_step=on_step)
+    try:
+        verdict = run.check_still(tolerance, full, on_step=on_step)
+    except Interrupted:
+        if output is not None:
+            run.write(output)
+        raise
     if output is not None:
         run.write(output)
     return verdict, run

@@ -142,6 +142,8 @@ ATTRS = {
         "body_removed": ("bool", False),
         "trimmed": ("bool", False),
         "stopped": ("bool", False),
+        "interrupted": ("bool", False),
+        "frames_requested": ("count", False),
         "seconds": ("nonnegative", False),
         "preroll": ("nonnegative", False),
         "body_animated": ("bool", False),
@@ -618,6 +620,10 @@ def _check_layout(path, shapes: dict, attrs: dict, ends: dict) -> dict:
     if FRAMES in shapes:
         f, trimmed = shapes[FRAMES], attrs[FRAMES].get("trimmed")
         counts["F"] = (f["time"][0], "frames (/frames/time)")
+        requested = attrs[FRAMES].get("frames_requested")
+        if requested is not None and requested < f["time"][0]:  # a count, checked above
+            raise InputError(f"/frames attribute frames_requested is {requested}, fewer than the {f['time'][0]} "
+                             "frames it holds", path)
         counts["Ef"] = counts["E"]
         if ("offsets" in f) != ("length" in f):
             raise InputError("/frames holds one of offsets and length without the other (a trimmed run stores both)",

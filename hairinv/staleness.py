@@ -99,6 +99,23 @@ def differences(recorded: dict, wanted: dict) -> list[str]:
     return found
 
 
+def interrupted(path) -> str | None:
+    """Why a stage file is stale whatever its record says: it holds a simulation Ctrl-C stopped (``/frames``
+    attribute ``interrupted``), which a rerun computes whole; None if it does not."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as fh:
+            frames = fh.get(stages.FRAMES)
+            if not isinstance(frames, h5py.Group) or not bool(frames.attrs.get("interrupted", False)):
+                return None
+            done = len(frames["time"]) if "time" in frames else 0
+            asked = frames.attrs.get("frames_requested")
+    except (OSError, ValueError, TypeError):
+        return None  # the readers' checks refuse such a file in their own words
+    return f"its run was interrupted after {done}" + (f" of {int(asked)}" if asked is not None else "") + " frames"
+
+
 def check_current(output, wanted: dict) -> tuple[bool, list[str]]:
     """Whether ``output`` is current for the command record ``wanted``, and if not, why."""
     output = Path(output)
@@ -110,6 +127,9 @@ def check_current(output, wanted: dict) -> tuple[bool, list[str]]:
     if recorded is None:
         return False, [f"{output} records no command (written by an older hairinv)"]
     found = differences(recorded, wanted)
+    cut = interrupted(output)
+    if cut is not None:
+        found.insert(0, cut)
     return not found, found
 
 
@@ -196,6 +216,9 @@ def status(path, given_inputs=(), settings: Settings | None = None, check_data: 
         if recorded is None:
             raise InputError("records no command (written by an older hairinv): its currency cannot be told; "
                              "make it again", path)
+        cut = interrupted(path)
+        if cut is not None:
+            reasons.append(cut)
     elif sidecar_path(path).is_file() and is_sidecar(sidecar_path(path)):
         recorded = json.loads(sidecar_path(path).read_text())
         if recorded["output_sha256"] != stages.sha256_file(path):
@@ -234,4 +257,4 @@ def status(path, given_inputs=(), settings: Settings | None = None, check_data: 
 
 
 __all__ = ["COMMAND_ATTR", "SIDECAR_SUFFIX", "check_current", "check_sidecar", "command_record", "differences",
-           "is_sidecar", "mark_current", "recorded_command", "sidecar_path", "status", "write_sidecar"]
+           "interrupted", "is_sidecar", "mark_current", "recorded_command", "sidecar_path", "status", "write_sidecar"]

@@ -177,6 +177,8 @@ def _frames(g: stages.Group) -> dict:
         "time_step_s": float(g.attrs.get("time_step", 0.0)),
         "body_removed": bool(g.attrs.get("body_removed", False)),
         "trimmed": bool(g.attrs.get("trimmed", False)),
+        "interrupted": bool(g.attrs.get("interrupted", False)),
+        "frames_requested": int(g.attrs["frames_requested"]) if "frames_requested" in g.attrs else None,
         "largest_displacement_mm": None if "displacement" not in g.datasets else 1e3 * float(np.max(g["displacement"])),
         "final_displacement_mm": last("displacement", 1e3),
         "final_kinetic_energy_J": last("kinetic_energy"),
@@ -205,6 +207,10 @@ def _warnings(out: dict) -> list[str]:
         found.append(f"{counted(m['strands_stiffened'], 'strand was', 'strands were')} stiffened so that "
                      f"{'it rests' if m['strands_stiffened'] == 1 else 'they rest'} stably (factor up to "
                      f"{m['stiffening_factor']['max']:.3g})")
+    if g["frames"] and g["frames"]["interrupted"]:
+        f = g["frames"]
+        found.append(f"the simulation was interrupted (Ctrl-C) after {f['frames']} of {f['frames_requested']} frames: "
+                     "a rerun computes it whole")
     if g["model"] and g["model"]["unstable_strands"]:
         m = g["model"]
         found.append(f"{counted(len(m['unstable_strands']), 'strand rests', 'strands rest')} in an unstable equilibrium "

@@ -1,12 +1,14 @@
-"""Ctrl-C: a command leaves nothing and exits 130 with one line, even where a library swallows the interrupt.
+"""Ctrl-C: ``simulate`` and ``verify -o`` keep the frames computed, in a valid file marked interrupted that
+``status`` and ``--if-stale`` take as stale; other commands leave nothing; every one exits 130 with one line.
 
 The commands run as subprocesses sent a real SIGINT once their output shows they are under way.
 
-Runtime: about 10 s warm (one inversion interrupted).
+Runtime: about 30-50 s warm (one small inversion, a few short simulations and one inversion interrupted).
 """
 
 from __future__ import annotations
 
+import re
 import shutil
 import signal
 import subprocess
@@ -14,12 +16,29 @@ import sys
 import threading
 import time
 
+import numpy as np
 import pytest
 
-from conftest import ENV, SAMPLES, snapshot
+from conftest import ENV, SAMPLES, hairinv, snapshot
+from hairinv import simulation, stages
 from hairinv._trimesh import held_interrupt
+from hairinv.errors import Interrupted
+from hairinv.staleness import check_current, status
 
 INTERRUPTED = 130
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    """``hairinv invert settled.h5 body.obj --guides 12 --target zero``: a groom at rest (about 0.01 s of
+    computing per frame of the still scene)."""
+    folder = tmp_path_factory.mktemp("interrupt")
+    shutil.copyfile(SAMPLES / "settled.h5", folder / "settled.h5")
+    shutil.copyfile(SAMPLES / "body.obj", folder / "body.obj")
+    result = hairinv(folder, "invert", "settled.h5", "body.obj", "--guides", "12", "--target", "zero",
+                     "-o", "model.h5")
+    assert result.returncode == 0, result.stderr
+    return folder
 
 
 def interrupted(folder, args, sign: str, stream: str = "stdout", env=None) -> subprocess.CompletedProcess:
@@ -50,6 +69,70 @@ def interrupted(folder, args, sign: str, stream: str = "stdout", env=None) -> su
     return subprocess.CompletedProcess(args, process.returncode, "".join(lines["stdout"]), "".join(lines["stderr"]))
 
 
+def test_simulate_keeps_the_frames_computed_when_interrupted(model):
+    result = interrupted(model, ["simulate", "model.h5", "--seconds", "10", "-o", "out.h5"], "frame    1")
+    assert result.returncode == INTERRUPTED, result.stderr
+    assert "Traceback" not in result.stderr
+    line = result.stderr.strip().splitlines()
+    assert len(line) == 1, result.stderr
+    said = re.fullmatch(r"hairinv: interrupted after (\d+) of 301 frames \((\S+) s of 10 s\): the (\d+) frames "
+                        r"computed are in out\.h5, marked interrupted", line[0])
+    assert said and said[1] == said[3], line[0]
+    done = int(said[1])
+    assert 2 <= done < 301  # frame 1 was printed, so frames 0 and 1 at least are whole
+    assert float(said[2]) == pytest.approx((done - 1) / 30, abs=1e-3)
+    # the frames printed before the interrupt are those written, whole, in a file every reader accepts
+    printed = re.findall(r"^frame +(\d+) ", result.stdout, flags=re.M)
+    assert [int(k) for k in printed] == list(range(done))
+    stage = stages.read_stage(model / "out.h5")
+    frames = stage[stages.FRAMES]
+    assert len(frames["time"]) == done and np.allclose(frames["time"], np.arange(done) / 30, atol=1e-12)
+    assert frames["omega"].shape[0] == frames["root"].shape[0] == frames["displacement"].shape[0] == done
+    assert bool(frames.attrs["interrupted"]) and not bool(frames.attrs["stopped"])
+    assert int(frames.attrs["frames_requested"]) == 301
+    assert frames["displacement"].max() < 1e-6  # m: the inverted groom stays still, as far as it went
+    assert sorted(p.name for p in model.iterdir() if p.name.startswith(".")) == []  # no temporary left
+
+    # stale, whatever its record says: status exits 1 naming the interruption, --if-stale computes it again
+    current, reasons = check_current(model / "out.h5", _record(model))
+    assert not current and reasons == [f"its run was interrupted after {done} of 301 frames"]
+    said = hairinv(model, "status", "out.h5")
+    assert said.returncode == 1 and f"out.h5: stale: its run was interrupted after {done} of 301 frames" in said.stdout
+    again = hairinv(model, "simulate", "model.h5", "--seconds", "10", "-o", "out.h5", "--if-stale")
+    assert again.returncode == 0, again.stderr
+    assert "out.h5 is stale: its run was interrupted" in again.stdout and "wrote out.h5" in again.stdout
+    whole = stages.read_stage(model / "out.h5")[stages.FRAMES]
+    assert len(whole["time"]) == 301 and not bool(whole.attrs["interrupted"])
+    assert int(whole.attrs["frames_requested"]) == 301
+    assert hairinv(model, "status", "out.h5").returncode == 0
+
+
+def _record(folder) -> dict:
+    """The record ``hairinv simulate model.h5 --seconds 10`` writes (the one out.h5 holds)."""
+    run = simulation.load(folder / "model.h5", seconds=10)
+    return simulation.simulate_record(run, "still")
+
+
+def test_verify_interrupted_gives_no_verdict_and_keeps_its_frames(model):
+    result = interrupted(model, ["verify", "model.h5", "--seconds", "10", "-o", "v.h5"], "still: ", "stderr",
+                         env={"HAIRINV_PROGRESS_SECONDS": "0"})
+    assert result.returncode == INTERRUPTED, result.stderr
+    assert "Traceback" not in result.stderr and "PASS" not in result.stdout
+    line = [x for x in result.stderr.splitlines() if x.startswith("hairinv:")]
+    assert len(line) == 1 and result.stderr.strip().splitlines()[-1] == line[0], result.stderr
+    said = re.fullmatch(r"hairinv: verify interrupted after (\d+) of 301 frames \(\S+ s of 10 s\), no verdict: no "
+                        r"strand point had moved more than 0\.1 mm; the (\d+) frames computed are in v\.h5, marked "
+                        r"interrupted", line[0])
+    assert said and said[1] == said[2], line[0]
+    stage = stages.read_stage(model / "v.h5")
+    frames = stage[stages.FRAMES]
+    assert len(frames["time"]) == int(said[1]) and bool(frames.attrs["interrupted"])
+    strands = len(stage[stages.HELICES]["offsets"]) - 1
+    assert frames["strand_displacement"].shape == (int(said[1]), strands)
+    current, reasons = status(model / "v.h5")
+    assert not current and reasons == [f"its run was interrupted after {said[1]} of 301 frames"]
+
+
 def test_invert_interrupted_leaves_nothing(tmp_path):
     """Ctrl-C in the contact solve: one line, exit 130, no output and no temporary file."""
     shutil.copyfile(SAMPLES / "wavy.h5", tmp_path / "wavy.h5")
@@ -63,6 +146,33 @@ def test_invert_interrupted_leaves_nothing(tmp_path):
     assert [x for x in result.stderr.splitlines() if x.startswith("hairinv")] == [
         "hairinv: interrupted; no output was written"]
     assert snapshot(tmp_path) == before
+
+
+def test_run_interrupted_in_process_holds_whole_frames(model, tmp_path):
+    """The library call: Ctrl-C (here raised from the frame callback) after frame 3 raises Interrupted, whose
+    frames are the 4 done; ``simulate`` writes them, marked interrupted, before the interrupt goes on."""
+    def stop(log):
+        if log.index == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(Interrupted) as caught:
+        simulation.simulate(model / "model.h5", seconds=1, fps=25, output=tmp_path / "cut.h5", on_frame=stop)
+    frames = caught.value.result
+    assert frames.interrupted and not frames.stopped and frames.requested == 26
+    assert len(frames.log) == 4 and frames.omega.shape[0] == frames.root.shape[0] == len(frames.time) == 4
+    written = stages.read_stage(tmp_path / "cut.h5")[stages.FRAMES]
+    assert np.allclose(written["time"], np.arange(4) / 25, atol=1e-12) and bool(written.attrs["interrupted"])
+    assert np.array_equal(written["omega"], frames.omega)
+    assert isinstance(caught.value, KeyboardInterrupt)  # code that does not know it stops as on any Ctrl-C
+
+
+def test_a_stopped_check_is_not_interrupted(model):
+    """``stopped`` keeps its meaning: a check that stopped at its first frame past the tolerance is whole."""
+    verdict, run = simulation.verify(model / "model.h5", seconds=0.5, init="naive")
+    assert not verdict.passed and run.frames.stopped and not run.frames.interrupted
+    group = run.frames.group({}, [])
+    assert group.attrs["stopped"] and not group.attrs["interrupted"]
+    assert group.attrs["frames_requested"] == 16 > len(run.frames.log)
 
 
 def test_a_held_interrupt_comes_once_the_block_ends():

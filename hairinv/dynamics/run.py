@@ -19,7 +19,7 @@ import numpy as np
 from .. import stages
 from ..config import Settings
 from ..contacts.body import BodyMesh
-from ..errors import InputError, in_file
+from ..errors import InputError, Interrupted, in_file
 from ..gravity import generalized_gravity
 from ..model import (Contacts, Helices, Material, material_from_group, rest_from_group, stiffening_from_group,
                      stiffness)
@@ -84,6 +84,11 @@ class Frames:
     body_faces: np.ndarray | None = None
     binding: object = None
     """:class:`hairinv.dynamics.skin.Binding` of a shot's roots, else None."""
+    interrupted: bool = False
+    """Ctrl-C stopped the run (:class:`hairinv.errors.Interrupted`): the arrays and the log hold only the frames
+    done."""
+    requested: int = 0
+    """the frames the run was asked for (the first, at t = 0, included)"""
 
     def group(self, config: dict, inputs: list[dict]) -> stages.Group:
         data = {"time": self.time, "omega": self.omega, "root": self.root, "frame0": self.frame0,
@@ -106,6 +111,7 @@ class Frames:
             data["length"] = self.helices.length
         attrs = dict(self.attrs)
         attrs.update(body_removed=self.body_removed, trimmed=self.trimmed, stopped=self.stopped,
+                     interrupted=self.interrupted, frames_requested=int(self.requested or len(self.log)),
                      seconds=float(sum(f.seconds for f in self.log)))
         return stages.Group(stages.FRAMES, data, attrs=attrs, config=config, inputs=inputs)
 
@@ -166,6 +172,12 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
     shot : :class:`hairinv.dynamics.skin.Shot` or None: an animated body that moves each root with the
         triangle it is bound to (then ``body_mesh`` is its rest pose, and the scene must not move the body)
     say : callable(str), optional, gets what the binding found
+
+    Raises
+    ------
+    Interrupted
+        Ctrl-C once a frame was done: its ``result`` holds the frames done (``interrupted`` set), whole
+        frames only. Before the first frame (a shot's pre-roll included), a plain ``KeyboardInterrupt``.
     """
     seconds = float(scene.seconds if seconds is None else seconds)
     fps = float(scene.fps if fps is None else fps)
@@ -229,7 +241,7 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
 
     F, S, E = n_frames, helices.n_strands, helices.n_elements
     out = Frames(np.zeros(F), np.zeros((F, E, 3)), np.zeros((F, S, 3)), np.zeros((F, S, 3, 3)), np.zeros((F, 4, 4)),
-                 helices=helices, trimmed=trimmed, body_removed=body_removed,
+                 helices=helices, trimmed=trimmed, body_removed=body_removed, requested=n_frames,
                  attrs={"time_step": h, "steps_per_frame": steps_per_frame, "fps": fps, "init": init,
                         "scene": scene.name})
 
@@ -270,41 +282,50 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
         return on_frame is not None and bool(on_frame(log))
 
     t = 0.0
-    if shot is not None and shot.preroll > 0:
-        # the pre-roll: from the groom's pose to the shot's first frame, not recorded
-        n_pre = int(np.ceil(shot.preroll / h - 1e-9))
-        for k in range(n_pre):
-            t = -shot.preroll + k * shot.preroll / n_pre
-            try:
-                sim.step(skinned, shot.preroll / n_pre, t)
-            except FloatingPointError as exc:
-                raise FloatingPointError(f"in the pre-roll's step from t = {t:.4g} s: {exc}") from None
-            if on_step is not None:
-                on_step()
-        t = 0.0
-    stop = record(0, 0.0, [], 0.0)
-    for index in range(1, n_frames):
-        if stop:
-            break
-        began = time.perf_counter()
-        reports = []
-        for _ in range(steps_per_frame):
-            motion = skinned if shot is not None else state(t)[2]
-            try:
-                reports.append(sim.step(motion, h, t if shot is not None else None))
-            except FloatingPointError as exc:
-                raise FloatingPointError(f"in the step from t = {t:.4g} s: {exc}") from None
-            t += h
-            if on_step is not None:
-                on_step()
-        stop = record(index, index / fps, reports, time.perf_counter() - began)
+    stop, caught = False, False
+    try:
+        if shot is not None and shot.preroll > 0:
+            # the pre-roll: from the groom's pose to the shot's first frame, not recorded
+            n_pre = int(np.ceil(shot.preroll / h - 1e-9))
+            for k in range(n_pre):
+                t = -shot.preroll + k * shot.preroll / n_pre
+                try:
+                    sim.step(skinned, shot.preroll / n_pre, t)
+                except FloatingPointError as exc:
+                    raise FloatingPointError(f"in the pre-roll's step from t = {t:.4g} s: {exc}") from None
+                if on_step is not None:
+                    on_step()
+            t = 0.0
+        stop = record(0, 0.0, [], 0.0)
+        for index in range(1, n_frames):
+            if stop:
+                break
+            began = time.perf_counter()
+            reports = []
+            for _ in range(steps_per_frame):
+                motion = skinned if shot is not None else state(t)[2]
+                try:
+                    reports.append(sim.step(motion, h, t if shot is not None else None))
+                except FloatingPointError as exc:
+                    raise FloatingPointError(f"in the step from t = {t:.4g} s: {exc}") from None
+                t += h
+                if on_step is not None:
+                    on_step()
+            stop = record(index, index / fps, reports, time.perf_counter() - began)
+    except KeyboardInterrupt:
+        if not out.log:
+            raise
+        caught = True  # a frame's log entry is appended once its arrays are filled: the frames logged are whole
     done = len(out.log)
+    out.stopped = bool(stop) and done < n_frames
+    out.interrupted = caught and not out.stopped and done < n_frames
     if done < n_frames:
-        out.stopped = True
         out.time, out.omega, out.root = out.time[:done], out.omega[:done], out.root[:done]
         out.frame0, out.body_transform = out.frame0[:done], out.body_transform[:done]
         if out.body_vertices is not None:
             out.body_vertices = out.body_vertices[:done]
+    if caught:
+        raise Interrupted(out)
     return out
 
 
