@@ -412,7 +412,7 @@ def main(ctx, quiet, verbose, no_progress, log_json):
     detect (hair-body and hair-hair contacts), invert (rest shape and
     contact forces), simulate (the model under a scene), verify (does it
     stay still). `hairinv invert STYLE BODY` runs whatever stage is missing;
-    `info` summarises any stage file; `export FILE.h5 -o OUT` writes its
+    `info` summarises any stage file, body mesh or hairstyle file; `export FILE.h5 -o OUT` writes its
     groom as USD, .hair, .data or OBJ, its summary as JSON, a picture (PNG)
     or a report (HTML); `status` and `--if-stale` tell whether a file is
     current; `diff` compares two stage files; `batch` runs many grooms on
@@ -586,7 +586,7 @@ def detect(obj, style, body, output, units, scale, up, flip, guides, seed, body_
 
     STYLE is a fitted stage file (from `hairinv fit`) or any hairstyle file,
     which is then fitted first. BODY is the body mesh (.obj, .ply, .stl,
-    .off, .glb, .tfxmesh) in the hairstyle's original units, or in its own with --body-units
+    .off, .glb, .gltf, .usd, .tfxmesh) in the hairstyle's original units, or in its own with --body-units
     and --body-up. Writes /curves,
     /helices and /contacts.
     """
@@ -1032,11 +1032,12 @@ def _export_record(stage_files, output: Path, shape, color, plot, basis) -> dict
 @click.pass_obj
 @handle_errors
 def info(obj, file, as_json):
-    """Summarise a hairinv stage file (groups, sizes and key figures) or an animated body (frames, rate,
-    time range, bounds, joints)."""
+    """Summarise a hairinv stage file (groups, sizes and key figures), a body mesh (vertices, triangles,
+    bounds, units stated or guessed, whether it is closed), an animated body (frames, rate, time range,
+    bounds, joints) or a hairstyle file (strands, points, bounds, units)."""
     from hairinv import formats, stages
     from hairinv.errors import InputError
-    from hairinv.summary import summarise, summary_lines
+    from hairinv.summary import body_lines, file_summary, hairstyle_lines, summarise, summary_lines
 
     say = functools.partial(_say, {**obj, "quiet": False})
     if formats.is_animated_body(file):
@@ -1048,6 +1049,14 @@ def info(obj, file, as_json):
         return
     if not file.exists():
         raise InputError("no such file", file)
+    if file.is_dir():
+        raise InputError("is a folder, not a file (nor a folder of body frames)", file)
+    if not stages.is_stage_file(file) and file.suffix.lower() not in (".h5", ".hdf5"):
+        summary = file_summary(file)
+        lines = body_lines if summary["kind"] == "body mesh" else hairstyle_lines
+        for line in [json.dumps(summary, indent=2)] if as_json else lines(summary, str(file)):
+            say(line)
+        return
     summary = summarise(stages.read_stage(file))
     if as_json:
         say(json.dumps(summary, indent=2))

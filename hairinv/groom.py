@@ -98,6 +98,18 @@ def guess_units(size: float, typical: float) -> str:
     return best
 
 
+def guess_body_units(size: float) -> str:
+    """The unit a body whose bounding-box diagonal is ``size`` file units is taken to be in (``body.units =
+    auto``): the one that makes it closest to a bust's size."""
+    return guess_units(size, _TYPICAL_BODY_SIZE)
+
+
+def guess_hair_units(size: float) -> str:
+    """The unit a hairstyle whose bounding-box diagonal is ``size`` file units is taken to be in
+    (``import.units = auto``): the one that makes it closest to a head of hair's size."""
+    return guess_units(size, _TYPICAL_HAIR_SIZE)
+
+
 def _axis_label(up: np.ndarray) -> str:
     for name, index in AXES.items():
         if abs(abs(up[index]) - 1.0) < 1e-12:
@@ -330,7 +342,7 @@ def body_to_groom(settings: BodySettings, groom_scale: float, groom_up, groom_fl
     elif settings.units == "auto":
         if body_size_native is None:
             raise InputError("body.units = auto needs the body file to guess from", body_path)
-        unit = guess_units(body_size_native, _TYPICAL_BODY_SIZE)
+        unit = guess_body_units(body_size_native)
         scale = UNITS[unit]
         notes.append(f"warning: body units: guessed {unit} from the body's size ({body_size_native:.4g} file units "
                      f"across, {body_size_native * scale:.3g} m), and every contact depends on it: pass "

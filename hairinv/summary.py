@@ -1,5 +1,6 @@
 """Plain-data summaries of stage files: one dictionary serves ``hairinv info`` (as text or ``--json``) and
-``hairinv export -o OUT.json`` (docs/export.md gives its schema).
+``hairinv export -o OUT.json`` (docs/export.md gives its schema). Also what ``hairinv info`` says of a body
+mesh (:func:`body_summary`) and of a hairstyle file (:func:`hairstyle_summary`) before any stage reads them.
 
 Every value is computed here once, at full precision; :func:`summary_lines` only formats it for a terminal.
 Keys are stable: every group present in the file has all its keys, ``null`` where the file does not record
@@ -12,12 +13,15 @@ import json
 
 import numpy as np
 
+from pathlib import Path
+
 from . import stages
 from ._text import counted
-from .groom import strand_lengths
+from .groom import guess_body_units, guess_hair_units, strand_lengths
 from .model import UNSTABLE_MARGIN
 
-__all__ = ["SCHEMA", "summarise", "summary_lines"]
+__all__ = ["SCHEMA", "body_lines", "body_summary", "file_summary", "hairstyle_lines", "hairstyle_summary",
+           "summarise", "summary_lines"]
 
 #: Version of the summary's layout: raised when a key is renamed, removed or changes meaning (keys are
 #: only ever added within one version).
@@ -295,4 +299,193 @@ def summary_lines(summary: dict, name: str) -> list[str]:
             else:
                 lines.append(f"  {key}: {_text(value)}")
     lines += [f"warning: {w}" for w in summary["warnings"]]
+    return lines
+
+
+# ------------------------------------------------------------------------ files before any stage: bodies, hairstyles
+
+#: Names of the body-mesh formats by suffix, as ``hairinv info`` prints them.
+MESH_FORMATS = {".obj": "OBJ", ".ply": "PLY", ".stl": "STL", ".off": "OFF", ".glb": "glTF binary", ".gltf": "glTF",
+                ".tfxmesh": "TressFX mesh", ".usd": "USD", ".usda": "USD", ".usdc": "USD", ".usdz": "USD"}
+
+
+def _bounds(points: np.ndarray) -> dict:
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    return {"bounds_min": lo.tolist(), "bounds_max": hi.tolist(), "size": (hi - lo).tolist(),
+            "diagonal": float(np.linalg.norm(hi - lo))}
+
+
+def _surface(mesh) -> dict:
+    """Whether a triangle mesh is closed, after joining coincident vertices (a UV seam splits one in a file),
+    and how its triangles wind: edges on one triangle only (``boundary_edges``), on more than two
+    (``nonmanifold_edges``), shared by two triangles that run it the same way (``flipped_edges``: their
+    normals disagree), triangles of zero area, and for a closed surface whether its normals point out."""
+    merged = mesh.copy()
+    merged.merge_vertices(merge_tex=True, merge_norm=True)
+    faces = np.asarray(merged.faces, dtype=np.int64)
+    directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    _, uses = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    _, same_way = np.unique(directed, axis=0, return_counts=True)
+    v = np.asarray(merged.vertices, dtype=np.float64)
+    doubled_area = np.linalg.norm(np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]]), axis=1)
+    boundary, nonmanifold, flipped = _count(uses == 1), _count(uses > 2), _count(same_way > 1)
+    closed = boundary == 0 and nonmanifold == 0
+    outward = None
+    if closed and flipped == 0:
+        # the signed volume: the sum over triangles of a . (b x c) / 6, positive when the normals point out
+        outward = bool(np.einsum("ij,ij->i", v[faces[:, 0]], np.cross(v[faces[:, 1]], v[faces[:, 2]])).sum() > 0)
+    return {"closed": closed, "boundary_edges": boundary, "nonmanifold_edges": nonmanifold,
+            "flipped_edges": flipped, "normals_outward": outward,
+            "degenerate_triangles": _count(doubled_area <= 1e-12 * max(float(np.ptp(v, axis=0).max()), 1e-300) ** 2)}
+
+
+def body_summary(path) -> dict:
+    """What ``hairinv info`` says of a static body mesh (any format :func:`hairinv.formats.read_mesh` reads): its
+    size in the file's units, the unit and up axis the file states or the unit its size suggests, whether
+    it is closed and how its triangles wind, and whether it has texture coordinates."""
+    from . import formats
+    from .formats.mesh import CORNER_UV, STATED_FRAME
+
+    path = Path(path)
+    mesh = formats.read_mesh(path)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    out = {"file": path.name, "kind": "body mesh", "format": MESH_FORMATS.get(path.suffix.lower(), path.suffix),
+           "vertices": int(len(vertices)), "triangles": int(len(mesh.faces)), **_bounds(vertices)}
+    stated = mesh.metadata.get(STATED_FRAME, {})
+    out["stated_scale_to_m"] = stated.get("scale_to_m")
+    out["stated_up"] = stated.get("up")
+    out["stated_by"] = stated.get("by")
+    out["guessed_units"] = None if stated.get("scale_to_m") else guess_body_units(out["diagonal"])
+    out.update(_surface(mesh))
+    out["texture_coordinates"] = CORNER_UV in mesh.metadata
+    return out
+
+
+def _vector(values) -> str:
+    return "(" + ", ".join(f"{c:.{TEXT_DIGITS}g}" for c in values) + ")"
+
+
+def _extent_lines(summary: dict) -> list[str]:
+    size = " x ".join(f"{c:.{TEXT_DIGITS}g}" for c in summary["size"])
+    return [f"  bounds: {_vector(summary['bounds_min'])} .. {_vector(summary['bounds_max'])} file units, {size} "
+            f"across (diagonal {summary['diagonal']:.{TEXT_DIGITS}g})"]
+
+
+def _units_line(summary: dict, what: str, then: str) -> str:
+    """``units: ...``: the unit stated or the one ``summary``'s size suggests for ``what``; ``then``: what the
+    pipeline does with it."""
+    from .config import UNITS
+
+    if summary["stated_scale_to_m"]:
+        scale = summary["stated_scale_to_m"]
+        named = next((name for name, value in UNITS.items() if abs(value - scale) <= 1e-12 * scale), None)
+        unit = f"{named} ({scale:g} m per unit)" if named else f"{scale:g} m per unit"
+        return (f"  units: {unit}, stated by {summary['stated_by']}: {summary['diagonal'] * scale:.3g} m across "
+                f"({then})")
+    unit = summary["guessed_units"]
+    metres = "" if unit == "m" else f", {summary['diagonal'] * UNITS[unit]:.3g} m"
+    return f"  units: not stated by the file; {summary['diagonal']:.3g} across reads as {unit} for {what}{metres} ({then})"
+
+
+def body_lines(summary: dict, name: str) -> list[str]:
+    """The lines ``hairinv info`` prints for :func:`body_summary`."""
+    lines = [f"{name}: {summary['kind']} ({summary['format']}), {summary['vertices']} vertices, "
+             f"{summary['triangles']} triangles"]
+    lines += _extent_lines(summary)
+    lines.append(_units_line(summary, "a body", "a body is read in the hair's unit unless --body-units says another"))
+    up = summary["stated_up"]
+    lines.append(f"  up: +{up.upper()}, stated by {summary['stated_by']}" if up
+                 else "  up: not stated by the file (a body is read with the hair's up unless --body-up says another)")
+    if summary["closed"]:
+        surface = "closed (watertight)"
+        if summary["normals_outward"] is not None:
+            surface += (", its triangles facing out" if summary["normals_outward"]
+                        else ", its triangles facing in: inside out, so hairinv would take the outside for the inside")
+    else:
+        parts = [counted(summary["boundary_edges"], "boundary edge")] if summary["boundary_edges"] else []
+        parts += [counted(summary["nonmanifold_edges"], "edge") + " shared by more than two triangles"
+                  ] if summary["nonmanifold_edges"] else []
+        surface = f"open ({', '.join(parts)}): hairinv's inside test needs no closed mesh"
+    if summary["flipped_edges"]:
+        surface += (f"; {counted(summary['flipped_edges'], 'edge')} between triangles wound opposite ways (their "
+                    "normals disagree, and the inside test with them)")
+    if summary["degenerate_triangles"]:
+        surface += f"; {counted(summary['degenerate_triangles'], 'triangle')} of zero area"
+    lines.append(f"  surface: {surface}")
+    lines.append("  texture coordinates: " + ("yes (export writes each root's as groom_root_uv)"
+                                               if summary["texture_coordinates"] else "none"))
+    return lines
+
+
+def hairstyle_summary(path) -> dict:
+    """What ``hairinv info`` says of a hairstyle file (any format :func:`hairinv.formats.read_curves` reads) as
+    it is, before ``fit`` cleans it: strands, points, size, the unit and up axis the file states or the
+    unit its size suggests."""
+    from . import formats
+
+    path = Path(path)
+    raw = formats.read_curves(path)
+    counts = np.diff(raw.offsets)
+    # polyline lengths: walked[i] is the length from point 0 to point i along the file's points
+    walked = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(raw.points, axis=0), axis=1))])
+    starts, ends = raw.offsets[:-1], raw.offsets[1:]
+    per_strand = np.where(counts >= 2, walked[np.maximum(ends - 1, 0)] - walked[np.minimum(starts, len(walked) - 1)],
+                          0.0)
+    up = raw.up if isinstance(raw.up, str) else None  # a vector only from a stage file, which info reads whole
+    out = {"file": path.name, "kind": "hairstyle", "format": raw.format, "strands": raw.n_strands,
+           "points": int(len(raw.points)), "points_per_strand": _stats(counts),
+           "strand_length": _stats(per_strand), **_bounds(raw.points),
+           "stated_scale_to_m": raw.scale_to_m, "stated_up": up, "stated_by": "the file" if raw.scale_to_m or up
+           else None}
+    out["guessed_units"] = None if raw.scale_to_m else guess_hair_units(out["diagonal"])
+    return out
+
+
+def file_summary(path) -> dict:
+    """:func:`body_summary` or :func:`hairstyle_summary`, by the file's suffix; for a suffix both read (OBJ,
+    USD), a body where the file holds triangles (a mesh), else a hairstyle.
+
+    Raises
+    ------
+    InputError
+        A suffix neither reads, or a file that holds neither (the body reader's sentence).
+    """
+    from . import formats
+    from .errors import InputError
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    mesh, curves = suffix in formats.MESH_READERS, suffix in formats.CURVE_READERS
+    if not mesh and not curves:
+        meshes = " ".join(sorted(formats.MESH_READERS))
+        styles = " ".join(sorted(set(formats.CURVE_READERS) - set(formats.MESH_READERS) - {".h5", ".hdf5"}))
+        raise InputError(f"is not a kind of file hairinv reads ({suffix or 'no suffix'}): info takes a hairinv stage "
+                         f"file (HDF5, .h5), a body mesh ({meshes}), an animated body or a hairstyle (also {styles})", path)
+    if not mesh:
+        return hairstyle_summary(path)
+    try:
+        return body_summary(path)
+    except InputError as error:
+        if not curves:
+            raise
+        try:
+            return hairstyle_summary(path)
+        except InputError:
+            raise error from None
+
+
+def hairstyle_lines(summary: dict, name: str) -> list[str]:
+    """The lines ``hairinv info`` prints for :func:`hairstyle_summary`."""
+    per = summary["points_per_strand"]
+    length = summary["strand_length"]
+    lines = [f"{name}: {summary['kind']} ({summary['format']}), {summary['strands']} strands, {summary['points']} "
+             f"points ({per['min']:.0f} to {per['max']:.0f} per strand, median {per['median']:.0f})"]
+    lines += _extent_lines(summary)
+    lines.append(f"  strand length: median {length['median']:.{TEXT_DIGITS}g}, max {length['max']:.{TEXT_DIGITS}g} "
+                 "file units")
+    lines.append(_units_line(summary, "a head of hair", "fit reads it so unless --units or --scale says another"))
+    up = summary["stated_up"]
+    lines.append(f"  up: +{up.upper()}, as the file or its format states it (fit takes it unless --up says another)"
+                 if up else "  up: not stated by the file (fit guesses it and says so; --up says another)")
+    lines.append("  `hairinv fit` reads it as a groom: cleans, fits and says what it did")
     return lines

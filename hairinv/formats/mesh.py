@@ -1,4 +1,5 @@
-"""Body meshes: OBJ, PLY, STL, OFF and GLB, returned as unprocessed triangle meshes.
+"""Body meshes: OBJ, PLY, STL, OFF and glTF (binary ``.glb`` or ``.gltf``), returned as unprocessed triangle
+meshes. (Static USD meshes are read in :mod:`hairinv.formats.usd_anim`, beside the animated ones.)
 
 OBJ files are parsed here (with :func:`hairinv.formats.obj.parse_obj`) rather
 than by trimesh, because trimesh splits OBJ vertices along UV and normal
@@ -26,6 +27,11 @@ from .obj import parse_obj
 #: ``mesh.metadata`` key of the texture coordinates: (T, 3, 2) float64, u and v at each corner of each
 #: triangle (corners, not vertices: a UV seam gives one vertex several), when the file has them for every face.
 CORNER_UV = "hairinv_corner_uv"
+#: ``mesh.metadata`` key of what the file states of its frame, where it does: ``{"scale_to_m": float or None,
+#: "up": "x" | "y" | "z" or None, "by": why}`` (glTF: metres and +Y up, by its specification; USD:
+#: ``metersPerUnit`` and ``upAxis``). For ``hairinv info``: the pipeline reads a body in the hair's unit and
+#: axes unless the [body] settings say otherwise.
+STATED_FRAME = "hairinv_stated_frame"
 
 
 def _checked(vertices, faces, path: Path, corner_uv=None):
@@ -73,9 +79,9 @@ def read_obj_mesh(path: Path):
     return _checked(vertices, faces, path, corner_uv)
 
 
-@register_mesh_reader(".ply", ".stl", ".off", ".glb")
+@register_mesh_reader(".ply", ".stl", ".off", ".glb", ".gltf")
 def read_trimesh(path: Path):
-    """Read a PLY, STL, OFF or GLB body mesh with trimesh (all parts concatenated).
+    """Read a PLY, STL, OFF or glTF (``.glb``, ``.gltf``) body mesh with trimesh (all parts concatenated).
 
     Returns
     -------
@@ -95,4 +101,16 @@ def read_trimesh(path: Path):
         raise InputError(f"holds no triangle mesh (trimesh read a {type(mesh).__name__})", path)
     uv = getattr(mesh.visual, "uv", None)  # per vertex, for the formats trimesh reads them from
     corner_uv = np.asarray(uv)[np.asarray(mesh.faces)] if uv is not None and len(uv) == len(mesh.vertices) else None
-    return _checked(mesh.vertices, mesh.faces, path, corner_uv)
+    checked = _checked(mesh.vertices, mesh.faces, path, corner_uv)
+    if path.suffix.lower() in (".glb", ".gltf"):
+        checked.metadata[STATED_FRAME] = {"scale_to_m": 1.0, "up": "y", "by": "glTF's specification"}
+    return checked
+
+
+def triangle_mesh(vertices, faces, path: Path, stated: dict | None = None):
+    """A body mesh of ``vertices`` (V, 3) and ``faces`` (T, 3) read by another module, checked as every reader's
+    (faces present, coordinates finite); ``stated``: what the file states of its frame (:data:`STATED_FRAME`)."""
+    mesh = _checked(vertices, faces, path)
+    if stated is not None:
+        mesh.metadata[STATED_FRAME] = stated
+    return mesh

@@ -1,4 +1,4 @@
-"""Animated USD bodies: ``UsdGeomMesh`` prims with time-sampled points, and ``UsdSkel`` skinned meshes.
+"""USD bodies: animated (``UsdGeomMesh`` prims with time-sampled points, ``UsdSkel`` skinned meshes) and static.
 
 usd-core evaluates everything: a point cache's points at any time (USD interpolates its samples linearly),
 the transforms above each mesh, and a skinned mesh's skinning (``UsdSkelSkinningQuery.ComputeSkinnedPoints``
@@ -18,9 +18,10 @@ import numpy as np
 
 from ..errors import InputError
 from .animated import AnimatedBody
-from .base import register_animated_reader
+from .base import register_animated_reader, register_mesh_reader
+from .mesh import triangle_mesh
 
-__all__ = ["read_usd_animated", "is_animated_usd"]
+__all__ = ["read_usd_animated", "read_usd_mesh", "is_animated_usd"]
 
 _SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 
@@ -171,3 +172,25 @@ def read_usd_animated(path: Path, fps: float | None = None) -> AnimatedBody:
         format="usd-skel" if skinning else "usd-points", evaluate=evaluate, joints=tuple(joints),
         scale_to_m=float(UsdGeom.GetStageMetersPerUnit(stage)), up=str(UsdGeom.GetStageUpAxis(stage)).lower(),
     )
+
+
+@register_mesh_reader(*_SUFFIXES)
+def read_usd_mesh(path: Path):
+    """Read the meshes of a USD stage as one static body mesh: each placed in the world, at rest (a skinned
+    mesh in its bind pose), fan-triangulated and concatenated, in the stage's units.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        ``vertices`` (V, 3) float64 in the stage's units, ``faces`` (T, 3) int64; the stage's
+        ``metersPerUnit`` and ``upAxis`` in ``metadata[STATED_FRAME]``.
+    """
+    from pxr import UsdGeom
+
+    path = Path(path)
+    body = read_usd_animated(path)
+    stage = _open(path)
+    up = str(UsdGeom.GetStageUpAxis(stage)).lower()
+    stated = {"scale_to_m": float(UsdGeom.GetStageMetersPerUnit(stage)), "up": up if up in ("x", "y", "z") else None,
+              "by": "the USD stage"}
+    return triangle_mesh(body.vertices, body.faces, path, stated)
