@@ -962,9 +962,10 @@ def _verify_interrupted(run, tolerance: float, output: Path | None) -> str:
 @click.option("--basis", default=None, type=click.Choice(["linear", "catmull-rom"]),
               help="USD: the curves' type, linear segments or pinned Catmull-Rom cubics through the same vertices "
                    "[default: linear].")
-@click.option("--plot", default=None, metavar="groom|convergence",
-              help="PNG: the groom from the front and the side, or the contact solver's residual against its "
-                   "sweeps (needs /model) [default: groom].")
+@click.option("--plot", default=None, metavar="groom|convergence|render",
+              help="PNG: the groom from the front and the side, the contact solver's residual against its "
+                   "sweeps (needs /model), or a still of the groom on the body rendered by Blender (needs bpy: "
+                   "`make blender`) [default: groom].")
 @if_stale_option
 @click.pass_obj
 @handle_errors

@@ -1074,7 +1074,7 @@ def test_a_gravity_only_model_has_no_convergence_plot(real, tmp_path):
 
 @pytest.mark.parametrize("args, name, fragment", [
     (["curly.h5", "-o", "conv.png", "--plot", "convergence"], "curly.h5", "no /model group"),
-    (["model.h5", "-o", "conv.png", "--plot", "residuals"], "conv.png", "--plot takes groom or convergence"),
+    (["model.h5", "-o", "conv.png", "--plot", "residuals"], "conv.png", "--plot takes groom, convergence or render"),
     (["model.h5", "-o", "conv.png", "--plot", "convergence", "--color", "fit-error"], "conv.png",
      "--color applies to the picture of the groom"),
     (["model.h5", "-o", "conv.html", "--plot", "convergence"], "conv.html", "--plot applies to PNG"),

@@ -18,8 +18,8 @@ it is defined on), ``hairinv:scale``, ``hairinv:bar_min`` and ``hairinv:bar_max`
 and limits, in that unit).
 
 ``--plot convergence`` draws the model's contact solver history instead
-(:mod:`hairinv.export.convergence`); several stage files are drawn side by side by
-:mod:`hairinv.export.compare`.
+(:mod:`hairinv.export.convergence`), ``--plot render`` has Blender render the groom on its body
+(:mod:`hairinv.export.render`); several stage files are drawn side by side by :mod:`hairinv.export.compare`.
 """
 
 from __future__ import annotations
@@ -541,8 +541,9 @@ def picture(source: ExportSource, color: str | None, output: Path) -> Picture:
     return Picture(buffer.getvalue(), paint, png_size(rows), lines, warnings)
 
 
-# ``--plot``: what the PNG of one stage file shows (docs/export.md).
-PLOTS = ("groom", "convergence")
+# ``--plot``: what the PNG of one stage file shows (docs/export.md); ``render``: a still rendered by Blender
+# (:mod:`hairinv.export.render`).
+PLOTS = ("groom", "convergence", "render")
 
 
 def _export_convergence(source, path: Path, report) -> None:
@@ -560,11 +561,16 @@ def _export_convergence(source, path: Path, report) -> None:
 @register_exporter(".png", name="PNG", default_shape=None, options=("color", "plot"), owns=_owns)
 def export_png(source, path, shape, report, color: str | None = None, plot: str | None = None) -> None:
     if plot is not None and plot not in PLOTS:
-        raise InputError(f"--plot takes {' or '.join(PLOTS)}, not {plot!r}", path)
-    if plot == "convergence":
+        raise InputError(f"--plot takes {', '.join(PLOTS[:-1])} or {PLOTS[-1]}, not {plot!r}", path)
+    if plot in ("convergence", "render"):
         if color is not None:
-            raise InputError("--color applies to the picture of the groom, not to --plot convergence", path)
-        _export_convergence(source, Path(path), report)
+            raise InputError(f"--color applies to the picture of the groom, not to --plot {plot}", path)
+        if plot == "render":
+            from .render import export_render
+
+            export_render(source, Path(path), report)
+        else:
+            _export_convergence(source, Path(path), report)
         return
     drawn = picture(source, color, Path(path))
     write_bytes(path, drawn.png)
