@@ -16,13 +16,14 @@ import sys
 import threading
 import time
 
+import h5py
 import numpy as np
 import pytest
 
 from conftest import ENV, SAMPLES, hairinv, snapshot
 from hairinv import simulation, stages
 from hairinv._trimesh import held_interrupt
-from hairinv.errors import Interrupted
+from hairinv.errors import InputError, Interrupted
 from hairinv.staleness import check_current, status
 
 INTERRUPTED = 130
@@ -213,3 +214,26 @@ def test_an_interrupt_a_library_swallowed_still_exits_130(monkeypatch, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["hairinv: interrupted, but Ctrl-C came where it could not stop the command (in compiled code): "
                    "it ran to its end, and what it wrote is complete"]
+
+
+@pytest.mark.parametrize("attrs, fragment", [
+    ({"frames_requested": 1}, "frames_requested is 1, fewer than the 4 frames it holds"),
+    ({"frames_requested": -3}, "frames_requested is -3; it must be an integer >= 0"),
+    ({"interrupted": "yes"}, "interrupted is 'yes'; it must be true or false"),
+])
+def test_the_added_attributes_are_checked_where_the_file_is_read(model, tmp_path, attrs, fragment):
+    """``interrupted`` and ``frames_requested`` of ``/frames`` are checked as every attribute hairinv reads."""
+    def stop(log):
+        if log.index == 3:
+            raise KeyboardInterrupt
+
+    path = tmp_path / "cut.h5"
+    with pytest.raises(Interrupted):
+        simulation.simulate(model / "model.h5", seconds=1, fps=25, output=path, on_frame=stop)
+    with h5py.File(path, "r+") as fh:
+        fh["frames"].attrs.update(attrs)
+    with pytest.raises(InputError) as refused:
+        stages.read_stage(path)
+    assert str(refused.value) == f"{path}: /frames attribute {fragment}"
+    with pytest.raises(InputError):
+        stages.check_metadata(path)  # what `hairinv status` checks
