@@ -2,7 +2,8 @@
 
 The strands are a Blender hair Curves object (Cycles draws them as curve primitives) with a Principled Hair
 BSDF (brown, by melanin), the body a smooth grey mesh, under one sun and a grey sky. The groom is the last
-frame of ``/frames`` on the body posed as in that frame, else the input shape on the body at rest. The
+frame of ``/frames`` on the body posed as in that frame (a shot's deforming body as the frames keep it),
+else the input shape on the body at rest. The
 camera looks at the strands' bounding sphere from the front of the picture (``--plot groom``'s front view:
 along -Z of the groom's frame turned Y-up), turned 25 degrees about the up axis and raised 10 degrees, its
 lens framing the sphere with a margin. A rod 0.1 mm across is under a pixel at that distance: each strand is
@@ -107,22 +108,29 @@ def camera(points: np.ndarray, front: np.ndarray, up: np.ndarray, size: tuple[in
 
 
 def _scene(source) -> tuple[np.ndarray, np.ndarray, object, np.ndarray | None, str, str]:
-    """The strands shown (points in the stage frame, m, and offsets), the body mesh or None, its pose (None: at
-    rest), what the strands are, and where the body is or why there is none."""
-    mesh, note = source.body()
+    """The strands shown (points in the stage frame, m, and offsets), the body mesh or None, its pose (None: as
+    it is), what the strands are, and where they are shown (``on the body PATH``, or ``with no body (why)``)."""
     if source.frames is not None and source.n_frames:
         last = source.n_frames - 1
         strands = source.frame(last)
         if source.body_removed:
-            mesh, note = None, "the scene removed it"
-        return strands.points, strands.offsets, mesh, source.body_transform(last), strands.label, note
-    return source.points, source.offsets, mesh, None, "input shape", note
+            return strands.points, strands.offsets, None, None, strands.label, "with no body (the scene removed it)"
+        if source.body_animated:  # a shot: the deforming body as the frame keeps it, in place
+            return (strands.points, strands.offsets, source.body_mesh(last), None, strands.label,
+                    "on the shot's animated body, as the frames keep it")
+        pose, label, points, offsets = source.body_transform(last), strands.label, strands.points, strands.offsets
+    else:
+        pose, label, points, offsets = None, "the input shape", source.points, source.offsets
+    mesh, note = source.body()
+    if mesh is None:
+        return points, offsets, None, None, label, f"with no body ({note})"
+    return points, offsets, mesh, pose, label, f"on the body {note.removeprefix('body: ')}"
 
 
 def export_render(source, path: Path, report) -> None:
     """Render ``source`` (:class:`~hairinv.export.source.ExportSource`) to the PNG ``path`` with Blender."""
     python = blender_python(path)
-    points, offsets, mesh, pose, shown, body_note = _scene(source)
+    points, offsets, mesh, pose, shown, where = _scene(source)
     axes = OutputAxes.onto(source.up, "z")  # Blender is +Z up, in metres
     # the front of the matplotlib picture (its viewer at +Z of the groom turned Y-up), in Blender's frame
     front = axes.rotation @ OutputAxes.onto(source.up, "y").rotation.T @ np.array([0.0, 0.0, 1.0])
@@ -169,9 +177,8 @@ def export_render(source, path: Path, report) -> None:
              else f"strands {2e3 * rod:.2g} mm across, the rod's diameter")
     report.lines.append(f"wrote {path}: PNG, {SIZE[0]} x {SIZE[1]} px, rendered by Blender {version} (Cycles, CPU, "
                         f"{SAMPLES} samples) in {seconds:.1f} s")
-    on = f"on the body {body_note.removeprefix('body: ')}" if mesh is not None else f"with no body ({body_note})"
-    what = "the input shape" if shown == "input shape" else shown
-    report.lines.append(f"shows {what} {on}; {thick}" + (" (the rod's would be under a pixel)" if radius > rod
-                                                         else ""))
-    if mesh is None and not source.body_removed and "records no body" not in body_note:
-        report.warnings.append(f"warning: {source.name}: {body_note}; the render has no body")
+    report.lines.append(f"shows {shown} {where}; {thick}" + (" (the rod's would be under a pixel)" if radius > rod
+                                                             else ""))
+    if mesh is None and not source.body_removed and "records no body" not in where:
+        report.warnings.append(f"warning: {source.name}: {where.removeprefix('with no body (')[:-1]}; the render "
+                               "has no body")
