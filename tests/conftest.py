@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -80,6 +81,17 @@ def hairinv(cwd: Path, *args: str) -> subprocess.CompletedProcess:
         text=True,
         timeout=600,
     )
+
+
+def inverted_settled(folder: Path) -> Path:
+    """``hairinv invert settled.h5 body.obj --guides 12 --target zero`` in ``folder``: a small groom at rest
+    (``folder/model.h5``, about 0.01 s of computing per frame of the still scene)."""
+    shutil.copyfile(SAMPLES / "settled.h5", folder / "settled.h5")
+    shutil.copyfile(SAMPLES / "body.obj", folder / "body.obj")
+    result = hairinv(folder, "invert", "settled.h5", "body.obj", "--guides", "12", "--target", "zero",
+                     "-o", "model.h5")
+    assert result.returncode == 0, result.stderr
+    return folder
 
 
 def assert_refused(folder: Path, args, name: str, fragment: str) -> None:

@@ -20,7 +20,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ENV, SAMPLES, hairinv, snapshot
+from conftest import inverted_settled, ENV, SAMPLES, hairinv, snapshot
 from hairinv import simulation, stages
 from hairinv._trimesh import held_interrupt
 from hairinv.errors import InputError, Interrupted
@@ -33,13 +33,7 @@ INTERRUPTED = 130
 def model(tmp_path_factory):
     """``hairinv invert settled.h5 body.obj --guides 12 --target zero``: a groom at rest (about 0.01 s of
     computing per frame of the still scene)."""
-    folder = tmp_path_factory.mktemp("interrupt")
-    shutil.copyfile(SAMPLES / "settled.h5", folder / "settled.h5")
-    shutil.copyfile(SAMPLES / "body.obj", folder / "body.obj")
-    result = hairinv(folder, "invert", "settled.h5", "body.obj", "--guides", "12", "--target", "zero",
-                     "-o", "model.h5")
-    assert result.returncode == 0, result.stderr
-    return folder
+    return inverted_settled(tmp_path_factory.mktemp("interrupt"))
 
 
 def interrupted(folder, args, sign: str, stream: str = "stdout", env=None) -> subprocess.CompletedProcess:

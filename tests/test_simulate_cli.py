@@ -13,20 +13,14 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import SAMPLES, assert_refused, hairinv
+from conftest import inverted_settled, SAMPLES, assert_refused, hairinv
 from hairinv import simulation, stages
 
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):
     """``hairinv invert settled.h5 body.obj --guides 12 --target zero``: a groom at rest."""
-    folder = tmp_path_factory.mktemp("simulate")
-    shutil.copyfile(SAMPLES / "settled.h5", folder / "settled.h5")
-    shutil.copyfile(SAMPLES / "body.obj", folder / "body.obj")
-    result = hairinv(folder, "invert", "settled.h5", "body.obj", "--guides", "12", "--target", "zero",
-                     "-o", "model.h5")
-    assert result.returncode == 0, result.stderr
-    return folder
+    return inverted_settled(tmp_path_factory.mktemp("simulate"))
 
 
 def test_still_scene_keeps_the_inverted_groom_still(model):
