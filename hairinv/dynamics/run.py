@@ -331,10 +331,10 @@ def run_scene(helices: Helices, model: stages.Group | None, contacts: Contacts |
 
 def _skinned(helices: Helices, shot, body: BodyMesh | None, gravity, body_path, say):
     """The shot's body with the roots bound to its rest pose; roots far from it named, none near refused."""
-    from .skin import ROOT_REACH, Binding, SkinnedBody
+    from .skin import ROOT_REACH, Binding, MeshArrays, SkinnedBody
 
     with in_file(body_path):
-        bind_body = BodyMesh.from_mesh(_Vertices(shot.bind, shot.faces))
+        bind_body = BodyMesh.from_mesh(MeshArrays(shot.bind, shot.faces))
     binding = Binding.bind(helices.root, shot.bind, shot.faces, body=bind_body)
     far = np.abs(binding.distance) > ROOT_REACH
     if len(far) and far.all():
@@ -350,7 +350,3 @@ def _skinned(helices: Helices, shot, body: BodyMesh | None, gravity, body_path, 
             f"(largest distance {1e3 * np.abs(binding.distance).max(initial=0.0):.3g} mm)")
     return SkinnedBody(shot.vertices_at, shot.faces, binding, gravity, contacts=body is not None)
 
-
-class _Vertices:
-    def __init__(self, vertices, faces):
-        self.vertices, self.faces = vertices, faces

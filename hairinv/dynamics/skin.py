@@ -92,7 +92,7 @@ class Binding:
         vertices = np.ascontiguousarray(vertices, dtype=np.float64)
         faces = np.ascontiguousarray(faces, dtype=np.int64)
         if body is None:
-            body = BodyMesh.from_mesh(_Mesh(vertices, faces))
+            body = BodyMesh.from_mesh(MeshArrays(vertices, faces))
         sd, closest, _, face = body.closest(roots) if len(roots) else (np.zeros(0), np.zeros((0, 3)), None,
                                                                           np.zeros(0, dtype=np.int64))
         bary = barycentric(closest, vertices[faces[face]])
@@ -139,7 +139,7 @@ def barycentric(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
     return np.stack([1.0 - v - w, v, w], axis=1)
 
 
-class _Mesh:
+class MeshArrays:
     """Vertices and faces, as :meth:`BodyMesh.from_mesh` takes them."""
 
     def __init__(self, vertices, faces):
@@ -275,7 +275,7 @@ class SkinnedBody:
         if hit is None:
             if len(self._bodies) > 2:
                 self._bodies.clear()
-            hit = self._bodies[t] = BodyMesh.from_mesh(_Mesh(self.pose(t)[0], self.faces))
+            hit = self._bodies[t] = BodyMesh.from_mesh(MeshArrays(self.pose(t)[0], self.faces))
         return hit
 
 
