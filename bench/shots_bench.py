@@ -362,12 +362,12 @@ def render(shots: list[Shot], meta: dict) -> str:
         "3,273 vertices) walking its 1.96 s cycle with the bob `bench/cesiumman_groom.py` grows on its head "
         f"({CESIUMMAN_STRANDS} strands; inverted and simulated on {CESIUMMAN_GUIDES} guides of them, `--guides "
         f"{CESIUMMAN_GUIDES}`: all 300 took 12-18 s a frame over the cycle's first 0.2 s in a trial run on this "
-        "machine, 10-14 minutes for the cycle), after the default 0.5 s pre-roll from the bind pose (arms out) to "
+        "machine shared with other processes, 10-14 minutes for the cycle), after the default 0.5 s pre-roll from the bind pose (arms out) to "
         "the cycle's first frame; "
         "the rigged mannequin of `samples/make_rigs.py` in its development motions and in held-out variants "
         "(another head and another motion of the same kind, judged with the same settings), each with its own "
         f"groom (the sample straight groom on that head, 300 strands; {MANNEQUIN_GUIDES} guides of them, to keep "
-        "the benchmark near 20 minutes), each over its whole animation; and `hold`, the bind pose keyed for 1 s "
+        "the benchmark under 20 minutes on a machine that others load), each over its whole animation; and `hold`, the bind pose keyed for 1 s "
         f"and simulated for {HOLD_SECONDS:g} s on "
         + (f"{HOLD_GUIDES} guides" if HOLD_GUIDES else "every strand") + ", the still promise.")
     lines.append("")
