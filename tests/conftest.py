@@ -111,6 +111,21 @@ def snapshot(folder: Path) -> dict[str, bytes]:
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
+def eight_strand_model(folder: Path, strands: int = 8, body: Path | None = None) -> Path:
+    """``strands`` strands of the sample straight groom (spread over it) inverted on ``body`` (default
+    samples/turn.glb, the mannequin turning its head: inverted on its bind pose) by the command line, as
+    ``folder/eight.model.h5``; a fast model for shots (tests/test_shots.py, tests/test_blender.py)."""
+    from hairinv import formats
+
+    curves = formats.read_curves(SAMPLES / "straight.h5")
+    keep = np.linspace(0, curves.n_strands - 1, strands).astype(int)
+    pieces = [curves.points[curves.offsets[k]:curves.offsets[k + 1]] for k in keep]
+    formats.write_curves(folder / "eight.h5", np.concatenate(pieces), np.r_[0, np.cumsum([len(p) for p in pieces])])
+    done = hairinv(folder, "invert", "eight.h5", str(body or SAMPLES / "turn.glb"), "-o", "eight.model.h5")
+    assert done.returncode == 0, done.stderr
+    return folder / "eight.model.h5"
+
+
 # ---------------------------------------------------------------------- hand-made scenes of the inverse problem
 
 

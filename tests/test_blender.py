@@ -30,11 +30,12 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import (FLOAT32_M, FPS, N_FRAMES, RADIUS, ROOT, SAMPLES, body_motion, expected_frame, expected_rest,
-                      make_stage, obj_mesh)
+from conftest import (FLOAT32_M, FPS, N_FRAMES, RADIUS, ROOT, SAMPLES, body_motion, eight_strand_model, expected_frame,
+                      expected_rest, hairinv, make_stage, obj_mesh)
 
 from hairinv import stages
 from hairinv.export import export
+from hairinv.rod.helix import strand_points
 
 SCRIPT = Path(__file__).resolve().parent / "blender_read_usd.py"
 BLENDER_PYTHON = Path(os.environ.get("HAIRINV_BLENDER_PYTHON", ROOT / ".venv-blender" / "bin" / "python"))
@@ -337,6 +338,103 @@ def test_blender_without_frames_leaves_the_scene_frames_alone(blender):
     hair = _object(read, "Hair")
     assert not hair["modifiers"] and not _object(read, "Body")["constraints"]
     assert read["cache_files"] == []
+
+
+# ---------------------------------------------------------------------- a shot: the body deforms, the hair follows
+
+SHOT_SECONDS = 0.4  # samples/turn.glb holds its bind pose for 0.2 s, then turns the head by 90 degrees in 0.3 s
+SHOT_FRAMES = (0, 6, 9, 12)  # of the 13 at 30 fps: still, turning, two thirds of the turn
+
+
+def _skip_without_blender():
+    if not BLENDER_PYTHON.exists():
+        pytest.skip(f"Blender's Python not found at {BLENDER_PYTHON}: `make blender` installs Blender as the bpy "
+                    "module in .venv-blender (or set HAIRINV_BLENDER_PYTHON to a Python that has bpy)")
+
+
+@pytest.fixture(scope="module")
+def blender_shot(tmp_path_factory):
+    """A shot's USD (eight strands inverted on samples/turn.glb's bind pose, 0.4 s of its head turn simulated,
+    `hairinv export FRAMES -o shot.usda`) and what Blender read of it at SHOT_FRAMES: (folder, the file's
+    report, arrays)."""
+    _skip_without_blender()
+    folder = tmp_path_factory.mktemp("blender_shot")
+    eight_strand_model(folder)
+    done = hairinv(folder, "simulate", "eight.model.h5", str(SAMPLES / "turn.glb"), "--seconds", str(SHOT_SECONDS),
+                   "-o", "turn.frames.h5")
+    assert done.returncode == 0, done.stderr
+    done = hairinv(folder, "export", "turn.frames.h5", "-o", "shot.usda")
+    assert done.returncode == 0, done.stderr
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    result = subprocess.run([str(BLENDER_PYTHON), str(SCRIPT), str(folder / "shot.usda"), "--frames",
+                             ",".join(map(str, SHOT_FRAMES)), "--json", str(folder / "blender.json"), "--npz",
+                             str(folder / "blender.npz")], capture_output=True, text=True, env=env, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    (read,) = json.loads((folder / "blender.json").read_text())["files"]
+    assert read["result"] == ["FINISHED"]
+    arrays = {k.split("/", 1)[1]: v for k, v in np.load(folder / "blender.npz").items()}
+    return folder, read, arrays
+
+
+def _shot_truth(path: Path) -> dict:
+    """What the stage file holds, read with h5py: the frames' body vertices, and the hair's points at every frame
+    at the input vertices' arc lengths (docs/export.md: vertex i at s_i = L c_i / c_n, c the cumulative chord
+    length of the input polyline, L the fitted length), from /frames' roots, root frames and curvatures."""
+    with h5py.File(path, "r") as fh:
+        f, h, c = fh["frames"], fh["helices"], fh["curves"]
+        out = {key: f[key][()] for key in ("time", "root", "frame0", "omega", "body_vertices", "body_faces")}
+        out["fps"] = float(f.attrs["fps"])
+        out["scale"], out["up"] = float(c.attrs["scale_to_m"]), np.asarray(c.attrs["up"])
+        points, offsets = c["points"][()], c["offsets"][()]
+        h_offsets, length = h["offsets"][()], h["length"][()]
+    S = len(offsets) - 1
+    strand = np.repeat(np.arange(S), np.diff(offsets))
+    cum = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]
+    start, end = cum[offsets[:-1]], cum[offsets[1:] - 1]
+    s = (cum - start[strand]) / (end - start)[strand] * np.add.reduceat(length, h_offsets[:-1])[strand]
+    out["hair"] = np.array([strand_points(out["root"][k], out["frame0"][k], h_offsets, out["omega"][k], length,
+                                          strand, s) for k in range(len(out["time"]))])
+    out["counts"] = np.diff(offsets)
+    return out
+
+
+def test_blender_plays_a_shot_the_body_deforming_and_the_hair_following(blender_shot):
+    """The shot's body is a deforming mesh: its points are time samples (no transform), which Blender's importer
+    reads through a mesh sequence cache modifier, as it does the hair's. At each frame set, the evaluated body
+    is /frames/body_vertices and the evaluated hair is the frame's strands, in metres, +Z up."""
+    from pxr import Usd, UsdGeom
+
+    folder, read, arrays = blender_shot
+    truth = _shot_truth(folder / "turn.frames.h5")
+    n_frames = len(truth["time"])
+    assert n_frames == round(SHOT_SECONDS * truth["fps"]) + 1
+    # the file as pxr reads it: the body's points sampled at every frame's time code, no transform op
+    stage = Usd.Stage.Open(str(folder / "shot.usda"))
+    body_prim = UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Body"))
+    assert body_prim.GetPointsAttr().GetTimeSamples() == [float(k) for k in range(n_frames)]
+    assert not UsdGeom.Xformable(body_prim).GetOrderedXformOps()
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.y and truth["up"].tolist() == [0.0, 1.0, 0.0]
+    to_blender = TO_BLENDER["y"]
+    scale = truth["scale"]
+    assert {o["name"]: o["type"] for o in read["objects"]} == {"Root": "EMPTY", "Hair": "CURVES", "Rest": "CURVES",
+                                                               "Body": "MESH"}
+    root = np.array(_object(read, "Root")["matrix_world"])
+    assert np.abs(root[:3, :3] - scale * to_blender).max() < FLOAT32 * scale and np.allclose(root[:3, 3], 0)
+    assert (read["scene"]["frame_start"], read["scene"]["frame_end"]) == (0, n_frames - 1)
+    hair, body = _object(read, "Hair"), _object(read, "Body")
+    assert [(m["type"], m["object_path"]) for m in hair["modifiers"]] == [("MESH_SEQUENCE_CACHE", "/Root/Hair")]
+    assert [(m["type"], m["object_path"]) for m in body["modifiers"]] == [("MESH_SEQUENCE_CACHE", "/Root/Body")]
+    assert not body["constraints"]
+    assert body["vertices"] == truth["body_vertices"].shape[1] and body["faces"] == len(truth["body_faces"])
+    assert arrays["Hair/counts"].tolist() == truth["counts"].tolist()
+    for k in SHOT_FRAMES:
+        expected_body = truth["body_vertices"][k].astype(np.float64) @ to_blender.T
+        assert np.abs(arrays[f"Body/frame{k}"] - expected_body).max() < FLOAT32_M, k
+        assert np.abs(arrays[f"Hair/frame{k}"] - truth["hair"][k] @ to_blender.T).max() < FLOAT32_M, k
+    # and the frames differ: the head turned, the body and the hair with it (centimetres by frame 12)
+    last = read["frames"][str(SHOT_FRAMES[-1])]
+    assert last["Body"]["moved_since_first"] > 0.02 and last["Hair"]["moved_since_first"] > 0.02
+    assert read["frames"]["6"]["Body"]["moved_since_first"] < 1e-6  # still in the bind pose until 0.2 s
 
 
 if __name__ == "__main__":

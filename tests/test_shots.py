@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import SAMPLES, hairinv
+from conftest import SAMPLES, eight_strand_model, hairinv
 from hairinv import formats
 from hairinv.contacts.body import BodyMesh
 from hairinv.rod.helix import strand_points
@@ -22,12 +22,7 @@ import make_rigs as mr  # noqa: E402
 def shot_model(tmp_path_factory):
     """Eight strands of the sample straight groom inverted on samples/turn.glb (its bind pose)."""
     folder = tmp_path_factory.mktemp("shot")
-    curves = formats.read_curves(SAMPLES / "straight.h5")
-    keep = np.linspace(0, curves.n_strands - 1, 8).astype(int)
-    pieces = [curves.points[curves.offsets[k]:curves.offsets[k + 1]] for k in keep]
-    formats.write_curves(folder / "eight.h5", np.concatenate(pieces), np.r_[0, np.cumsum([len(p) for p in pieces])])
-    done = hairinv(folder, "invert", "eight.h5", str(SAMPLES / "turn.glb"), "-o", "eight.model.h5")
-    assert done.returncode == 0, done.stderr
+    eight_strand_model(folder)
     return folder
 
 
@@ -202,3 +197,60 @@ def test_a_shot_file_whose_body_or_binding_is_broken_is_refused(shot_model, tmp_
     done = hairinv(tmp_path, "export", "broken.h5", "-o", "broken.gif")
     assert done.returncode == 2 and fragment in done.stderr and "broken.h5" in done.stderr, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and not (tmp_path / "broken.gif").exists()
+
+
+@pytest.fixture(scope="module")
+def lifted_shot(shot_model):
+    """A shot whose first frame is not the groom's pose: the mannequin held 5 cm above its bind pose for 0.1 s, so
+    a 0.1 s pre-roll carries the body (and the roots) up before frame 0."""
+    rig, _ = mr.variant("hold")
+    motion = mr.sample("lifted", lambda t: (np.array([0.0, 0.05, 0.0]), {}), 0.1, 30.0, {})
+    mr.write_glb(shot_model / "lifted.glb", rig, motion)
+    done = hairinv(shot_model, "simulate", "eight.model.h5", "lifted.glb", "--preroll", "0.1", "-o",
+                   "lifted.frames.h5")
+    assert done.returncode == 0, done.stderr
+    return shot_model / "lifted.frames.h5"
+
+
+def test_the_picture_of_a_shot_carries_the_input_from_the_groom_s_pose(lifted_shot):
+    """The before/after row draws the input carried by each root's triangle to the last frame: from the pose the
+    groom was made on (the body 5 cm lower), so here 5 cm up. (Carried from frame 0, already lifted by the
+    pre-roll, it stayed where the input is, 5 cm under the hair of the last frame.)"""
+    from hairinv.export.source import ExportSource
+
+    f = _frames(lifted_shot)
+    assert f["attrs"]["preroll"] == pytest.approx(0.1)
+    assert np.allclose(f["root"][0], f["helices"]["root"] + [0.0, 0.05, 0.0], atol=1e-6)  # the pre-roll lifted them
+    source = ExportSource(lifted_shot)
+    last = len(f["time"]) - 1
+    assert np.abs(source.carried(last) - (source.points + [0.0, 0.05, 0.0])).max() < 1e-6
+
+
+def test_the_picture_of_a_pre_rolled_shot_draws_the_input_on_the_groom_s_pose(lifted_shot, tmp_path):
+    """The first row draws the input shape: over the body as the groom was made on it (the body file's rest pose,
+    read from the recorded body), not over the shot's first frame, which the pre-roll moved."""
+    from hairinv.export import export
+
+    report = export(lifted_shot, tmp_path / "lifted.png")
+    lines = " ".join(report.lines)
+    assert "body: " in lines and "lifted.glb" in lines, report.lines
+    assert "as the frames keep it" not in lines, report.lines
+
+
+def test_a_held_bind_pose_is_the_groom_s_pose_to_the_last_bit(shot_model):
+    """A skinned body's first frame at its bind pose is the rest pose only to float32 skinning (5e-8 m here); the
+    shot takes it as the pose the groom was inverted on exactly, so the groom's contacts keep their gaps and a
+    held pose is as still as the still scene on the rest mesh: round-off. (Played as skinned, the eight strands
+    moved 3.4 um in 2 s, and the sample's whole 300-strand groom drifted and fell apart after 1.5 s.)"""
+    from hairinv.dynamics.skin import Shot
+
+    rig, motion = mr.variant("hold")
+    mr.write_glb(shot_model / "held.glb", rig, motion)
+    body = formats.read_animated_body(shot_model / "held.glb")
+    assert 0.0 < np.abs(body.vertices_at(body.start) - body.vertices).max() < 1e-6  # float32 skinning's round-off
+    shot = Shot(body, 0.0)
+    assert np.array_equal(shot.vertices_at(0.0), shot.bind) and np.abs(shot.vertices_at(0.7) - shot.bind).max() < 1e-12
+    done = hairinv(shot_model, "simulate", "eight.model.h5", "held.glb", "--seconds", "2", "-o", "held.frames.h5")
+    assert done.returncode == 0, done.stderr
+    f = _frames(shot_model / "held.frames.h5")
+    assert f["displacement"].max() < 1e-9, f["displacement"].max()

@@ -771,7 +771,11 @@ class Simulation:
         where, known = self._match(keys)
         fresh = np.where(found.strand[:, 1] < 0, self.settings.body_thickness, self.settings.hair_thickness)
         if self._first:
-            fresh = gap  # everything touching the starting shape touches at its own distance
+            # everything touching the starting shape touches at its own distance; a first step the body moves
+            # also finds what its sweep brings within reach (beyond the detection distances): that is new
+            reach = np.where(found.strand[:, 1] < 0, self.contact_settings.body_distance,
+                             self.contact_settings.hair_distance)
+            fresh = np.where(self._moving() & (gap > reach), fresh, gap)
         # a new contact keeps the room it has, up to its thickness; one found inside is pushed out
         thickness = np.minimum(gap if self._first else np.maximum(gap, 0.0), fresh)
         impulse = np.zeros((found.n_contacts, 3))

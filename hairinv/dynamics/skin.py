@@ -18,7 +18,7 @@ the body at the step's end, and the velocities of the frames and of the skin tha
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -293,14 +293,24 @@ class Shot:
     the groom was made on (``bind``: the file's rest pose, a skinned mesh's bind pose) to that first frame,
     each vertex along a smoothstep in time, so that the hair is carried there rather than jerked.
 
+    A first frame that is the groom's pose to round-off (a skinned mesh's bind pose, skinned in float32: some
+    1e-8 m off the rest pose) is taken as that pose exactly: every frame is the rest pose plus its motion from the
+    first frame, so that the contacts the groom was inverted with keep their gaps and a held pose stays still.
+
     Attributes
     ----------
     body : AnimatedBody, already in the groom's frame (:meth:`AnimatedBody.transformed`)
     preroll : float, s
+    first : (V, 3) or None, the animation's first frame where it is the rest pose to round-off, else None
     """
 
     body: object
     preroll: float
+    first: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self):
+        if not Shot.needs_preroll(self.body):
+            object.__setattr__(self, "first", self.body.vertices_at(self.body.start))
 
     @property
     def bind(self) -> np.ndarray:
@@ -318,11 +328,11 @@ class Shot:
     def vertices_at(self, t: float) -> np.ndarray:
         """(V, 3) m, the body at shot time ``t`` (negative: within the pre-roll)."""
         body = self.body
-        if t >= 0.0:
-            return body.vertices_at(body.start + t)
-        first = body.vertices_at(body.start)
-        if self.preroll <= 0.0:
-            return first
+        if t >= 0.0 or self.preroll <= 0.0:
+            out = body.vertices_at(body.start + max(t, 0.0))
+            # (out - first) + rest: the rest pose itself, to the bit, where the animation holds its first frame
+            return out if self.first is None else (out - self.first) + body.vertices
+        first = self.vertices_at(0.0)
         u = min(max((t + self.preroll) / self.preroll, 0.0), 1.0)
         w = u * u * (3.0 - 2.0 * u)
         return (1.0 - w) * body.vertices + w * first

@@ -400,7 +400,8 @@ def draw(source: ExportSource, color: str | None, output: Path):
     paint = None if name is None else coloring(source, name, output)
     axes = OutputAxes.onto(source.up, "y")
     points = axes.points(source.points)
-    if source.body_animated:  # a shot: the body as its first frame shows it
+    if source.body_animated and not float(source.frames.attrs.get("preroll", 0.0)):
+        # a shot: the body as its first frame shows it, the groom's pose (after a pre-roll, the body file's)
         mesh, body_note = source.body_mesh(0), "body: the shot's animated body, as the frames keep it"
     else:
         mesh, body_note = source.body()

@@ -363,11 +363,12 @@ class ExportSource:
 
     def carried(self, k: int) -> np.ndarray:
         """(P, 3) m: the input's points carried to frame ``k`` by their strands' root frames alone (the body's
-        motion, rigid or each root with its own triangle), as if the hair did not move relative to them."""
-        f = self.frames
-        F0, Fk = np.asarray(f["frame0"][0], dtype=np.float64), np.asarray(f["frame0"][k], dtype=np.float64)
-        R = np.einsum("nji,njk->nik", Fk, F0)  # frame0_k = frame0_0 R^T
-        c = np.asarray(f["root"][k], dtype=np.float64) - np.einsum("nij,nj->ni", R, np.asarray(f["root"][0]))
+        motion, rigid or each root with its own triangle), as if the hair did not move relative to them: from
+        the input's own roots and root frames (the groom's pose, which a shot's pre-roll leaves before frame 0)."""
+        f, h = self.frames, self.helices
+        Fk = np.asarray(f["frame0"][k], dtype=np.float64)
+        R = np.einsum("nji,njk->nik", Fk, h.frame0)  # frame0_k = frame0_input R^T
+        c = np.asarray(f["root"][k], dtype=np.float64) - np.einsum("nij,nj->ni", R, h.root)
         strand = np.repeat(np.arange(len(R)), np.diff(self.offsets))
         return np.einsum("nij,nj->ni", R[strand], self.points) + c[strand]
 
