@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit, pjit, prange
-from .helix import chain, element_step
+from .helix import chain, element_step, helix_coefficients
 
 __all__ = ["guide_chains", "bind_offsets", "curve_distances", "follow_points"]
 
@@ -57,7 +57,19 @@ def _guide_point(xs, Fs, starts, offsets, omega, g, u, at_root, R, P, Q, x, F):
         e += 1
     row = e + g
     sigma = s - starts[row]
-    element_step(omega[e, 2], omega[e, 0], omega[e, 1], sigma, R, P, Q)
+    if at_root:  # the point alone: P of element_step, without the frame's turn
+        w0 = omega[e, 2]
+        w1 = omega[e, 0]
+        w2 = omega[e, 1]
+        ww = w0 * w0 + w1 * w1 + w2 * w2
+        s2 = sigma * sigma
+        _, B, C, _ = helix_coefficients(ww * s2)
+        c3 = s2 * sigma * C
+        P[0] = sigma + c3 * (w0 * w0 - ww)
+        P[1] = s2 * B * w2 + c3 * w0 * w1
+        P[2] = -s2 * B * w1 + c3 * w0 * w2
+    else:
+        element_step(omega[e, 2], omega[e, 0], omega[e, 1], sigma, R, P, Q)
     for i in range(3):
         acc = 0.0
         for k in range(3):
