@@ -87,7 +87,7 @@ def simulation(groom: str, body: str, options: list[str], work: Path) -> Path:
 def leave_out(path: Path, count: int) -> list[dict]:
     """``count`` of the simulated strands as guides, the others following them (module docstring)."""
     from hairinv.export.source import ExportSource
-    from hairinv.follow import Follow, Following
+    from hairinv.follow import Following
     from hairinv.groom import select_guides
 
     source = ExportSource(path)
@@ -108,8 +108,7 @@ def leave_out(path: Path, count: int) -> list[dict]:
     moved = np.concatenate(moved)
     out = []
     for by, at_root in METHODS:
-        following = Following(source.points[rows], offsets, helices, frames, guides=guides)
-        following.follow = Follow.bind(source.points[rows], offsets, following.helices, by=by, at_root=at_root)
+        following = Following(source.points[rows], offsets, helices, frames, guides=guides, by=by, at_root=at_root)
         error = np.concatenate([np.linalg.norm(following.frame(k) - own[k], axis=1)
                                 for k in range(1, source.n_frames)])
         out.append({"by": by, "at_root": at_root, "guides": len(guides), "render": len(render),

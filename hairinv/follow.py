@@ -244,10 +244,11 @@ class Following:
     helices : Helices, the stage file's ``/helices`` (the simulated strands as read)
     frames : the stage file's ``/frames`` group (untrimmed)
     guides : (G,) int64, optional, the strands of ``helices`` the render strands follow (default: all)
+    by, at_root : how the guides are chosen and the offsets turned (:meth:`Follow.bind`)
     """
 
     def __init__(self, points: np.ndarray, offsets: np.ndarray, helices: Helices, frames: stages.Group,
-                 guides: np.ndarray | None = None):
+                 guides: np.ndarray | None = None, by: str = "curve", at_root: bool = True):
         if guides is None:
             self.strands, self.rows = None, None
             sub = helices
@@ -256,7 +257,7 @@ class Following:
             sub, self.rows = subset_helices(helices, self.strands)
         self.helices = sub
         self.offsets = np.ascontiguousarray(offsets, dtype=np.int64)
-        self.follow = Follow.bind(points, self.offsets, sub)
+        self.follow = Follow.bind(points, self.offsets, sub, by=by, at_root=at_root)
         self.frames = frames
         self._skin = None
 

@@ -261,8 +261,8 @@ def test_render_roots_stay_on_a_deforming_skin(rng):
             n = np.cross(B - A, C - A)
             n /= np.linalg.norm(n)
             T0e = (b - a) / np.linalg.norm(b - a)
-            offset = np.array([(x - bary @ vertices0[tri]) @ T0e, (x - bary @ vertices0[tri]) @ np.cross([0, 1, 0], T0e),
-                               x[1]])
+            rel = x - bary @ vertices0[tri]
+            offset = np.array([rel @ T0e, rel @ np.cross([0, 1, 0], T0e), x[1]])
             expected.append(bary @ vertices[k][tri] + offset[0] * e + offset[1] * np.cross(n, e) + offset[2] * n)
         np.testing.assert_allclose(got[offsets[:-1]], np.array(expected), rtol=0, atol=1e-12)
         # the rest of each strand moved with its root from where the guides carry it

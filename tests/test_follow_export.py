@@ -25,7 +25,8 @@ FRAMES = 3
 def _motion(k: int) -> tuple[np.ndarray, np.ndarray]:
     a = 0.4 * k
     Q = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
-    Q = Q @ np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.2 * k), -np.sin(0.2 * k)], [0.0, np.sin(0.2 * k), np.cos(0.2 * k)]])
+    b = 0.2 * k
+    Q = Q @ np.array([[1.0, 0.0, 0.0], [0.0, np.cos(b), -np.sin(b)], [0.0, np.sin(b), np.cos(b)]])
     return Q, np.array([0.01 * k, -0.02 * k, 0.005 * k])
 
 
@@ -159,9 +160,9 @@ def test_refusals_name_the_file_and_write_nothing(made, tmp_path, case, fragment
         _simulated(folder / "guides.fit.h5", stage, trimmed=True)
     elif case == "elsewhere":
         render = tmp_path / "far.h5"
-        stages.write_stage(render, [stages.Group(stages.CURVES, {"points": points + [1.0, 0.0, 0.0], "offsets": offsets},
-                                                 attrs={"source": "far", "scale_to_m": 1.0,
-                                                        "up": np.array([0.0, 1.0, 0.0])})], "test")
+        far = {"points": points + [1.0, 0.0, 0.0], "offsets": offsets}
+        stages.write_stage(render, [stages.Group(stages.CURVES, far, attrs={"source": "far", "scale_to_m": 1.0,
+                                                                            "up": np.array([0.0, 1.0, 0.0])})], "test")
     elif case == "no record":
         fitted = stages.read_stage(folder / "guides.frames.h5")
         curves = fitted[stages.CURVES]

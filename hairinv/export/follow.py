@@ -61,7 +61,6 @@ class FollowSource(ExportSource):
 
     def __init__(self, plain: ExportSource, groom, groom_path, is_guide: np.ndarray, lines: list[str]):
         self.__dict__.update(plain.__dict__)
-        self.guide_points, self.guide_offsets = plain.points, plain.offsets
         self.points = np.ascontiguousarray(groom.points, dtype=np.float64)
         self.offsets = np.ascontiguousarray(groom.offsets, dtype=np.int64)
         self.n_strands = groom.n_strands
