@@ -173,3 +173,22 @@ def test_refusals_name_the_file_and_write_nothing(made, tmp_path, case, fragment
     with pytest.raises(InputError, match=fragment.replace("(", r"\(").replace(")", r"\)")):
         export(stage, out, follow=follow, render=render)
     assert not out.exists()
+
+
+def test_if_stale_records_the_render_groom(made, tmp_path):
+    """``--if-stale`` with ``--render``: the render groom's file is an input of the record, ``follow`` an
+    option; a current export is left as it is, a changed render groom or the plain export make it again."""
+    import json
+
+    folder, _, _ = made
+    for name in ("groom.h5", "guides.frames.h5"):
+        shutil.copy(folder / name, tmp_path / name)
+    args = ["export", "guides.frames.h5", "-o", "r.obj", "--shape", "frame:1", "--render", "groom.h5", "--if-stale"]
+    assert hairinv(tmp_path, *args).returncode == 0
+    record = json.loads((tmp_path / "r.obj.hairinv.json").read_text())
+    assert record["options"]["follow"] is True
+    assert [r and r["name"] for r in record["inputs"]] == ["guides.frames.h5", None, "groom.h5"]
+    again = hairinv(tmp_path, *args)
+    assert again.returncode == 0 and "is current" in again.stdout
+    plain = hairinv(tmp_path, "export", "guides.frames.h5", "-o", "r.obj", "--shape", "frame:1", "--if-stale")
+    assert plain.returncode == 0 and "is current" not in plain.stdout
