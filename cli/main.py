@@ -966,10 +966,17 @@ def _verify_interrupted(run, tolerance: float, output: Path | None) -> str:
               help="PNG: the groom from the front and the side, the contact solver's residual against its "
                    "sweeps (needs /model), or a still of the groom on the body rendered by Blender (needs bpy: "
                    "`make blender`) [default: groom].")
+@click.option("--follow", is_flag=True,
+              help="USD, .hair, .data, OBJ of a simulation of guides (--guides N): write the render groom, every "
+                   "strand of the hairstyle the guides were picked from, each carried by its nearest simulated "
+                   "guides.")
+@click.option("--render", "render", type=click.Path(path_type=Path), default=None, metavar="STYLE",
+              help="With --follow (which it implies): the render groom's hairstyle file [default: the one the "
+                   "stage file records].")
 @if_stale_option
 @click.pass_obj
 @handle_errors
-def export(obj, stage_files, output, shape, color, plot, basis, if_stale):
+def export(obj, stage_files, output, shape, color, plot, basis, follow, render, if_stale):
     """Write STAGE_FILE for other tools and for people: its groom as USD, Yuksel .hair, USC .data or OBJ
     polylines, its summary as JSON, a picture as PNG, or both in one HTML report.
 
@@ -980,7 +987,9 @@ def export(obj, stage_files, output, shape, color, plot, basis, if_stale):
     --json` prints); PNG shows the groom from the front and the side over the body, coloured by a
     quantity, or with --plot convergence the contact solver's residual against its sweeps; HTML holds them
     all, readable offline. Several simulations of one groom (stage files with /frames) go side by side in
-    one PNG or HTML, a before/after column each. docs/export.md says what each file holds.
+    one PNG or HTML, a before/after column each. With --follow (or --render STYLE), a simulation of guides
+    is written as its render groom: every strand of the groom, moved by its nearest guides. docs/export.md
+    says what each file holds.
     """
     from hairinv.export import export as run_export
 
@@ -988,10 +997,11 @@ def export(obj, stage_files, output, shape, color, plot, basis, if_stale):
     if if_stale:
         from hairinv.staleness import check_sidecar
 
-        record = _export_record(stage_files, output, shape, color, plot, basis)
+        record = _export_record(stage_files, output, shape, color, plot, basis, follow, render)
         if _up_to_date(obj, if_stale, output, record, check=check_sidecar):
             return
-    report = run_export(list(stage_files), output, shape, color=color, plot=plot, basis=basis)
+    report = run_export(list(stage_files), output, shape, follow=follow, render=render, color=color, plot=plot,
+                        basis=basis)
     if record is not None:
         from hairinv.staleness import write_sidecar
 
@@ -1003,9 +1013,10 @@ def export(obj, stage_files, output, shape, color, plot, basis, if_stale):
         _say(obj, line)
 
 
-def _export_record(stage_files, output: Path, shape, color, plot, basis) -> dict:
+def _export_record(stage_files, output: Path, shape, color, plot, basis, follow=False, render=None) -> dict:
     """The command record of an export: the stage files, and each one's recorded body where it still is (USD
-    holds the body when it is found), with the options that change what is written."""
+    holds the body when it is found), the render groom's file where one is named, with the options that change
+    what is written."""
     from hairinv import config, stages
     from hairinv.errors import InputError
     from hairinv.groom import find_recorded_body
@@ -1019,11 +1030,17 @@ def _export_record(stage_files, output: Path, shape, color, plot, basis) -> dict
             raise InputError("is not a hairinv stage file", path)
         body, _, _ = find_recorded_body(stages.read_stage(path), path)
         inputs += [path, body]
+    if render is not None:
+        if not Path(render).exists():
+            raise InputError("no such file (the render groom, --render)", render)
+        inputs.append(render)
     sidecar = sidecar_path(output)
     if sidecar.exists() and not is_sidecar(sidecar):
         raise InputError("exists and is not a record hairinv wrote; refusing to overwrite it (with --if-stale, "
                          "export keeps its record there)", sidecar)
     options = {"format": output.suffix.lower(), "shape": shape, "color": color, "plot": plot, "basis": basis}
+    if follow or render is not None:  # (absent otherwise: records written before the option stay current)
+        options["follow"] = True
     return command_record("export", inputs, config.Settings(), (), options)
 
 

@@ -423,6 +423,20 @@ def find_recorded_body(stage, stage_path, groups=(stages.FRAMES, stages.CONTACTS
             break
     if record is None:
         return None, None, ""
+    path, why = find_recorded(record, stage_path, "the body")
+    return path, record, why
+
+
+def find_recorded(record: dict, stage_path, what: str = "the hairstyle") -> tuple[Path | None, str]:
+    """An input file of a stage file found again from its provenance ``record`` (``path``, ``abspath``,
+    ``sha256``; docs/stage-files.md): its recorded path as written (relative to the working directory, or
+    absolute), relative to the stage file's folder, then its absolute path, accepted only where the file's
+    SHA-256 equals the recorded one.
+
+    Returns
+    -------
+    (path or None, str): the file, or None and why none was found, a clause naming ``what`` the file was
+    """
     recorded = str(record.get("path", record.get("name", "")))
     candidates = [Path(recorded)]
     if not Path(recorded).is_absolute():
@@ -431,11 +445,11 @@ def find_recorded_body(stage, stage_path, groups=(stages.FRAMES, stages.CONTACTS
         candidates.append(Path(record["abspath"]))
     found = [p for p in candidates if p.is_file()]
     if not found:
-        return None, record, f"the body {recorded!r} it was made with is not there any more"
+        return None, f"{what} {recorded!r} it was made with is not there any more"
     for path in found:
         if stages.sha256_file(path) == record.get("sha256"):
-            return path, record, ""
-    return None, record, f"the body at {str(found[0])!r} has changed since (its SHA-256 differs from the recorded one)"
+            return path, ""
+    return None, f"{what} at {str(found[0])!r} has changed since (its SHA-256 differs from the recorded one)"
 
 
 def simulation_body(settings: BodySettings, given, stage, stage_path, curves) -> tuple:

@@ -46,8 +46,9 @@ AIR = 5.0
 SPACING = 2e-3
 
 
-def settle(style: str, straight_rest: bool, out: Path) -> None:
-    settings = config.apply(config.resolve(), {"import": {"guides": GUIDES}})
+def settle(style: str, straight_rest: bool, out: Path, guides: int = GUIDES) -> None:
+    """Settle ``guides`` strands of ``style`` on the bust (0: every strand) and write them to ``out``."""
+    settings = config.apply(config.resolve(), {"import": {"guides": guides}})
     scene = prepare(HERE / style, HERE / "body.obj", settings, contacts=False)
     mat = Material.from_settings(settings.material, scene.up)
     helices = scene.helices
@@ -73,8 +74,8 @@ def settle(style: str, straight_rest: bool, out: Path) -> None:
     rest_name = "straight-rest" if straight_rest else "own-shape-rest"
     group = stages.Group(
         stages.CURVES, {"points": points, "offsets": offsets},
-        attrs={"source": f"hairinv sample groom '{out.stem}': {GUIDES} {rest_name} strands of {style} settled "
-                         f"on body.obj for {SECONDS:g} s (samples/make_settled.py)",
+        attrs={"source": f"hairinv sample groom '{out.stem}': {helices.n_strands} {rest_name} strands of {style} "
+                         f"settled on body.obj for {SECONDS:g} s (samples/make_settled.py)",
                "scale_to_m": 1.0, "up": np.array([0.0, 1.0, 0.0])},
     )
     settled = dataclasses.replace(helices, omega=sim.q.copy())

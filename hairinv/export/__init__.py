@@ -20,12 +20,14 @@ from ..errors import InputError
 # Each module of an output kind registers its writer when imported.
 from . import animation, compare, data, hair, obj, page, picture, summary, usd  # noqa: F401
 from .base import COMPARISONS, EXPORTERS, ExportReport, check_export_path, exporter_for
+from .follow import follow_source
 from .source import ExportSource, Shape, parse_shape
 
 __all__ = ["EXPORTERS", "ExportReport", "ExportSource", "Shape", "export", "parse_shape"]
 
 
-def export(stage_path, output, shape: str | None = None, **options) -> ExportReport:
+def export(stage_path, output, shape: str | None = None, follow: bool = False, render=None,
+           **options) -> ExportReport:
     """Write the groom of ``stage_path`` to ``output``, in the format of its suffix.
 
     Parameters
@@ -37,6 +39,12 @@ def export(stage_path, output, shape: str | None = None, **options) -> ExportRep
     shape : str, optional
         ``input``, ``rest``, ``frame:N`` or ``all``; default: the format's (USD ``all``, the polyline formats
         ``input``). The summary and the pictures take none: they show the whole file.
+    follow : bool
+        Write the render groom instead of the simulated strands: every strand of the hairstyle the simulated
+        guides were picked from, each carried by its nearest guides (:mod:`hairinv.follow`); the groom formats
+        only, for a stage file with ``/frames``.
+    render : path-like, optional
+        The render groom's hairstyle file (implies ``follow``); default: the one the stage file records.
     **options
         Further options of the writer, None when not given: ``color`` (PNG, HTML), the quantity the strands
         are coloured by.
@@ -54,7 +62,11 @@ def export(stage_path, output, shape: str | None = None, **options) -> ExportRep
     paths = [stage_path] if isinstance(stage_path, (str, os.PathLike)) else list(stage_path)
     if not paths:
         raise InputError("no stage file to export", output)
+    follow = follow or render is not None
     if len(paths) > 1:
+        if follow:
+            raise InputError(f"--{'render' if render is not None else 'follow'} writes one stage file's render "
+                             "groom; give one stage file", output)
         return _compare(paths, output, exporter, shape, given)
     stage_path = paths[0]
     for key in given:
@@ -71,11 +83,18 @@ def export(stage_path, output, shape: str | None = None, **options) -> ExportRep
         if wanted.kind == "all" and not exporter.several_shapes:
             raise InputError(f"the {exporter.name} format holds one shape; choose --shape input, rest or frame:N",
                              output)
-    source = ExportSource(stage_path)
+    report = ExportReport()
+    if follow:
+        if exporter.default_shape is None:
+            groom_kinds = sorted({e.name for e in EXPORTERS.values() if e.default_shape is not None})
+            raise InputError(f"--{'render' if render is not None else 'follow'} applies to the groom formats "
+                             f"({', '.join(groom_kinds)}), not to {exporter.name} output", output)
+        source = follow_source(stage_path, render, report.lines)
+    else:
+        source = ExportSource(stage_path)
     check_export_path(output, inputs=[source.path, *source.input_files()], exporter=exporter)
     if wanted is not None and wanted.kind != "all":
         source.require(wanted)
-    report = ExportReport()
     exporter.write(source, output, wanted, report, **given)
     return report
 

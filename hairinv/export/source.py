@@ -160,6 +160,10 @@ class ExportSource:
     path : path-like, a hairinv stage file with at least ``/curves``
     """
 
+    #: the render strands' binding to the simulated guides (:class:`hairinv.export.follow.FollowSource`); None: the
+    #: stage file's own strands
+    follow = None
+
     def __init__(self, path):
         self.path = Path(path)
         if not self.path.exists():
@@ -394,6 +398,10 @@ class ExportSource:
                     "smallest eigenvalue of the strand's stiffness-scaled Hessian at rest, its contact forces "
                     f"{under}: > 0 rests stably, < {UNSTABLE_MARGIN:g} unstable, inf: no motion left"))
         return out
+
+    def guide_flags(self) -> np.ndarray:
+        """(S,) int32, 1 on each strand that was simulated: every strand of a stage file."""
+        return np.ones(self.n_strands, dtype=np.int32)
 
     def stable(self) -> np.ndarray | None:
         """(S,) bool, whether each strand rests in a stable equilibrium, or None if the file does not say."""

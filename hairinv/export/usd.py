@@ -104,15 +104,36 @@ class _Writer:
                               "root first; widths are the rod diameter in stage units")
         ids = Vt.IntArray.FromNumpy(np.arange(strands.n_strands, dtype=np.int32))
         api = UsdGeom.PrimvarsAPI(prim)
+        following = self.source.follow is not None
+        where = "the render groom" if following else "the stage file"
+        guide_doc = ("1: the strand is a simulated guide, 0: a render strand following the guides (Unreal groom "
+                     "attribute)") if following else "1: every strand is a guide, simulated (Unreal groom attribute)"
         for name, values, doc in (
-                ("groom_id", ids, "strand index in the stage file (Unreal groom attribute)"),
-                ("id", ids, "strand index in the stage file (Houdini's per-curve id)"),
-                ("groom_guide", Vt.IntArray.FromNumpy(np.ones(strands.n_strands, dtype=np.int32)),
-                 "1: every strand is a guide, simulated (Unreal groom attribute)")):
+                ("groom_id", ids, f"strand index in {where} (Unreal groom attribute)"),
+                ("id", ids, f"strand index in {where} (Houdini's per-curve id)"),
+                ("groom_guide", Vt.IntArray.FromNumpy(self.source.guide_flags()), guide_doc)):
             primvar = api.CreatePrimvar(name, Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.uniform)
             primvar.Set(values)
             primvar.GetAttr().SetDocumentation(doc)
         return curves
+
+    def follow_primvars(self, curves) -> None:
+        """``guide_ids`` and ``guide_weights`` (uniform, K per strand): the guides each render strand follows."""
+        from pxr import Sdf, UsdGeom, Vt
+
+        follow = self.source.follow
+        api = UsdGeom.PrimvarsAPI(curves.GetPrim())
+        count = follow.guide.shape[1]
+        for name, kind, values, doc in (
+                ("guide_ids", Sdf.ValueTypeNames.IntArray, Vt.IntArray.FromNumpy(follow.guide.astype(np.int32).ravel()),
+                 f"the {count} guides the strand follows, nearest root first: their strand indices in the stage "
+                 "file's /curves"),
+                ("guide_weights", Sdf.ValueTypeNames.FloatArray,
+                 Vt.FloatArray.FromNumpy(follow.weight.astype(np.float32).ravel()),
+                 "the weights of those guides (summing to 1)")):
+            primvar = api.CreatePrimvar(name, kind, UsdGeom.Tokens.uniform, count)
+            primvar.Set(values)
+            primvar.GetAttr().SetDocumentation(doc)
 
     def float_primvar(self, curves, name: str, values: np.ndarray, interpolation: str, doc: str) -> None:
         from pxr import Sdf, UsdGeom, Vt
@@ -208,6 +229,9 @@ class _Writer:
         hair = self.curves("/Root/Hair", strands, GROOM_ROLE)
         same_topology = main_shape.kind != "frame" or not source.frames_trimmed
         described = [f"/Root/Hair: {strands.n_strands} strands, {len(strands.points)} points, {strands.label}"]
+        if source.follow is not None:
+            self.follow_primvars(hair)
+            described.append("primvars guide_ids, guide_weights")
         for name, (values, doc) in source.strand_values().items():
             self.float_primvar(hair, f"groom_{name}", values, "uniform", doc)
         stable = source.stable()
