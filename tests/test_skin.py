@@ -263,3 +263,82 @@ def test_a_body_moving_from_the_first_step_does_not_hold_the_hair_at_the_gap_its
     x = _points(helices, sim.q, sim.R, sim.c, per=31)
     gap = float(x[:, 1].min()) + below  # the plane's top is at y = -below
     assert 0.0 < gap < 0.0025, gap  # resting on the plane at about the body's thickness (2 mm)
+
+
+def test_the_skin_under_a_first_element_does_not_swing_the_strand():
+    """A strand held out level from a post 8 mm wide, and a plate beside the post, under the strand's first
+    element (from 8 to 16 mm of its 20 mm), 1.9 mm below it, that rises 1 mm in 20 ms and stops, as the skin of a neck moves beside the roots when the head turns. The
+    first element moves only by turning about the root, which swings the whole strand: asked to keep its gap
+    to the plate, a point 8-16 mm from the root carries the tip 0.16 m away up by 14 times what the plate
+    moved (14.5 mm). The contact moves with the root instead, and the tip stays where it was."""
+    helices = strands([horizontal_strand(n=8, total=0.16)])
+    post = _box((0.008, 0.02, 0.02), (0.0, -0.0101, 0.0))  # the strand leaves it within the root clearance
+    plate = _box((0.008, 0.002, 0.02), (0.012, -0.0029, 0.0))  # top 1.9 mm under the strand
+    mesh = trimesh.util.concatenate([post, plate])
+    moving = np.zeros(len(mesh.vertices), bool)
+    moving[len(post.vertices):] = True
+    rise, T = 1e-3, 0.02
+    mat = material(gravity=0.0)  # the strand stays level: only the plate moves it
+    settings = Settings()
+    contacts = dataclasses.replace(settings.contacts, hair_hair=False)
+    dynamics = settings.dynamics
+    assert helices.length[0] >= 0.018, "the plate is not under the first element"
+
+    def rising(t):
+        out = mesh.vertices.copy()
+        out[moving, 1] += rise * min(max(t / T, 0.0), 1.0)
+        return out
+
+    binding = Binding.bind(helices.root, mesh.vertices, mesh.faces)
+    sim = Simulation(helices, helices.omega.copy(), mat, BodyMesh.from_mesh(mesh), contacts, dynamics)
+    skinned = SkinnedBody(rising, mesh.faces, binding, mat.gravity)
+    h = dynamics.time_step
+    start = _points(helices, helices.omega, per=9)[-1]
+    moved = 0.0
+    for k in range(int(round(3 * T / h))):
+        sim.step(skinned, h, k * h)
+        if k == 0:
+            assert (sim.contacts.s[:, 0] < helices.length[0]).any(), "nothing touches the first element"
+        moved = max(moved, float(np.linalg.norm(_points(helices, sim.q, sim.R, sim.c, per=9)[-1] - start)))
+    print(f"tip moved {moved:.3g} m")
+    assert moved < rise, moved
+
+
+def test_strands_detected_again_after_the_body_stops_are_where_their_frames_put_them():
+    """Three strands on a box that rises 3 cm in 0.1 s and stops, without hair-hair contact: once the body stops,
+    only the strands that moved are detected again. Every body contact's gap is then the signed distance, to the
+    body where it stopped, of its strand's point placed by the strand's frame (strands detected where the bind
+    pose has them, 3 cm inside the risen box, took contacts 3 cm deep where none was)."""
+    helices = strands([horizontal_strand(n=5, total=0.1, curl=c, root=(0.0, 0.002, z))
+                       for c, z in ((0.0, 0.0), (3.0, 0.03), (-3.0, 0.06))])
+    box = _box((0.3, 0.1, 0.2), (0.05, -0.05, 0.03))
+    mat = material()
+    settings = Settings()
+    contacts = dataclasses.replace(settings.contacts, hair_hair=False)
+    dynamics = settings.dynamics
+    T = 0.1
+
+    def risen(t):
+        u = min(max(t / T, 0.0), 1.0)
+        return box.vertices + [0.0, 0.03 * u * u * (3.0 - 2.0 * u), 0.0]
+
+    skinned = SkinnedBody(risen, box.faces,
+                          Binding.bind(helices.root, box.vertices, box.faces), mat.gravity)
+    sim = Simulation(helices, helices.omega.copy(), mat, BodyMesh.from_mesh(box), contacts, dynamics)
+    h = dynamics.time_step
+    body = BodyMesh.from_mesh(trimesh.Trimesh(risen(T), box.faces, process=False))
+    checked, redetected = 0, 0
+    for k in range(int(round(2.5 * T / h))):
+        q, R, c = sim.q.copy(), sim.R.copy(), sim.c.copy()  # the contacts are found and measured at the step's start
+        report = sim.step(skinned, h, k * h)
+        if k * h < T or report.substeps > 1:  # (a halved step's contacts are its last half's)
+            continue
+        redetected += 0 < sim._redetected < helices.n_strands
+        found = sim.contacts
+        x = strand_points(helices.root, helices.frame0, helices.offsets, q, helices.length, found.strand[:, 0],
+                          found.s[:, 0])
+        x = np.einsum("nij,nj->ni", R[found.strand[:, 0]], x) + c[found.strand[:, 0]]
+        err = np.abs(found.gap - body.closest(x)[0]).max()
+        assert err < 1e-6, (sim.time, err)
+        checked += found.n_contacts
+    assert checked > 20 and redetected > 0, (checked, redetected)

@@ -582,7 +582,7 @@ class Simulation:
 
     def _detect_strands(self, which: np.ndarray) -> Contacts:
         """Body contacts only: the strands ``which`` detected afresh, the others' last detection kept."""
-        h = self.helices
+        h = self.current()  # placed by their frames, under a deforming body
         counts = np.diff(h.offsets)
         elements = np.concatenate([np.arange(h.offsets[k], h.offsets[k + 1]) for k in which])
         sub = Helices(h.root[which], h.frame0[which], np.r_[0, np.cumsum(counts[which])].astype(np.int64),
@@ -935,9 +935,16 @@ class Simulation:
             Wd = factored_blocks(rows, found.strand, offsets, self.chol, self.chol_ptr, run=contact_run)
             gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
             push = np.zeros((found.n_contacts, 3))
+            if skin is not None:
+                # under a deforming body, a contact on a strand's first element moves with the root's frame: the
+                # skin's own motion there relative to that frame (a neck twisting under the roots beside it), in
+                # this step or the last, is not asked of the strand, which could meet it only by swinging its
+                # whole length about the root
+                rooted = self._rooted(found)
+                thickness[rooted] = np.minimum(thickness[rooted], gap[rooted])
             push[:, 0] = np.maximum((gap - thickness) / h, -self.settings.push_speed)
             if self._moving():  # and how the frames carry each contact's sides against each other
-                push += self._drift(found, skin)
+                push[~rooted] += self._drift(found.subset(~rooted), skin)
             b = rows.matvec(v_free.ravel()) + reachable(Wd, push)
             gamma = compliance(Wd)
             Wd[:, [0, 1, 2], [0, 1, 2]] += gamma[:, None]
@@ -995,6 +1002,8 @@ class Simulation:
         self._impulse_step = h
         self._arc, self._pair, self._mu = found.s[order], found.strand[order], found.mu[order]
         self._elements = self._elements_of(found)[order]
+        if self._moving():  # measured on the body at the step's start, which has moved since: none is kept
+            anchors = (np.full_like(anchors[0], np.nan),) + tuple(anchors[1:])
         self._anchor = tuple(a[order] for a in anchors)
         self.contacts = found
         self.v = v_new
@@ -1005,6 +1014,16 @@ class Simulation:
             self._placed = True
         self._skin = None
         return report
+
+    def _rooted(self, found: Contacts) -> np.ndarray:
+        """(C,) bool: the contacts with a side on its strand's first element."""
+        elements = self._elements_of(found)
+        first = self.helices.offsets[:-1]
+        side0 = elements[:, 0] == first[found.strand[:, 0]]
+        hair = found.strand[:, 1] >= 0
+        side1 = np.zeros_like(side0)
+        side1[hair] = elements[hair, 1] == first[found.strand[hair, 1]]
+        return side0 | side1
 
     def _drift(self, found: Contacts, skin) -> np.ndarray:
         """(C, 3) m/s, in the contacts' frames: how fast the strands' frames carry each contact's first side
