@@ -88,6 +88,8 @@ class BodyMesh:
     node_start: np.ndarray
     node_count: np.ndarray
     notes: list[str] = field(default_factory=list)
+    topology: "_Topology | None" = field(default=None, repr=False, compare=False)
+    """What :meth:`moved` reuses: the welding, the oriented triangles, the edges and the tree's order."""
 
     @property
     def tree(self) -> tuple:
@@ -133,16 +135,43 @@ class BodyMesh:
         # topology from every face (a dropped sliver still closes its neighbours' edges), geometry from the kept
         tri_v = _orient_pieces(welded, weld[faces], notes)
         corners = welded[tri_v]
-        normal, is_open = _pseudo_normals(corners, tri_v, keep)
+        edges = _edges(tri_v)
+        normal, is_open = _pseudo_normals(corners, tri_v, keep, edges)
         corners, normal, is_open = corners[face_index], normal[face_index], is_open[face_index]
         lo, hi, left, start, count, order = _tree(corners)
+        topology = _Topology(len(vertices), len(faces), weld, len(welded), tri_v, keep, edges,
+                             face_index[order])
         return cls(
             np.ascontiguousarray(corners[order]),
             face_index[order],
             np.ascontiguousarray(normal[order]),
             np.ascontiguousarray(is_open[order]),
-            lo, hi, left, start, count, notes,
+            lo, hi, left, start, count, notes, topology,
         )
+
+    def moved(self, vertices: np.ndarray) -> "BodyMesh":
+        """The same mesh with its vertices (V, 3) moved (a deforming body's next pose): the welding, the
+        triangles kept and turned outwards, the open edges and the tree's layout are this mesh's; the corners,
+        pseudo-normals and the tree's boxes are the new vertices'. Answers the queries as :meth:`from_mesh` of
+        the moved mesh does, at a fraction of its cost (the tree is refitted, not rebuilt: its boxes grow
+        where the triangles have moved far from where they were sorted, and queries slow down a little)."""
+        top = self.topology
+        vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+        if top is None or vertices.shape != (top.n_vertices, 3):
+            raise ValueError(f"moved() takes ({None if top is None else top.n_vertices}, 3) vertices of a mesh "
+                             f"prepared by from_mesh, got {vertices.shape}")
+        # vertices welded together at rest stay together: their mean
+        welded = np.zeros((top.n_welded, 3))
+        np.add.at(welded, top.weld, vertices)
+        welded /= np.bincount(top.weld, minlength=top.n_welded)[:, None]
+        corners = welded[top.tri_v]
+        normal, is_open = _pseudo_normals(corners, top.tri_v, top.keep, top.edges)
+        corners = np.ascontiguousarray(corners[top.kept_in_order])
+        lo, hi = self.node_lo.copy(), self.node_hi.copy()
+        _refit_tree(corners, self.node_left, self.node_start, self.node_count, lo, hi)
+        return BodyMesh(corners, self.face_index, np.ascontiguousarray(normal[top.kept_in_order]),
+                        np.ascontiguousarray(is_open[top.kept_in_order]), lo, hi, self.node_left, self.node_start,
+                        self.node_count, list(self.notes), top)
 
     def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Signed distance, closest point, outward normal and input face of each point.
@@ -207,10 +236,35 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
     return np.divide(v, norm, out=np.zeros_like(v), where=norm > 0)
 
 
-def _pseudo_normals(corners: np.ndarray, tri_v: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class _Topology:
+    """A prepared mesh's connectivity, which moving its vertices keeps (:meth:`BodyMesh.moved`)."""
+
+    n_vertices: int
+    n_faces: int
+    weld: np.ndarray  # (V,) each input vertex's welded vertex
+    n_welded: int
+    tri_v: np.ndarray  # (F, 3) welded vertices of every face, turned outwards
+    keep: np.ndarray  # (F,) bool, not a sliver
+    edges: tuple  # _edges(tri_v)
+    kept_in_order: np.ndarray  # (T,) the faces of the prepared triangles, in the tree's order
+
+
+def _edges(tri_v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every face's edges AB, BC, CA as the sorted vertex pairs ``ends`` (3F, 2), their edge ids ``edge``
+    (3F,) and how many faces use each edge ``uses``."""
+    ends = np.stack([tri_v[:, [0, 1]], tri_v[:, [1, 2]], tri_v[:, [2, 0]]], axis=1).reshape(-1, 2)
+    ends.sort(axis=1)
+    _, edge, uses = np.unique(ends, axis=0, return_inverse=True, return_counts=True)
+    return ends, edge.ravel(), uses
+
+
+def _pseudo_normals(corners: np.ndarray, tri_v: np.ndarray, keep: np.ndarray,
+                    edges: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unit pseudo-normals (T, 7, 3) and open-boundary flags (T, 7) of every triangle's features.
 
-    Triangles not in ``keep`` (slivers) count for the edges' use but add no normal.
+    Triangles not in ``keep`` (slivers) count for the edges' use but add no normal. ``edges``: :func:`_edges`
+    of ``tri_v``, when known.
     """
     count = len(tri_v)
     face_n = _unit_rows(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
@@ -224,10 +278,7 @@ def _pseudo_normals(corners: np.ndarray, tri_v: np.ndarray, keep: np.ndarray) ->
         angle = np.arccos(np.clip(np.einsum("ij,ij->i", u, w), -1.0, 1.0))
         np.add.at(vert_n, tri_v[:, k], angle[:, None] * face_n)
     # edges AB, BC, CA: sum of the incident face normals; open when one face uses the edge
-    ends = np.stack([tri_v[:, [0, 1]], tri_v[:, [1, 2]], tri_v[:, [2, 0]]], axis=1).reshape(-1, 2)
-    ends.sort(axis=1)
-    _, edge, uses = np.unique(ends, axis=0, return_inverse=True, return_counts=True)
-    edge = edge.ravel()
+    ends, edge, uses = _edges(tri_v) if edges is None else edges
     edge_n = np.zeros((len(uses), 3))
     np.add.at(edge_n, edge, np.repeat(face_n, 3, axis=0))
     edge_open = uses == 1
@@ -255,6 +306,27 @@ def _tree(corners: np.ndarray):
     nodes = _build_tree(np.ascontiguousarray(corners), LEAF_SIZE, order, lo, hi, left, start, size)
     return (np.ascontiguousarray(lo[:nodes]), np.ascontiguousarray(hi[:nodes]), left[:nodes].copy(),
             start[:nodes].copy(), size[:nodes].copy(), order)
+
+
+@jit
+def _refit_tree(corners, node_left, node_start, node_count, node_lo, node_hi):
+    """The boxes of a tree built by :func:`_build_tree` over triangles that have moved (``corners`` in the
+    tree's order): a leaf's from its triangles, a node's from its two children (built after it)."""
+    for node in range(node_left.shape[0] - 1, -1, -1):
+        child = node_left[node]
+        for i in range(3):
+            if child < 0:
+                lo = np.inf
+                hi = -np.inf
+                for t in range(node_start[node], node_start[node] + node_count[node]):
+                    for v in range(3):
+                        lo = min(lo, corners[t, v, i])
+                        hi = max(hi, corners[t, v, i])
+            else:
+                lo = min(node_lo[child, i], node_lo[child + 1, i])
+                hi = max(node_hi[child, i], node_hi[child + 1, i])
+            node_lo[node, i] = lo
+            node_hi[node, i] = hi
 
 
 @jit

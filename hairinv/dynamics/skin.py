@@ -232,6 +232,7 @@ class SkinnedBody:
         self.contacts = contacts
         self._cache: dict[float, tuple] = {}
         self._bodies: dict[float, BodyMesh] = {}
+        self._prepared: BodyMesh | None = None
 
     def pose(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(vertices, R, c)`` at time ``t``: the mesh and the strands' frames."""
@@ -269,13 +270,20 @@ class SkinnedBody:
         return SkinStep(motion, R2, c2, R1, c1, body, v2, v1, self.faces, moves, h)
 
     def body_at(self, t: float) -> BodyMesh:
-        """The body at time ``t``, prepared for contact queries (the last few kept)."""
+        """The body at time ``t``, prepared for contact queries (the last few kept): prepared once, then
+        moved to each pose (:meth:`BodyMesh.moved`: the same triangles, their tree refitted)."""
         t = float(t)
         hit = self._bodies.get(t)
         if hit is None:
             if len(self._bodies) > 2:
                 self._bodies.clear()
-            hit = self._bodies[t] = BodyMesh.from_mesh(MeshArrays(self.pose(t)[0], self.faces))
+            vertices = self.pose(t)[0]
+            if self._prepared is None:
+                self._prepared = BodyMesh.from_mesh(MeshArrays(vertices, self.faces))
+                hit = self._prepared
+            else:
+                hit = self._prepared.moved(vertices)
+            self._bodies[t] = hit
         return hit
 
 
