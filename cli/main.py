@@ -751,13 +751,16 @@ def _simulation_progress(obj, run):
 @click.option("--preroll", type=FINITE, default=None, metavar="SECONDS",
               help="Animated body: seconds taken to move it from the groom's pose to the shot's first frame "
                    "before recording [default: 0.5 where they differ, else 0].")
+@click.option("--body-fps", type=FINITE, default=None, metavar="NUMBER",
+              help="Animated body: its frame rate, for a mesh sequence (which states none) or over the rate "
+                   "its file states [default: the file's; 24 for a sequence].")
 @body_options
 @settings_options(example="dynamics.time_step=0.005")
 @if_stale_option
 @click.pass_obj
 @handle_errors
-def simulate(obj, model, body, output, scene_name, init, seconds, fps, preroll, quality, config_file, sets, if_stale,
-             body_frame):
+def simulate(obj, model, body, output, scene_name, init, seconds, fps, preroll, body_fps, quality, config_file, sets,
+             if_stale, body_frame):
     """Simulate an inverted MODEL under a scene and write its frames.
 
     MODEL is a stage file written by `hairinv invert`. BODY is the body mesh
@@ -774,7 +777,7 @@ def simulate(obj, model, body, output, scene_name, init, seconds, fps, preroll, 
     output = output or _default_output(model, "frames")
     sources = config.Sources(quality, config_file, sets, {"body": body_frame})
     run = simulation.load(model, body, sources, scene_name, init, seconds, fps, output,
-                          say=functools.partial(_say, obj), preroll=preroll)
+                          say=functools.partial(_say, obj), preroll=preroll, body_fps=body_fps)
     run.record = simulation.simulate_record(run, scene_name)
     if _up_to_date(obj, if_stale, output, run.record):
         return

@@ -36,6 +36,8 @@ __all__ = ["Run", "load", "check_equilibrium", "simulate_record", "verify_record
 STILL_TOLERANCE = 1e-4
 #: s, the longest pre-roll
 MAX_PREROLL = 60.0
+#: 1/s, the highest frame rate an animated body may be given
+MAX_BODY_FPS = 10000.0
 
 
 @dataclass
@@ -77,6 +79,8 @@ class Run:
     shot: object = None
     """:class:`hairinv.dynamics.skin.Shot` when the body file is animated, else None"""
     say: object = None
+    body_fps: float | None = None
+    """1/s, the animated body's frame rate as given (``--body-fps``), or None: its file's"""
 
     @property
     def steps(self) -> int:
@@ -153,7 +157,7 @@ class Run:
 
 def load(model, body=None, sources: Sources | None = None, scene: str = "still", init: str = "inverted",
          seconds: float | None = None, fps: float | None = None, output=None, say=None,
-         preroll: float | None = None) -> Run:
+         preroll: float | None = None, body_fps: float | None = None) -> Run:
     """Read an inverted model for a simulation of ``scene``.
 
     Parameters
@@ -169,6 +173,8 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
     say : callable(str), optional, gets the lines about the body
     preroll : s, for an animated body: the time taken from the groom's pose to the shot's first frame; None:
         :data:`hairinv.dynamics.skin.PREROLL` where the first frame is another pose, else 0
+    body_fps : 1/s, an animated body's frame rate: a mesh sequence's (24 assumed otherwise), or overriding the
+        rate its file states or its keys suggest; None: the file's
 
     Raises
     ------
@@ -197,8 +203,12 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
 
     loaded = Scene.load(scene)
     animated = None
+    if body_fps is not None and not (np.isfinite(body_fps) and 0.0 < body_fps <= MAX_BODY_FPS):
+        raise InputError(f"--body-fps is {body_fps!r}; it must be a frame rate above 0 and at most {MAX_BODY_FPS:g}")
     if body is not None and formats.is_animated_body(body):
-        animated = formats.read_animated_body(body)
+        animated = formats.read_animated_body(body, fps=body_fps)
+        for note in animated.notes:
+            say(f"body: {note}")
         seconds = animated.end - animated.start if seconds is None else seconds
         fps = (animated.fps or loaded.fps) if fps is None else fps
     if preroll is not None and not (np.isfinite(preroll) and 0.0 <= preroll <= MAX_PREROLL):
@@ -225,7 +235,7 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
         mesh = load_body(body, to_groom, read)
         say(f"body: {body}")
         if animated is None and formats.is_animated_body(body):  # the recorded body
-            animated = formats.read_animated_body(body)
+            animated = formats.read_animated_body(body, fps=body_fps)
         if animated is not None:
             from .dynamics.skin import PREROLL, Shot
 
@@ -235,8 +245,11 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
             shot = Shot(moved, float(preroll))
     elif loaded.body != "removed":
         say("no body: only hair-hair contacts")
+    if body_fps is not None and animated is None:
+        raise InputError(f"--body-fps is the frame rate of an animated body, and the body "
+                         f"{'is not given' if body is None else 'is a still mesh'}", body)
     return Run(model, stage, helices, contacts, mesh, body, to_groom, loaded, settings, init, float(seconds),
-               float(fps), shot=shot, say=say)
+               float(fps), shot=shot, say=say, body_fps=body_fps)
 
 
 def check_equilibrium(path, helices: Helices, contacts: Contacts | None, model: stages.Group) -> None:
@@ -262,7 +275,8 @@ def simulate_record(run: Run, scene: str) -> dict:
     return command_record("simulate", [run.model_path, run.body, scene_file], run.settings,
                           ("body", "contacts", "dynamics"),
                           {"scene": scene, "init": run.init, "seconds": run.seconds, "fps": run.fps,
-                           **({"preroll": run.shot.preroll} if run.shot is not None else {})})
+                           **({"preroll": run.shot.preroll} if run.shot is not None else {}),
+                           **({"body_fps": run.body_fps} if run.body_fps is not None else {})})
 
 
 def verify_record(run: Run, tolerance: float, full: bool) -> dict:

@@ -254,3 +254,48 @@ def test_a_held_bind_pose_is_the_groom_s_pose_to_the_last_bit(shot_model):
     assert done.returncode == 0, done.stderr
     f = _frames(shot_model / "held.frames.h5")
     assert f["displacement"].max() < 1e-9, f["displacement"].max()
+
+
+def _rising_sequence(folder, frames=3):
+    """The bust as an OBJ sequence rising 1 mm a frame (a sequence states no frame rate)."""
+    import trimesh
+
+    folder.mkdir(exist_ok=True)
+    bust = trimesh.load(SAMPLES / "body.obj", process=False)
+    for k in range(frames):
+        trimesh.Trimesh(np.asarray(bust.vertices) + [0.0, 0.001 * k, 0.0], np.asarray(bust.faces),
+                        process=False).export(folder / f"body.{k:04d}.obj")
+    return folder / "body.####.obj"
+
+
+def test_a_sequence_plays_at_the_frame_rate_given(shot_model):
+    """Three frames of a sequence: at the 24 fps assumed (and said) they last 1/12 s; with --body-fps 10,
+    0.2 s, written at 10 frames per second, the body's vertices of frame k those of the file k."""
+    pattern = _rising_sequence(shot_model / "rising")
+    assumed = hairinv(shot_model, "simulate", "eight.model.h5", "rising/body.####.obj", "-o", "assumed.h5")
+    assert assumed.returncode == 0, assumed.stderr
+    assert "24 fps assumed" in assumed.stdout + assumed.stderr
+    given = hairinv(shot_model, "simulate", "eight.model.h5", "rising/body.####.obj", "--body-fps", "10",
+                    "-o", "given.h5")
+    assert given.returncode == 0, given.stderr
+    for name, fps in (("assumed.h5", 24.0), ("given.h5", 10.0)):
+        f = _frames(shot_model / name)
+        assert f["time"][-1] == pytest.approx(2.0 / fps) and f["attrs"]["fps"] == pytest.approx(fps)
+    f = _frames(shot_model / "given.h5")
+    rise = f["body_vertices"][:, :, 1] - f["body_vertices"][:1, :, 1]
+    assert np.allclose(rise[:, 0], 0.001 * np.arange(3), atol=1e-6)
+    assert pattern.parent.is_dir()
+
+
+@pytest.mark.parametrize("args, fragment", [(["rising/body.####.obj", "--body-fps", "0"], "--body-fps is 0"),
+                                            (["body.obj", "--body-fps", "10"], "is a still mesh")])
+def test_a_frame_rate_that_cannot_be_played_is_refused(shot_model, args, fragment):
+    """A rate of 0, or a rate for a still body: one sentence, exit 2, nothing written."""
+    import shutil
+
+    _rising_sequence(shot_model / "rising")
+    shutil.copy(SAMPLES / "body.obj", shot_model / "body.obj")
+    done = hairinv(shot_model, "simulate", "eight.model.h5", *args, "-o", "refused_fps.h5")
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert fragment in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert not (shot_model / "refused_fps.h5").exists()
