@@ -2,7 +2,8 @@
 
 Arguments become settings, settings go to the library, results go to stage
 files. This is the only layer that prints, draws progress bars and chooses
-exit codes: 0 success, 1 a run that failed, 2 bad input or usage, 130 interrupted (Ctrl-C).
+exit codes: 0 success, 1 a run that failed, 2 bad input or usage, 130 interrupted (Ctrl-C), 143 terminated
+(SIGTERM, as farm managers stop a task).
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ from hairinv import __version__
 
 from ._memory import keep_freed_memory
 
-# Exit codes (130: 128 + SIGINT, as shells report a job stopped by Ctrl-C)
-OK, FAILED, BAD_INPUT, INTERRUPTED = 0, 1, 2, 130
+# Exit codes (130, 143: 128 + SIGINT, SIGTERM, as shells report a job stopped by Ctrl-C or by a farm manager)
+OK, FAILED, BAD_INPUT, INTERRUPTED, TERMINATED = 0, 1, 2, 130, 143
 
 
 #: --log-json: one JSON object per event on stderr (set once the options are read; one command per process)
@@ -70,15 +71,17 @@ def _say_timings(ctx_obj, timings: dict) -> None:
     _say(ctx_obj, "timings: " + ", ".join(parts))
 
 
-#: Whether this process received Ctrl-C (SIGINT, :func:`_on_interrupt`). Where the KeyboardInterrupt cannot
-#: propagate (numba compiling a kernel calls back into Python through ctypes, which drops it), the command
-#: still ends as interrupted, not with the error that may follow nor as a success.
-INTERRUPT = {"received": False}
+#: Whether this process received Ctrl-C (SIGINT) or SIGTERM (:func:`_on_interrupt`), and which. Where the
+#: KeyboardInterrupt cannot propagate (numba compiling a kernel calls back into Python through ctypes, which
+#: drops it), the command still ends as interrupted, not with the error that may follow nor as a success.
+INTERRUPT = {"received": False, "signal": signal.SIGINT}
 
 
 def _on_interrupt(signum, frame):
-    """SIGINT: note it, and raise KeyboardInterrupt as Python's own handler does."""
+    """SIGINT or SIGTERM: note it, and raise KeyboardInterrupt as Python's own handler does for SIGINT (a farm
+    manager stopping a task sends SIGTERM: it keeps what Ctrl-C keeps)."""
     INTERRUPT["received"] = True
+    INTERRUPT["signal"] = signum
     raise KeyboardInterrupt
 
 
@@ -110,10 +113,13 @@ def _catch_interrupts() -> None:
     """Route Ctrl-C through :func:`_on_interrupt` (in the main thread, where signals are handled), and keep
     the tracebacks of interrupts that libraries print instead of raising off stderr."""
     INTERRUPT["received"] = False
+    INTERRUPT["signal"] = signal.SIGINT
     try:
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
             signal.signal(signal.SIGINT, _on_interrupt)
-    except ValueError:  # not the main thread (a test's runner): Python's own handler stays
+        if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, _on_interrupt)
+    except ValueError:  # not the main thread (a test's runner): Python's own handlers stay
         return
     if not getattr(sys.unraisablehook, "quiet_interrupts", False):
         sys.unraisablehook = _quiet_unraisable(sys.unraisablehook)
@@ -134,10 +140,13 @@ def handle_errors(fn):
 
         def interrupted(line: str = "interrupted; no output was written"):
             nonlocal code
-            _event("error", text=line, exit=INTERRUPTED)
-            click.echo(f"hairinv: {line}", err=True)
             code = INTERRUPTED
-            sys.exit(INTERRUPTED)
+            if INTERRUPT["signal"] == signal.SIGTERM:
+                code = TERMINATED
+                line = line.replace("interrupted", "terminated (SIGTERM)", 1)
+            _event("error", text=line, exit=code)
+            click.echo(f"hairinv: {line}", err=True)
+            sys.exit(code)
 
         _catch_interrupts()
         try:

@@ -36,8 +36,9 @@ def model(tmp_path_factory):
     return inverted_settled(tmp_path_factory.mktemp("interrupt"))
 
 
-def interrupted(folder, args, sign: str, stream: str = "stdout", env=None) -> subprocess.CompletedProcess:
-    """``hairinv *args`` in ``folder``, sent SIGINT once a line of ``stream`` starts with ``sign``."""
+def interrupted(folder, args, sign: str, stream: str = "stdout", env=None,
+                sent=signal.SIGINT) -> subprocess.CompletedProcess:
+    """``hairinv *args`` in ``folder``, sent SIGINT (or ``sent``) once a line of ``stream`` starts with ``sign``."""
     process = subprocess.Popen(
         [sys.executable, "-m", "hairinv_cli.main", *map(str, args)], cwd=folder, env={**ENV, **(env or {})},
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -57,7 +58,7 @@ def interrupted(folder, args, sign: str, stream: str = "stdout", env=None) -> su
         reader.start()
     while not seen.wait(0.05):
         assert process.poll() is None, f"it ended before {sign!r}: {''.join(lines['stderr'])}"
-    process.send_signal(signal.SIGINT)
+    process.send_signal(sent)
     process.wait(timeout=120)
     for reader in readers:
         reader.join()
@@ -233,3 +234,31 @@ def test_the_added_attributes_are_checked_where_the_file_is_read(model, tmp_path
     assert str(refused.value) == f"{path}: /frames attribute {fragment}"
     with pytest.raises(InputError):
         stages.check_metadata(path)  # what `hairinv status` checks
+
+
+def test_simulate_stopped_by_a_farm_manager_keeps_its_frames(model):
+    """SIGTERM, as Deadline, Tractor or Slurm stop a task: what Ctrl-C keeps, said as terminated, exit 143."""
+    result = interrupted(model, ["simulate", "model.h5", "--seconds", "10", "-o", "term.h5"], "frame    1",
+                         sent=signal.SIGTERM)
+    assert result.returncode == 143, result.stderr
+    line = result.stderr.strip().splitlines()
+    assert len(line) == 1 and "Traceback" not in result.stderr, result.stderr
+    said = re.fullmatch(r"hairinv: terminated \(SIGTERM\) after (\d+) of 301 frames \((\S+) s of 10 s\): the (\d+) "
+                        r"frames computed are in term\.h5, marked interrupted", line[0])
+    assert said and said[1] == said[3], line[0]
+    frames = stages.read_stage(model / "term.h5")[stages.FRAMES]
+    assert len(frames["time"]) == int(said[1]) >= 2 and bool(frames.attrs["interrupted"])
+
+
+def test_invert_stopped_by_a_farm_manager_leaves_nothing(tmp_path):
+    """SIGTERM in the contact solve: one line, exit 143, no output and no temporary file."""
+    shutil.copyfile(SAMPLES / "wavy.h5", tmp_path / "wavy.h5")
+    shutil.copyfile(SAMPLES / "body.obj", tmp_path / "body.obj")
+    before = snapshot(tmp_path)
+    result = interrupted(tmp_path, ["invert", "wavy.h5", "body.obj", "-o", "model.h5"], "invert: ", "stderr",
+                         env={"HAIRINV_PROGRESS_SECONDS": "0"}, sent=signal.SIGTERM)
+    assert result.returncode == 143, result.stderr
+    assert "Traceback" not in result.stderr
+    assert [x for x in result.stderr.splitlines() if x.startswith("hairinv")] == [
+        "hairinv: terminated (SIGTERM); no output was written"]
+    assert snapshot(tmp_path) == before
