@@ -168,6 +168,12 @@ def _body_fix(roots: np.ndarray, signed_distance, up, body_settings: BodySetting
     if body_settings.up == "hair":
         turns += [(axis, rotation_onto(np.eye(3)[i], up)) for axis, i in (("y", 1), ("z", 2), ("x", 0))
                   if abs(up[i]) < 0.5]
+    if to_groom is not None and body_settings.flip == "hair":
+        # the hair's --flip mirrors the body too (its transform is then the hair's scale times that mirror): a body
+        # whose file is already in the hair's flipped axes is mirrored once too often
+        M = np.asarray(to_groom, dtype=np.float64)[:3, :3]
+        if np.linalg.det(M) < 0 and np.allclose(M, np.diag(np.diag(M)), atol=1e-12 * np.abs(M).max()):
+            turns.append(("mirror", np.diag(np.sign(np.diag(M)))))
     body_scale = abs(float(np.linalg.det(to_groom[:3, :3]))) ** (1 / 3) if to_groom is not None else None
     if body_scale:
         scales = [(unit, metres / body_scale) for unit, metres in UNITS.items()]
@@ -195,7 +201,10 @@ def _body_fix(roots: np.ndarray, signed_distance, up, body_settings: BodySetting
         what.append(f"at {factor:.4g} times its size")
         if body_scale:
             fixes.append(f"--body-units {unit}")
-    if axis is not None:
+    if axis == "mirror":
+        what.append("not mirrored")
+        fixes.append("--body-flip none")
+    elif axis is not None:
         what.append(f"turned as a +{axis.upper()}-up file")
         fixes.append(f"--body-up {axis}")
     return (f"the body {' and '.join(what)} would put them {1e3 * moved:.3g} mm from it: the two files "

@@ -216,14 +216,17 @@ def test_a_body_is_refused_only_when_no_strand_can_reach_it(case):
         assert len(lines) == 1 and "roots lie" in lines[0]  # far from it (median over 2 cm), so said
 
 
-@pytest.mark.parametrize("case", ["metres under a scaled hair", "cm and Z-up", "mm", "another body"])
+@pytest.mark.parametrize("case", ["metres under a scaled hair", "cm and Z-up", "mm", "another body",
+                                  "mirrored by the hair's flip"])
 def test_a_suggested_fix_puts_the_roots_on_the_body(case):
     """The options a warning suggests are tried here as a user would give them: built into the body's
     transform by ``body_to_groom`` (not by the suggestion's own arithmetic), the body so read has the roots'
     median within ROOTS_FAR of it. Roots on the top of the sample bust (metres, +Y up); the bust written in
     metres under a hair file of 8 mm units (the Sintel case: ``--scale 0.008``, whose first hint was a scale
     of 8 and a turn, which then refused the body), in cm and Z-up, in mm; and a body the roots are not on
-    (the bust moved 1 m aside), for which no option is offered."""
+    (the bust moved 1 m aside), for which no option is offered; and a bust 10 cm in front of the origin whose file
+    is already in the hair's axes, under a hair read with ``--flip z`` (which mirrors the body too, 20 cm behind
+    the roots, unless ``--body-flip none``)."""
     from hairinv.contacts.body import BodyMesh
     from hairinv.pipeline import ROOTS_FAR, root_distance_lines
 
@@ -235,10 +238,14 @@ def test_a_suggested_fix_puts_the_roots_on_the_body(case):
         "metres under a scaled hair": (0.008, bust.vertices, "--body-units m"),
         "cm and Z-up": (1.0, 100.0 * bust.vertices @ Y_TO_Z.T, "--body-units cm --body-up z"),
         "mm": (1.0, 1000.0 * bust.vertices, "--body-units mm"),
-        "another body": (1.0, bust.vertices + [1.0, 0.0, 0.0], None)}[case]
+        "another body": (1.0, bust.vertices + [1.0, 0.0, 0.0], None),
+        "mirrored by the hair's flip": (1.0, bust.vertices + [0.0, 0.0, 0.1], "--body-flip none")}[case]
+    hair_flip = "z" if case == "mirrored by the hair's flip" else ""
+    if hair_flip:
+        roots = roots + [0.0, 0.0, 0.1]
 
     def body_read_with(settings: BodySettings) -> tuple[BodyMesh, np.ndarray]:
-        to_groom, _ = body_to_groom(settings, groom_scale, "y", "")
+        to_groom, _ = body_to_groom(settings, groom_scale, "y", hair_flip)
         mesh = trimesh.Trimesh(file_vertices @ to_groom[:3, :3].T + to_groom[:3, 3], bust.faces, process=False)
         return BodyMesh.from_mesh(mesh), to_groom
 
