@@ -171,7 +171,20 @@ def test_a_stopped_check_is_not_interrupted(model):
     assert group.attrs["frames_requested"] == 16 > len(run.frames.log)
 
 
-def test_a_held_interrupt_comes_once_the_block_ends():
+@pytest.fixture
+def python_handlers():
+    """Python's own Ctrl-C handler in this process while the test runs, the handlers found put back after: a
+    process started as a background job of a shell without job control (``make test &`` in a script, some CI
+    runners) starts with SIGINT ignored, and Python then installs no handler."""
+    found = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    if found[signal.SIGINT] == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    for sig, handler in found.items():
+        signal.signal(sig, handler)
+
+
+def test_a_held_interrupt_comes_once_the_block_ends(python_handlers):
     """What trimesh's import runs in: its ``except BaseException`` cannot swallow a Ctrl-C held outside it."""
     reached = []
     before = signal.getsignal(signal.SIGINT)  # (a command run in this process may have put the CLI's own there)
@@ -185,7 +198,7 @@ def test_a_held_interrupt_comes_once_the_block_ends():
     assert signal.getsignal(signal.SIGINT) is before  # the handler is given back
 
 
-def test_an_interrupt_a_library_swallowed_still_exits_130(monkeypatch, capsys):
+def test_an_interrupt_a_library_swallowed_still_exits_130(monkeypatch, capsys, python_handlers):
     """A command whose library swallowed Ctrl-C (numba compiling, inside a ctypes callback) runs to its end:
     it still exits 130, with one line saying so."""
     from hairinv_cli.main import handle_errors
