@@ -907,7 +907,8 @@ def verify(obj, model, body, seconds, tolerance_text, fps, full, init, as_json, 
         raise click.UsageError("--if-stale needs -o: without an output file verify keeps nothing to compare")
     notes = []
     sources = config.Sources(quality, config_file, sets, {"body": body_frame})
-    run = simulation.load(model, body, sources, "still", init, seconds, fps, output, say=notes.append)
+    run = simulation.load(model, body, sources, "still", init, seconds, fps, output, say=notes.append,
+                          animate=False)
     if output is not None:  # what the frames file records, and what --if-stale compares (inputs hashed once)
         run.record = simulation.verify_record(run, tolerance, full)
     notes.append(run.features().line())

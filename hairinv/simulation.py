@@ -157,7 +157,7 @@ class Run:
 
 def load(model, body=None, sources: Sources | None = None, scene: str = "still", init: str = "inverted",
          seconds: float | None = None, fps: float | None = None, output=None, say=None,
-         preroll: float | None = None, body_fps: float | None = None) -> Run:
+         preroll: float | None = None, body_fps: float | None = None, animate: bool = True) -> Run:
     """Read an inverted model for a simulation of ``scene``.
 
     Parameters
@@ -175,6 +175,8 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
         :data:`hairinv.dynamics.skin.PREROLL` where the first frame is another pose, else 0
     body_fps : 1/s, an animated body's frame rate: a mesh sequence's (24 assumed otherwise), or overriding the
         rate its file states or its keys suggest; None: the file's
+    animate : False: an animated body is held still in the groom's pose (its rest pose), as ``verify`` checks the
+        still promise on it; True: its animation is played
 
     Raises
     ------
@@ -206,9 +208,14 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
     if body_fps is not None and not (np.isfinite(body_fps) and 0.0 < body_fps <= MAX_BODY_FPS):
         raise InputError(f"--body-fps is {body_fps!r}; it must be a frame rate above 0 and at most {MAX_BODY_FPS:g}")
     if body is not None and formats.is_animated_body(body):
-        animated = formats.read_animated_body(body, fps=body_fps)
-        for note in animated.notes:
-            say(f"body: {note}")
+        if animate:
+            animated = formats.read_animated_body(body, fps=body_fps)
+            for note in animated.notes:
+                say(f"body: {note}")
+        else:
+            say(f"body: {Path(body).name} is animated: held still in the groom's pose (its rest pose); "
+                "`hairinv simulate` plays its animation")
+    if animated is not None:
         seconds = animated.end - animated.start if seconds is None else seconds
         fps = (animated.fps or loaded.fps) if fps is None else fps
     if preroll is not None and not (np.isfinite(preroll) and 0.0 <= preroll <= MAX_PREROLL):
@@ -234,7 +241,7 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
             say(line)
         mesh = load_body(body, to_groom, read)
         say(f"body: {body}")
-        if animated is None and formats.is_animated_body(body):  # the recorded body
+        if animate and animated is None and formats.is_animated_body(body):  # the recorded body
             animated = formats.read_animated_body(body, fps=body_fps)
         if animated is not None:
             from .dynamics.skin import PREROLL, Shot
