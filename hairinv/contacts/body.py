@@ -139,7 +139,8 @@ class BodyMesh:
         normal, is_open = _pseudo_normals(corners, tri_v, keep, edges)
         corners, normal, is_open = corners[face_index], normal[face_index], is_open[face_index]
         lo, hi, left, start, count, order = _tree(corners)
-        topology = _Topology(len(vertices), len(faces), weld, len(welded), tri_v, keep, edges,
+        topology = _Topology(len(vertices), len(faces), weld, len(welded),
+                             np.bincount(weld, minlength=len(welded)).astype(np.float64), tri_v, keep, edges,
                              face_index[order])
         return cls(
             np.ascontiguousarray(corners[order]),
@@ -163,7 +164,7 @@ class BodyMesh:
         # vertices welded together at rest stay together: their mean
         welded = np.zeros((top.n_welded, 3))
         np.add.at(welded, top.weld, vertices)
-        welded /= np.bincount(top.weld, minlength=top.n_welded)[:, None]
+        welded /= top.weld_count[:, None]
         corners = welded[top.tri_v]
         normal, is_open = _pseudo_normals(corners, top.tri_v, top.keep, top.edges)
         corners = np.ascontiguousarray(corners[top.kept_in_order])
@@ -244,6 +245,7 @@ class _Topology:
     n_faces: int
     weld: np.ndarray  # (V,) each input vertex's welded vertex
     n_welded: int
+    weld_count: np.ndarray  # (n_welded,) input vertices welded into each
     tri_v: np.ndarray  # (F, 3) welded vertices of every face, turned outwards
     keep: np.ndarray  # (F,) bool, not a sliver
     edges: tuple  # _edges(tri_v)
