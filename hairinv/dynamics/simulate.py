@@ -505,6 +505,9 @@ class Simulation:
         self.time = 0.0  # s, of the state
         self._skin = None  # the SkinStep of the step being taken, None for a rigid one
         self._margin = (0.0, 0.0)  # m, how much closer than detected the body and strands come within it
+        # m, per strand: how far its own motion may carry its points in its frame over the step being taken,
+        # where that reaches beyond what the detection rules leave room for (else 0; see _own_sweep)
+        self._own = np.zeros(helices.n_strands)
         self._tips = strand_points(helices.root, helices.frame0, helices.offsets, self.q, helices.length,
                                    np.arange(helices.n_strands, dtype=np.int64), self._strand_length.copy()) \
             if helices.n_strands else np.zeros((0, 3))
@@ -538,6 +541,11 @@ class Simulation:
         length, cheap, then :func:`_strand_moves`, tighter); until then the last detection is reused,
         and the remembered contacts are measured again where they are (see :meth:`_persist`).
 
+        A strand whose own motion over the step (see :meth:`_own_sweep`) reaches that far is detected
+        again too, and body contacts are searched as far as that motion goes: a strand swinging into the
+        body faster than the contact distance a step (hair down a back when the character stops short)
+        meets it instead of passing into it.
+
         Without hair-hair contact the strands are detected one by one: only those that may have moved
         by that much since their own last detection are detected again (the body does not move in its
         frame), and the others keep theirs. In the ``motion`` scene about half the strands of the
@@ -546,6 +554,7 @@ class Simulation:
         h = self.helices
         S = h.n_strands
         moving = self._moving()
+        swings = self._own > 0.0
         if self._last_found is not None and h.n_elements and not moving:
             reach = 0.25 * self._detect_distance
             # first the cheap bound: every element's turn |d omega_e| l_e swings the whole strand
@@ -559,6 +568,7 @@ class Simulation:
                     redo[:] = moves.max() >= reach
                 else:
                     redo &= moves >= reach  # either bound will do, strand by strand
+            redo |= swings.any() if self.contact_settings.hair_hair else swings
             if not redo.any():
                 self._stale = np.ones(self._last_found.n_contacts, dtype=np.bool_)
                 self._redetected = 0
@@ -570,11 +580,15 @@ class Simulation:
         # (and so is a first step the body moves: the model's contacts, remembered, are measured again)
         first = self._last_found is None or (self._first and moving)
         rules = self.contact_settings if first and self._initial is not None else self._detect_settings
-        if moving:  # what comes within reach during the step: the body's and the frames' sweep
-            rules = dataclasses.replace(rules, body_distance=rules.body_distance + self._margin[0],
+        own = float(self._own.max(initial=0.0))
+        if moving or own:  # what comes within reach during the step: the body's and the frames' sweep, and the
+            # strands' own
+            rules = dataclasses.replace(rules, body_distance=rules.body_distance + self._margin[0] + own,
                                         hair_distance=rules.hair_distance + self._margin[1])
         found, _ = detect_contacts(self.current(), self.body, rules, up=self._up,
                                    refine_iterations=REFINE_ITERATIONS if first else _MOVING_REFINE)
+        if own and rules.layer is False:  # (contacts the hair layer rule declares lie beyond the distance)
+            found = self._within_sweep(found)
         self._stale = np.zeros(found.n_contacts, dtype=np.bool_)
         self._redetected = S
         self._last_found, self._q_detected = found, self.q.copy()
@@ -587,10 +601,15 @@ class Simulation:
         elements = np.concatenate([np.arange(h.offsets[k], h.offsets[k + 1]) for k in which])
         sub = Helices(h.root[which], h.frame0[which], np.r_[0, np.cumsum(counts[which])].astype(np.int64),
                       h.length[elements], self.q[elements], h.fit_error[which])
-        fresh, _ = detect_contacts(sub, self.body, self._detect_settings, refine_iterations=_MOVING_REFINE)
+        rules, own = self._detect_settings, float(self._own[which].max(initial=0.0))
+        if own:  # as far as the strands' own motion goes (see _detect)
+            rules = dataclasses.replace(rules, body_distance=rules.body_distance + own)
+        fresh, _ = detect_contacts(sub, self.body, rules, refine_iterations=_MOVING_REFINE)
         # back to the groom's numbering: strands, and elements (a body contact's second is -1)
         fresh.strand[:, 0] = which[fresh.strand[:, 0]]
         fresh.element[:, 0] = elements[fresh.element[:, 0]]
+        if own:
+            fresh = self._within_sweep(fresh)
         last = self._last_found
         kept = last.subset(~np.isin(last.strand[:, 0], which))
         merged = Contacts(*(np.concatenate([a, b]) for a, b in zip(
@@ -603,6 +622,36 @@ class Simulation:
         self._q_detected[elements] = self.q[elements]
         self._last_found = found
         return found
+
+    def _own_sweep(self, h: float) -> np.ndarray:
+        """(S,) m: how far each strand's own motion carries its points in its frame over the step, at the velocity
+        it starts with (a bound, :func:`_strand_moves` from ``q`` to ``q + h v``), where that reaches a quarter
+        of the smallest contact distance in use, beyond which :meth:`_detect` no longer reuses a detection; 0
+        elsewhere, where the room between the contact distances and thicknesses already holds it.
+
+        (The velocity the step starts with, not the free one: a strand at rest on its contacts has a free
+        velocity, gravity's pull over the step, that those contacts take away; the pull a step adds to a moving
+        strand, ``a h``, moves it by ``a h^2`` more, a millimetre for 1 g at 100 steps a second, and is counted
+        from the next step on.)"""
+        hel = self.helices
+        own = np.zeros(hel.n_strands)
+        if not hel.n_elements or not np.isfinite(self._detect_distance):
+            return own
+        reach = 0.25 * self._detect_distance
+        cheap = np.add.reduceat(h * np.linalg.norm(self.v, axis=1) * hel.length, hel.offsets[:-1]) * self._strand_length
+        if cheap.max() < reach:
+            return own
+        _strand_moves(hel.root, hel.frame0, hel.offsets, self.q, self.q + h * self.v, hel.length, own)
+        own = np.minimum(own, cheap)
+        own[own < reach] = 0.0
+        return own
+
+    def _within_sweep(self, found: Contacts) -> Contacts:
+        """``found`` without the body contacts beyond their own strand's reach this step: detection searched
+        as far as the farthest strand's own sweep reaches, for every strand."""
+        limit = self._detect_settings.body_distance + self._margin[0] + self._own[found.strand[:, 0]]
+        far = (found.strand[:, 1] < 0) & (found.gap >= limit)
+        return found.subset(~far) if far.any() else found
 
     def _keys_of(self, contacts: Contacts) -> np.ndarray:
         """A key per contact naming it from one detection to the next: its element (pair)."""
@@ -695,7 +744,7 @@ class Simulation:
         xa = points_on(h, self.q, strand[redo, 0], arc[redo, 0])
         point[redo] = xa
         body = strand[redo, 1] < 0
-        limit = np.where(body, self.contact_settings.body_distance + self._margin[0],
+        limit = np.where(body, self.contact_settings.body_distance + self._margin[0] + self._own[strand[redo, 0]],
                          self.contact_settings.hair_distance + self._margin[1])
         if body.any():
             if self.body is None:
@@ -771,11 +820,13 @@ class Simulation:
         where, known = self._match(keys)
         fresh = np.where(found.strand[:, 1] < 0, self.settings.body_thickness, self.settings.hair_thickness)
         if self._first:
-            # everything touching the starting shape touches at its own distance; a first step the body moves
-            # also finds what its sweep brings within reach (beyond the detection distances): that is new
+            # everything touching the starting shape touches at its own distance; what a first step finds beyond
+            # the detection distances, brought within reach by the body's sweep or the strand's own (in this
+            # attempt, or in a longer one it halves, whose detection it reuses), is new (the contacts the hair
+            # layer and wisp rules declare beyond them are the model's, remembered: their thickness is below)
             reach = np.where(found.strand[:, 1] < 0, self.contact_settings.body_distance,
                              self.contact_settings.hair_distance)
-            fresh = np.where(self._moving() & (gap > reach), fresh, gap)
+            fresh = np.where(gap > reach, fresh, gap)
         # a new contact keeps the room it has, up to its thickness; one found inside is pushed out
         thickness = np.minimum(gap if self._first else np.maximum(gap, 0.0), fresh)
         impulse = np.zeros((found.n_contacts, 3))
@@ -923,6 +974,8 @@ class Simulation:
         run_chunks(free, helices.n_strands, 64)
         if not np.all(np.isfinite(v_free)):
             raise FloatingPointError("the free velocity is not finite")
+        self._own = self._own_sweep(h) if self.body is not None and self.contact_settings.body else \
+            np.zeros(helices.n_strands)
         found = self._detect()
         found, anchors = self._persist(found, h)
         keys, thickness, impulse = self._remember(found, h)
