@@ -313,11 +313,14 @@ def import_options(fn):
 
 
 def body_options(fn):
-    """--body-units, --body-scale, --body-up and --body-flip: the body file's own unit and axes ([body]),
-    passed on as one ``body_frame`` dict of the options given."""
+    """--body-units, --body-scale, --body-up and --body-flip: the body file's own unit and axes, and --bind-time
+    and --body-rest: the pose of an animated body the groom was made on ([body]), passed on as one
+    ``body_frame`` dict of the options given."""
     @functools.wraps(fn)
-    def with_body_frame(*args, body_units=None, body_scale=None, body_up=None, body_flip=None, **kwargs):
-        values = {"units": body_units, "scale": body_scale, "up": body_up, "flip": body_flip}
+    def with_body_frame(*args, body_units=None, body_scale=None, body_up=None, body_flip=None, bind_time=None,
+                        body_rest=None, **kwargs):
+        values = {"units": body_units, "scale": body_scale, "up": body_up, "flip": body_flip,
+                  "bind_time": bind_time, "rest_mesh": body_rest}
         return fn(*args, body_frame={k: v for k, v in values.items() if v is not None}, **kwargs)
 
     options = [
@@ -331,6 +334,13 @@ def body_options(fn):
                           "hair's up [body.up, default hair]."),
         click.option("--body-flip", default=None, metavar="AXES|none",
                      help="Axes of the body file to negate, or none [body.flip, default: the hair's --flip]."),
+        click.option("--bind-time", default=None, metavar="SECONDS|rest",
+                     help="An animated body's pose the groom was made on: a time of its animation, from its start "
+                          "[body.bind_time; default rest: the pose its file stores, a skinned mesh's bind pose]. "
+                          "simulate and verify take the one the model was inverted on."),
+        click.option("--body-rest", default=None, metavar="FILE",
+                     help="A mesh of the animated body in the pose the groom was made on: its vertices in the same "
+                          "order, in the body file's units and axes [body.rest_mesh]."),
     ]
     for option in reversed(options):
         with_body_frame = option(with_body_frame)

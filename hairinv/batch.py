@@ -33,7 +33,7 @@ from .errors import InputError
 STAGES = ("invert", "verify", "export")
 EXPORT_SUFFIXES = ("usda", "usdc", "usd", "hair", "data", "obj", "json", "png", "html")
 _GROOM_KEYS = {"name", "hair", "body", "units", "scale", "up", "flip", "body_units", "body_scale", "body_up",
-               "body_flip", "guides", "quality", "set", "options", "stages", "exports", "verify_seconds"}
+               "body_flip", "bind_time", "guides", "quality", "set", "options", "stages", "exports", "verify_seconds"}
 _SHOT_KEYS = {"name", "groom", "body", "seconds", "fps", "preroll", "options", "exports"}
 #: What a shot's frames may be exported to.
 SHOT_EXPORTS = ("usda", "usdc", "usd", "png", "gif", "html", "json")
@@ -41,6 +41,7 @@ SHOT_EXPORTS = ("usda", "usdc", "usd", "png", "gif", "html", "json")
 CONNECT_TIMEOUT = "20s"
 _OPTION_OF = {"units": "--units", "scale": "--scale", "up": "--up", "flip": "--flip", "body_units": "--body-units",
               "body_scale": "--body-scale", "body_up": "--body-up", "body_flip": "--body-flip",
+              "bind_time": "--bind-time",
               "guides": "--guides", "quality": "--quality"}
 
 

@@ -62,6 +62,13 @@ class BodySettings:
     hair's up axis, the body is turned by the smallest rotation taking its up axis onto the hair's."""
     flip: str = "hair"
     """Axes of the body file negated on import, e.g. "z"; none for no flip; hair: the hair's --flip."""
+    bind_time: str = "rest"
+    """For an animated body, the pose the groom was made on: rest (the pose the file stores: a skinned mesh's
+    bind pose, a point cache's or a sequence's first frame), or a time in seconds from the animation's start,
+    e.g. 0 for its first frame. The roots are bound to the body in that pose."""
+    rest_mesh: str = ""
+    """A mesh file of the animated body in the pose the groom was made on (the same vertices, in the same order,
+    and the same triangles), when that pose is neither the file's rest pose nor a time of its animation."""
 
 
 @dataclass(frozen=True)

@@ -480,9 +480,144 @@ def simulation_body(settings: BodySettings, given, stage, stage_path, curves) ->
         if record is None or stages.sha256_file(given) != record.get("sha256"):
             record = None
         path = given
-    if settings != BodySettings():
+    if frame_settings(settings) != BodySettings():
         mesh = formats.read_mesh(path)
         size = float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))
         transform, notes = body_to_groom(settings, scale, up, flip, path, size)
         return path, transform, notes, mesh
     return path, recorded_body_transform(record, scale, flip, path), [], None
+
+
+def simulation_pose(settings: BodySettings, body_path, stage, stage_path) -> dict:
+    """The pose the groom was made on, for a run of a stage file's model on ``body_path``: the one ``settings``
+    give (``--bind-time``, ``--body-rest``), else the one recorded with that very body file (same SHA-256), else
+    its rest pose (``{}``)."""
+    given = pose_setting(settings, body_path)
+    if given or body_path is None:
+        return given
+    _, record, _ = find_recorded_body(stage, stage_path, (stages.CONTACTS, stages.MODEL))
+    if record is None or stages.sha256_file(body_path) != record.get("sha256"):
+        return {}
+    return recorded_pose(record, stage_path)
+
+
+# ------------------------------------------------------------------------------------------ the groom's pose
+
+
+def frame_settings(settings: BodySettings) -> BodySettings:
+    """``settings`` without the pose (``bind_time``, ``rest_mesh``): what says the body file's unit and axes."""
+    return dataclasses.replace(settings, bind_time=BodySettings.bind_time, rest_mesh=BodySettings.rest_mesh)
+
+
+def pose_setting(settings: BodySettings, body_path=None) -> dict:
+    """The pose the groom was made on, as ``settings`` say it: ``{}`` for the body file's rest pose,
+    ``{"bind_time": seconds}``, or ``{"rest_mesh": path}`` (a path, not yet a record); checked in form only."""
+    text = str(settings.bind_time).strip().lower()
+    rest = str(settings.rest_mesh).strip()
+    if text in ("", "rest"):
+        return {"rest_mesh": rest} if rest else {}
+    if rest:
+        raise InputError("--bind-time and --body-rest both say which pose the groom was made on; give one")
+    try:
+        seconds = float(text[:-1] if text.endswith("s") else text)
+    except ValueError:
+        raise InputError(f"--bind-time is {settings.bind_time!r}; it must be rest or a time in seconds from "
+                         "the animation's start", body_path) from None
+    if not (np.isfinite(seconds) and seconds >= 0.0):
+        raise InputError(f"--bind-time is {settings.bind_time!r}; it must be rest or a time in seconds from "
+                         "the animation's start, 0 or more", body_path)
+    return {"bind_time": seconds}
+
+
+def pose_words(pose: dict) -> str:
+    """The pose in words, for the notes: "its rest pose", "its pose at 0.5 s", "the rest mesh's"."""
+    if "bind_time" in pose:
+        return f"its pose at {pose['bind_time']:g} s of the animation (--bind-time)"
+    if "rest_mesh" in pose:
+        rest = pose["rest_mesh"]
+        return f"the rest mesh {Path(rest['path'] if isinstance(rest, dict) else rest).name}'s (--body-rest)"
+    return "its rest pose"
+
+
+def pose_record(pose: dict) -> dict:
+    """What a body input records of the pose (docs/stage-files.md): nothing for the rest pose, the time, or the
+    rest mesh's provenance record."""
+    if "rest_mesh" in pose and not isinstance(pose["rest_mesh"], dict):
+        return {"rest_mesh": stages.file_record(pose["rest_mesh"])}
+    return dict(pose)
+
+
+def recorded_pose(record: dict | None, stage_path) -> dict:
+    """The pose a stage file's body input ``record`` says the groom was made on (``{}``: the rest pose), with the
+    rest mesh found again from its own record."""
+    pose = (record or {}).get("pose") or {}
+    if not isinstance(pose, dict):
+        raise InputError("records a body pose that is not a table", stage_path)
+    if "bind_time" in pose:
+        seconds = pose["bind_time"]
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not (np.isfinite(seconds)
+                                                                                     and seconds >= 0):
+            raise InputError(f"records a body pose at {seconds!r} s, which is not a time", stage_path)
+        return {"bind_time": float(seconds)}
+    if "rest_mesh" in pose:
+        rest = pose["rest_mesh"]
+        if not isinstance(rest, dict):
+            raise InputError("records a rest mesh without its provenance", stage_path)
+        path, why = find_recorded(rest, stage_path, "the rest mesh")
+        if path is None:
+            raise InputError(f"was inverted on a rest mesh that cannot be found ({why}); give it with --body-rest",
+                             stage_path)
+        return {"rest_mesh": str(path)}
+    return {}
+
+
+def pose_vertices(animated, pose: dict, body_path) -> np.ndarray:
+    """(V, 3) the animated body ``animated`` (file units) in ``pose``: at a time of its animation, or the
+    vertices of a rest mesh, which must be the same mesh (as many vertices, the same triangles)."""
+    if "bind_time" in pose:
+        seconds = float(pose["bind_time"])
+        length = float(animated.end - animated.start)
+        if seconds > length + 1e-9:
+            raise InputError(f"--bind-time is {seconds:g} s, after the animation's end ({length:.4g} s from its "
+                             "start)", body_path)
+        return np.asarray(animated.vertices_at(animated.start + min(seconds, length)), dtype=np.float64)
+    rest_path = Path(pose["rest_mesh"])
+    if not rest_path.exists():
+        raise InputError("no such file (the rest mesh, --body-rest)", rest_path)
+    rest = formats.read_mesh(rest_path)
+    vertices = np.asarray(rest.vertices, dtype=np.float64)
+    faces = np.asarray(rest.faces, dtype=np.int64)
+    if len(vertices) != len(animated.vertices):
+        raise InputError(f"has {len(vertices)} vertices and the animated body {Path(body_path).name} "
+                         f"{len(animated.vertices)}: a rest mesh must be that body's mesh in another pose", rest_path)
+    if faces.shape != animated.faces.shape or not np.array_equal(faces, animated.faces):
+        raise InputError(f"has other triangles than the animated body {Path(body_path).name}: a rest mesh must be "
+                         "that body's mesh, its vertices in the same order, in another pose", rest_path)
+    if not np.all(np.isfinite(vertices)):
+        raise InputError("has vertices that are not finite numbers", rest_path)
+    return vertices
+
+
+def posed_animation(animated, pose: dict, body_path):
+    """``animated`` with the groom's pose as its rest pose (``vertices``), which shots bind the roots on and pre-roll
+    from."""
+    if not pose:
+        return animated
+    return dataclasses.replace(animated, vertices=pose_vertices(animated, pose, body_path))
+
+
+def posed_mesh(body_path, pose: dict, mesh=None, animated=None):
+    """The body file's mesh (file units and axes) in the groom's pose: the file as read (``mesh``, else
+    :func:`formats.read_mesh`) for its rest pose, else its animation's mesh in that pose (``animated``: the file
+    already read by :func:`formats.read_animated_body`)."""
+    if not pose:
+        return formats.read_mesh(body_path) if mesh is None else mesh
+    import trimesh
+
+    if animated is None:
+        if not formats.is_animated_body(body_path):
+            option = "--bind-time" if "bind_time" in pose else "--body-rest"
+            raise InputError(f"is a still mesh: {option} says which pose of an animated body the groom was made on",
+                             body_path)
+        animated = formats.read_animated_body(body_path)
+    return trimesh.Trimesh(pose_vertices(animated, pose, body_path), animated.faces, process=False)

@@ -27,7 +27,8 @@ from .contacts.body import BodyMesh
 from .errors import InputError, RunError, in_file
 from .features import Features, detect_features, invert_features
 from .fit import fit_groom
-from .groom import body_to_groom, load_body, load_groom, recorded_body_transform, rotation_onto, strand_lengths
+from .groom import (body_to_groom, load_body, load_groom, pose_record, pose_setting, pose_words, posed_mesh,
+                    recorded_body_transform, rotation_onto, strand_lengths)
 from .model import BODY, Contacts, Helices, Material
 from .solver.status import Status
 
@@ -89,7 +90,19 @@ def _stale_contacts(stored, model, wanted: dict, body_record: dict | None, refit
     stored_transform = recorded_body_transform(stored.inputs[1], *hair_unit)
     if not np.allclose(stored_transform, np.asarray(body_record["to_groom"]), rtol=1e-12, atol=0.0):
         return "were detected with the body in other units or axes"
+    if _pose_key(stored.inputs[1].get("pose")) != _pose_key(body_record.get("pose")):
+        return "were detected on the body in another pose"
     return None
+
+
+def _pose_key(pose) -> tuple:
+    """A body input's recorded pose, to compare: a rest mesh by its contents."""
+    pose = pose or {}
+    if "bind_time" in pose:
+        return ("time", pose["bind_time"])
+    if "rest_mesh" in pose:
+        return ("mesh", (pose["rest_mesh"] or {}).get("sha256") if isinstance(pose["rest_mesh"], dict) else None)
+    return ()
 
 
 #: m: roots farther than this from the body (median over the strands) are reported, with what it suggests
@@ -212,16 +225,18 @@ def _body_fix(roots: np.ndarray, signed_distance, up, body_settings: BodySetting
             + (f" (try {' '.join(fixes)})" if fixes else ""))
 
 
-def animated_body_lines(body) -> list[str]:
-    """A warning when the body file is animated: its bind pose is what the stages read; its animation and skinning
-    are not played."""
+def animated_body_lines(body, pose: dict | None = None) -> list[str]:
+    """A note when the body file is animated: the pose the stages read (its rest pose, or ``pose``); its animation
+    and skinning are not played."""
     if not formats.is_animated_body(body):
         return []
     motion = formats.read_animated_body(body)
     joints = f", {len(motion.joints)} joints" if motion.joints else ""
+    where = (f"on {pose_words(pose)}" if pose else
+             "on the mesh as the file stores it (its rest pose, a skinned mesh's bind pose; --bind-time or "
+             "--body-rest say another)")
     return [f"note: {Path(body).name} is animated ({motion.n_frames} frames over {motion.end - motion.start:.3g} s"
-            f"{joints}): the groom is placed on the mesh as the file stores it (its rest pose, a skinned mesh's bind "
-            "pose); `hairinv simulate` plays the animation from there"]
+            f"{joints}): the groom is placed {where}; `hairinv simulate` plays the animation from there"]
 
 
 def prepare(style, body, settings: Settings, contacts: bool = True, progress=None) -> Prepared:
@@ -245,10 +260,12 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         inputs.append(stages.file_record(body))
     lines: list[str] = []
     groups: dict = {}
-    native = formats.read_mesh(body) if body is not None else None  # read once: units guess and contacts
+    pose = pose_setting(settings.body, body) if body is not None else {}
+    # read once: units guess and contacts; in the groom's pose
+    native = posed_mesh(body, pose) if body is not None else None
     body_size = float(np.linalg.norm(np.ptp(np.asarray(native.vertices), axis=0))) if native is not None else None
     if body is not None:
-        lines += animated_body_lines(body)
+        lines += animated_body_lines(body, pose)
     if stages.is_stage_file(style):
         stage = stages.read_stage(style)
         if stages.CURVES not in stage:
@@ -298,6 +315,8 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         to_groom, notes = body_to_groom(settings.body, scale, up, flip, body, body_size)
         lines += notes
         inputs[1]["to_groom"] = to_groom.tolist()
+        if pose:
+            inputs[1]["pose"] = pose_record(pose)
         mesh = load_body(body, to_groom, native)
     # built once: the roots' check here and the body contacts below; with contacts.body off the body is
     # read (its file is an input) but never queried

@@ -11,7 +11,7 @@ all of it in one call, as the commands do, for code that drives them without a s
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -81,6 +81,8 @@ class Run:
     say: object = None
     body_fps: float | None = None
     """1/s, the animated body's frame rate as given (``--body-fps``), or None: its file's"""
+    pose: dict = field(default_factory=dict)
+    """the pose of the body the groom was made on (:func:`hairinv.groom.pose_setting`): {} for its rest pose"""
 
     @property
     def steps(self) -> int:
@@ -144,6 +146,10 @@ class Run:
         inputs = [stages.file_record(self.model_path)]
         if self.body is not None:
             inputs.append({**stages.file_record(self.body), "to_groom": np.asarray(self.to_groom).tolist()})
+            if self.pose:
+                from .groom import pose_record
+
+                inputs[-1]["pose"] = pose_record(self.pose)
         config = {"dynamics": dataclasses.asdict(self.settings.dynamics),
                   "contacts": dataclasses.asdict(self.settings.contacts), "scene": self.scene.name, "init": self.init}
         frames = self.frames.group(config, inputs)
@@ -201,7 +207,7 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
 
     from .dynamics.scene import Scene, check_run_length
     from .dynamics.simulate import validate_settings
-    from .groom import load_body, simulation_body
+    from .groom import load_body, pose_words, posed_animation, posed_mesh, simulation_body, simulation_pose
 
     loaded = Scene.load(scene)
     animated = None
@@ -236,17 +242,20 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
     body, to_groom, notes, read = simulation_body(settings.body, body, stage, model, curves)
     mesh = None
     shot = None
+    pose = simulation_pose(settings.body, body, stage, model)
     if body is not None:
         for line in notes:
             say(line)
-        mesh = load_body(body, to_groom, read)
+        mesh = load_body(body, to_groom, posed_mesh(body, pose, read, animated))
         say(f"body: {body}")
+        if pose:
+            say(f"body: the groom's pose is {pose_words(pose)}")
         if animate and animated is None and formats.is_animated_body(body):  # the recorded body
             animated = formats.read_animated_body(body, fps=body_fps)
         if animated is not None:
             from .dynamics.skin import PREROLL, Shot
 
-            moved = animated.transformed(to_groom)
+            moved = posed_animation(animated, pose, body).transformed(to_groom)
             if preroll is None:
                 preroll = PREROLL if Shot.needs_preroll(moved) else 0.0
             shot = Shot(moved, float(preroll))
@@ -256,7 +265,7 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
         raise InputError(f"--body-fps is the frame rate of an animated body, and the body "
                          f"{'is not given' if body is None else 'is a still mesh'}", body)
     return Run(model, stage, helices, contacts, mesh, body, to_groom, loaded, settings, init, float(seconds),
-               float(fps), shot=shot, say=say, body_fps=body_fps)
+               float(fps), shot=shot, say=say, body_fps=body_fps, pose=pose)
 
 
 def check_equilibrium(path, helices: Helices, contacts: Contacts | None, model: stages.Group) -> None:

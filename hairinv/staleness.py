@@ -20,12 +20,13 @@ current.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from pathlib import Path
 
 from . import stages
-from .config import Settings
+from .config import _SECTIONS, Settings
 from .errors import InputError
 
 #: Root attribute of a stage file holding its command record (an addition to the stage-file contract).
@@ -34,8 +35,13 @@ COMMAND_ATTR = "command"
 
 def command_record(subcommand: str, inputs, settings: Settings, sections, options: dict | None = None) -> dict:
     """What a run of ``subcommand`` on ``inputs`` (paths, None for an absent optional one) with ``settings``
-    is made of: the record its output carries, and what ``--if-stale`` compares."""
+    is made of: the record its output carries, and what ``--if-stale`` compares. A rest mesh the body
+    settings name (``--body-rest``) is an input too, after the others."""
     values = settings.to_dict()
+    inputs = list(inputs)
+    rest = str(settings.body.rest_mesh).strip() if "body" in sections else ""
+    if rest and Path(rest).is_file():
+        inputs.append(rest)
     return {
         "subcommand": subcommand,
         "inputs": [None if p is None else stages.file_record(p) for p in inputs],
@@ -68,6 +74,11 @@ def recorded_command(path) -> dict | None:
     return record
 
 
+_NO_DEFAULT = object()
+#: Every setting's default, by section: a record written before a setting existed lacks it.
+_DEFAULTS = {section: dataclasses.asdict(getattr(Settings(), attr)) for section, attr in _SECTIONS.items()}
+
+
 def differences(recorded: dict, wanted: dict) -> list[str]:
     """What differs between two command records, as short phrases for the user (empty: none)."""
     recorded, wanted = _canonical(recorded), _canonical(wanted)
@@ -90,6 +101,8 @@ def differences(recorded: dict, wanted: dict) -> list[str]:
     for section, values in wanted["settings"].items():
         old = recorded.get("settings", {}).get(section, {})
         for key, value in values.items():
+            if key not in old and value == _DEFAULTS.get(section, {}).get(key, _NO_DEFAULT):
+                continue  # a setting added since, at its default: what the older version did
             if old.get(key) != value:
                 found.append(f"setting {section}.{key} was {old.get(key)!r}, now {value!r}")
     old_options = recorded.get("options", {})

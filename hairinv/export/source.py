@@ -468,9 +468,10 @@ class ExportSource:
         if it is still at its recorded path (as given, or relative to the stage file's folder) with the
         recorded SHA-256.
         """
-        from ..groom import find_recorded_body, load_body, recorded_body_transform
+        from ..groom import find_recorded_body, load_body, posed_mesh, recorded_body_transform, recorded_pose
 
         path, record, why = find_recorded_body(self.stage, self.path)
         if path is None:
             return None, why or "the file records no body mesh"
-        return load_body(path, recorded_body_transform(record, self.scale_to_m, self.flip, path)), f"body: {path}"
+        mesh = posed_mesh(path, recorded_pose(record, self.path))  # in the groom's pose
+        return load_body(path, recorded_body_transform(record, self.scale_to_m, self.flip, path), mesh), f"body: {path}"
