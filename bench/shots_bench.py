@@ -77,6 +77,11 @@ RUBY = DATA / "ruby" / "ruby_short_hair_16_guide.tfx"
 
 DEVELOPMENT_RUN = smoke(("turn90", "nod30", "jump30", "stop15"), ("turn90",))
 HELD_OUT_RUN = smoke(("turn_right75", "jump20"), ())
+# held-out grooms on held-out motions: (motion variant, sample groom warped onto its head, guides; 0: every
+# strand): the curly groom on the hardest stop, the wavy groom, the settled curly groom (40 strands resting on
+# the body; the others' layers lie 1.5 to 10 mm above it), and three times the straight groom's guides
+GROOM_VARIANTS = smoke((("stop20", "curly", 48), ("nod20_fast", "wavy", 32), ("turn45_snap", "settled_curly", 0),
+                        ("walk_fast", "straight", 96)), ())
 MANNEQUIN_GUIDES = smoke(32, 4)  # of the groom's 300 strands
 CESIUMMAN_STRANDS = smoke(300, 40)  # the bob's strands
 CESIUMMAN_GUIDES = smoke(60, 4)
@@ -132,19 +137,22 @@ def _hairinv(*args, cwd: Path, timeout: float = INVERT_BUDGET) -> subprocess.Com
 
 def mannequin_shots(folder: Path) -> list[Shot]:
     shots = []
-    for name, split in ([(n, "development") for n in DEVELOPMENT_RUN] + [(n, "held out") for n in HELD_OUT_RUN]
-                        + [("hold", "still")]):
+    runs = ([(n, "development", "straight", MANNEQUIN_GUIDES) for n in DEVELOPMENT_RUN]
+            + [(n, "held out", "straight", MANNEQUIN_GUIDES) for n in HELD_OUT_RUN]
+            + [(n, "held out, groom", g, k) for n, g, k in GROOM_VARIANTS] + [("hold", "still", "straight", HOLD_GUIDES)])
+    for name, split, groom_name, guides in runs:
         rig, motion = mr.variant(name)
-        where = folder / name
+        label = name if split != "held out, groom" else f"{name} {groom_name}" + (f" {guides}" if guides else "")
+        where = folder / _slug(label)
         where.mkdir(parents=True, exist_ok=True)
         glb = mr.write_glb(where / f"{name}.glb", rig, motion)
-        groom = mr.write_groom(where / "groom.h5", rig.seed)
+        groom = mr.write_groom(where / "groom.h5", rig.seed, groom_name)
         kind, params, fps, seed = mr.VARIANTS[name]
         what = ", ".join(f"{k} {v:g}" for k, v in params.items()) or "the bind pose"
-        what = f"{kind} ({what}), head seed {seed}, {fps:g} fps"
-        guides = HOLD_GUIDES if name == "hold" else MANNEQUIN_GUIDES
+        what = f"{kind} ({what}), head seed {seed}, {fps:g} fps" + ("" if groom_name == "straight" else
+                                                                    f", the {groom_name.replace('_', ' ')} groom")
         seconds = HOLD_SECONDS if name == "hold" else (SMOKE_SECONDS if SMOKE else None)
-        shots.append(Shot(name, split, glb, groom, guides, seconds, what))
+        shots.append(Shot(label, split, glb, groom, guides, seconds, what))
     return shots
 
 
@@ -420,9 +428,11 @@ def render(shots: list[Shot], meta: dict) -> str:
             f"moved at {f['deepest_speed']:.2g} m/s over the frame before: "
             f"{1e3 * f['deepest_speed'] * f['time_step']:.0f} mm in a {1e3 * f['time_step']:.3g} ms step, unless "
             "the step was halved. Contacts are found at each step's "
-            "start within the contact distance widened by how far the skin and the strands' frames sweep in the step; "
-            "a strand's own motion within its frame does not widen it, so a tip whipping faster than that can reach "
-            "into the skin before a contact holds it, and is pushed out over the following steps.", ""]
+            "start within the contact distance widened by how far the skin, the strands' frames and the strands' own "
+            "motion (at the velocity the step starts with) sweep in the step; what a step adds to a strand's speed "
+            "(the kick of the body's acceleration, a contact's push) is counted from the next step on, so a point can "
+            "reach into the skin by about that much before a contact holds it, and is pushed out over the following "
+            "steps.", ""]
     lines.append(
         "Roots off their triangles: the largest distance, over strands and frames, of `/frames/root` from where "
         "the binding datasets put the root on the frame's `body_vertices` (float32: 1e-7 m is their round-off). "
