@@ -116,7 +116,8 @@ _UNIT_FACTORS = (1000.0, 100.0, 25.4, 10.0, 2.54, 1 / 2.54, 0.1, 1 / 25.4, 0.01,
 
 
 def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: BodySettings,
-                        to_groom: np.ndarray | None = None, reach: np.ndarray | None = None) -> list[str]:
+                        to_groom: np.ndarray | None = None, reach: np.ndarray | None = None,
+                        other_poses=None) -> list[str]:
     """A warning when the strands' roots do not lie on or near the body (checked before the fit), and a
     refusal when no strand can touch it.
 
@@ -132,7 +133,10 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
     a contact is declared from the body). When the roots lie far from it (as above) and every root lies
     outside the body, farther from it than that, the body can carry no strand whatever its shape, so it
     is not the body the groom rests on: an :class:`InputError` of the body file says so, with the fix,
-    before any work is done."""
+    before any work is done.
+
+    ``other_poses``: for an animated body read in its rest pose, a callable giving ``(seconds, BodyMesh)`` of
+    other poses of its animation; where the roots lie on one of them, the fix named is ``--bind-time``."""
     if len(roots) == 0 or len(body_mesh.face_index) == 0:
         return []
     every_root = roots = np.ascontiguousarray(roots, dtype=np.float64)
@@ -148,8 +152,10 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
     median, nearest = float(np.median(distance)), float(distance.min())
     if not median > ROOTS_FAR:
         return []
-    fix = _body_fix(roots, signed_distance, up, body_settings, to_groom,
-                    None if reach is None else np.asarray(reach, dtype=np.float64)[sample])
+    fix = _pose_fix(roots, other_poses) if other_poses is not None else None
+    if fix is None:
+        fix = _body_fix(roots, signed_distance, up, body_settings, to_groom,
+                        None if reach is None else np.asarray(reach, dtype=np.float64)[sample])
     if reach is not None:
         # signed: a root inside the body is in contact with it, however deep
         outside = signed_distance(every_root)
@@ -163,6 +169,39 @@ def root_distance_lines(roots: np.ndarray, body_mesh, body, up, body_settings: B
     return [f"warning: the strands' roots lie {1e3 * median:.4g} mm from the body {name} (median over "
             f"{len(roots)} strands; nearest {1e3 * nearest:.4g} mm), so few or no body contacts will be found; "
             + fix]
+
+
+def _pose_fix(roots: np.ndarray, other_poses) -> str | None:
+    """``--bind-time T`` where the roots lie on the animated body's pose at ``T`` (median within
+    :data:`ROOTS_FAR`; the nearest such pose), else None."""
+    best = None
+    for seconds, mesh in other_poses():
+        median = float(np.median(np.abs(mesh.closest(roots)[0])))
+        if median <= ROOTS_FAR and (best is None or median < best[1]):
+            best = (seconds, median)
+    if best is None:
+        return None
+    return (f"they lie {1e3 * best[1]:.3g} mm from the body's pose at {best[0]:.4g} s of its animation: if the groom "
+            f"was made on that pose, pass --bind-time {best[0]:.4g}")
+
+
+#: How many poses of an animated body the roots are tried on when they lie far from its rest pose.
+POSES_TRIED = 12
+
+
+def animation_poses(body, to_groom: np.ndarray):
+    """A callable for :func:`root_distance_lines`: up to :data:`POSES_TRIED` poses of the animated body file
+    ``body`` at its key times (evenly picked, the first included), each brought into the groom's frame."""
+    def poses():
+        from .dynamics.skin import MeshArrays
+
+        animated = formats.read_animated_body(body)
+        times = animated.times[np.unique(np.linspace(0, len(animated.times) - 1, POSES_TRIED).round().astype(int))]
+        M = np.asarray(to_groom, dtype=np.float64)
+        for t in times:
+            vertices = animated.vertices_at(float(t)) @ M[:3, :3].T + M[:3, 3]
+            yield float(t - animated.start), BodyMesh.from_mesh(MeshArrays(vertices, animated.faces))
+    return poses
 
 
 def _body_fix(roots: np.ndarray, signed_distance, up, body_settings: BodySettings, to_groom,
@@ -328,8 +367,10 @@ def prepare(style, body, settings: Settings, contacts: bool = True, progress=Non
         else:  # every strand has an element (the stage file's checks)
             roots, lengths = helices.root, np.add.reduceat(helices.length, helices.offsets[:-1])
         c = settings.contacts  # a contact is declared up to body_distance from the body, or on a hair layer
+        others = animation_poses(body, to_groom) if not pose and formats.is_animated_body(body) else None
         lines += root_distance_lines(roots, body_mesh, body, up, settings.body, to_groom,
-                                     reach=lengths + max(c.body_distance, c.layer_max_gap if c.layer else 0.0))
+                                     reach=lengths + max(c.body_distance, c.layer_max_gap if c.layer else 0.0),
+                                     other_poses=others)
     if helices is None:
         bar = progress("fit", groom.n_strands) if progress else None
         try:
