@@ -98,13 +98,13 @@ INVERT_BUDGET = 900.0  # s for one inversion before it is killed
 
 # phases of a step: (label, [(file suffix, function name, caller's function name or None)])
 PHASES = (
-    ("free motion", [("dynamics/simulate.py", "run_chunks", "_step"), ("dynamics/simulate.py", "_stale_hessians", None),
+    ("free motion", [("dynamics/simulate.py", "run_chunks", "_step"), ("dynamics/rods.py", "stale_strands", None),
                      ("dynamics/simulate.py", "_contact_hessians", None)]),
-    ("detect", [("dynamics/simulate.py", "_detect", None)]),
-    ("contacts kept", [("dynamics/simulate.py", "_persist", None), ("dynamics/simulate.py", "_remember", None)]),
+    ("detect", [("dynamics/tracking.py", "detect", None)]),
+    ("contacts kept", [("dynamics/tracking.py", "persist", None), ("dynamics/tracking.py", "remember", None)]),
     ("rows", [("contacts/rows.py", "contact_rows", "_step"), ("", "factored_blocks", "_step"),
               ("", "factored_rows", "_step"), ("", "coulomb_problem", "_step"),
-              ("dynamics/simulate.py", "_drift", None)]),
+              ("dynamics/tracking.py", "drift", None)]),
     ("solve", [("", "solve_coulomb", "_step"), ("dynamics/simulate.py", "_warm_start", None),
                ("dynamics/simulate.py", "_mass_solve", "_step")]),
     ("skin", [("dynamics/skin.py", "step", None)]),
@@ -463,9 +463,9 @@ def render(shots: list[Shot], meta: dict) -> str:
               table(header, rows), ""]
     lines.append(
         "Free motion: each strand's dynamics without contacts (the `run_chunks` of the free velocity, the gravity "
-        "and contact Hessians); detect: `Simulation._detect` (contact detection on the posed strands and the body "
+        "and contact Hessians); detect: `ContactTracker.detect` (contact detection on the posed strands and the body "
         "where it is at the step's start, or the last detection reused); contacts kept: the remembered contacts "
-        "measured again and matched (`_persist`, `_remember`); rows: the contact rows, their factored blocks and "
+        "measured again and matched (`ContactTracker.persist`, `remember`); rows: the contact rows, their factored blocks and "
         "the drift of the frames and the skin against each other; solve: the Coulomb solve (`solve_coulomb`, "
         "or the warm start accepted) and its correction; skin: `SkinnedBody.step` (the body's vertices at the "
         "step's times, the strands' frames, and the body prepared for the contacts' closest-point queries: "

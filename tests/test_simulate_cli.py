@@ -138,7 +138,7 @@ def test_the_first_step_takes_the_stored_contacts_when_their_elements_are_stored
     first step without detecting again (a whole detection, the dearest part of a step on a dense groom);
     a file without it, whose contact at an element's end is ambiguous, is detected afresh and still holds."""
     from hairinv import config
-    from hairinv.dynamics import simulate as simulate_module
+    from hairinv.dynamics import tracking as simulate_module
     from hairinv.dynamics.run import run_scene
     from hairinv.dynamics.scene import Scene
     from hairinv.groom import load_body

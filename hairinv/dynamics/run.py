@@ -25,7 +25,8 @@ from ..model import (Contacts, Helices, Material, material_from_group, rest_from
                      stiffness)
 from ..solver.status import Status
 from .scene import Scene, check_run_length, trim_helices
-from .simulate import Motion, Simulation, StepReport, points_on
+from .simulate import Motion, Simulation, StepReport
+from .tracking import points_on
 
 __all__ = ["INITS", "Frames", "FrameLog", "initial_rest", "run_scene"]
 
