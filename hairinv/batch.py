@@ -16,6 +16,7 @@ of the same manifest redoes only what changed.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shlex
 import subprocess
@@ -383,8 +384,11 @@ def run_batch(grooms: list[BatchItem], outdir, scheduler: str | None = None, wor
     else:
         n_workers = max(1, min(workers or cores, len(grooms) + len(shots or []), cores))
         threads = max(1, cores // n_workers)
+        # distributed's own logs off, errors too: a task that fails or a worker that dies is reported in its row
+        # (from its future), and as the cluster closes a worker whose heartbeat finds the scheduler gone logs a
+        # harmless traceback (seen under load)
         cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                               dashboard_address=None, silence_logs=40)
+                               dashboard_address=None, silence_logs=logging.CRITICAL)
         client = Client(cluster)
     try:
         futures = {client.submit(run_groom, groom, str(outdir.resolve()), threads, key=f"groom-{groom.name}",
