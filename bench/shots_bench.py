@@ -376,7 +376,10 @@ def render(shots: list[Shot], meta: dict) -> str:
         "the rigged mannequin of `samples/make_rigs.py` in its development motions and in held-out variants "
         "(another head and another motion of the same kind, judged with the same settings), each with its own "
         f"groom (the sample straight groom on that head, 300 strands; {MANNEQUIN_GUIDES} guides of them, to keep "
-        "the benchmark under 20 minutes on a machine that others load), each over its whole animation; and `hold`, the bind pose keyed for 1 s "
+        "the benchmark under 20 minutes on a machine that others load), each over its whole animation; held-out grooms "
+        "on held-out motions (the samples' curly, wavy and settled curly grooms and 96 straight guides, each on that "
+        "motion's head; the settled curly groom's 40 strands rest on the body, the others' layers lie 1.5 to 10 mm "
+        "above it); and `hold`, the bind pose keyed for 1 s "
         f"and simulated for {HOLD_SECONDS:g} s on "
         + (f"{HOLD_GUIDES} guides" if HOLD_GUIDES else "every strand") + ", the still promise.")
     lines.append("")
