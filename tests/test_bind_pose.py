@@ -151,3 +151,28 @@ def test_a_pose_on_a_still_body_is_refused(lifted):
     done = hairinv(lifted, "invert", "eight.h5", str(SAMPLES / "body.obj"), "--bind-time", "0", "-o", "refused.h5")
     assert done.returncode == 2 and "is a still mesh" in done.stderr, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and not (lifted / "refused.h5").exists()
+
+
+def test_export_draws_the_body_in_the_groom_s_pose(lifted, bound):
+    """The USD export of a model bound on a pose of the animation carries the body in that pose; once the rest mesh
+    a model was inverted on is gone, the export still writes, without the body, and says why."""
+    import shutil
+
+    from pxr import Usd, UsdGeom
+
+    model, _ = bound
+    done = hairinv(lifted, "export", model, "-o", "bound.usda")
+    assert done.returncode == 0, done.stderr
+    stage = Usd.Stage.Open(str(lifted / "bound.usda"))
+    points = np.array(UsdGeom.Mesh(stage.GetPrimAtPath("/Root/Body")).GetPointsAttr().Get())
+    animated = formats.read_animated_body(lifted / "lifted.glb")
+    assert np.abs(points - animated.vertices_at(animated.start)).max() < 1e-6
+    folder = lifted / "moved_rest"
+    folder.mkdir()
+    shutil.copyfile(lifted / "lifted.obj", folder / "pose.obj")
+    made = hairinv(lifted, "invert", "eight.h5", "lifted.glb", "--body-rest", "moved_rest/pose.obj", "-o", "r.h5")
+    assert made.returncode == 0, made.stderr
+    (folder / "pose.obj").unlink()
+    done = hairinv(lifted, "export", "r.h5", "-o", "r.usda")
+    assert done.returncode == 0, done.stderr
+    assert "rest mesh" in done.stdout + done.stderr and "no body mesh" in done.stdout + done.stderr, done.stderr

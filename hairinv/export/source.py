@@ -473,5 +473,8 @@ class ExportSource:
         path, record, why = find_recorded_body(self.stage, self.path)
         if path is None:
             return None, why or "the file records no body mesh"
-        mesh = posed_mesh(path, recorded_pose(record, self.path))  # in the groom's pose
+        try:
+            mesh = posed_mesh(path, recorded_pose(record, self.path))  # in the groom's pose
+        except InputError as exc:  # its rest mesh gone, say: drawn without the body, as when the body is gone
+            return None, str(exc)
         return load_body(path, recorded_body_transform(record, self.scale_to_m, self.flip, path), mesh), f"body: {path}"
