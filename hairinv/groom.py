@@ -452,7 +452,23 @@ def find_recorded(record: dict, stage_path, what: str = "the hairstyle") -> tupl
     return None, f"{what} at {str(found[0])!r} has changed since (its SHA-256 differs from the recorded one)"
 
 
-def simulation_body(settings: BodySettings, given, stage, stage_path, curves) -> tuple:
+def run_body_record(given, stage, stage_path) -> tuple:
+    """The body a run of a stage file's model uses and the provenance record of that very file: ``given`` (a body
+    file named on the command line; its record only where its SHA-256 is the recorded one, else None), or the
+    recorded body (:func:`find_recorded_body`), which must then be found. ``(None, None)`` without a body."""
+    path, record, why = find_recorded_body(stage, stage_path, (stages.CONTACTS, stages.MODEL))
+    if given is None:
+        if why:
+            raise InputError(f"was inverted against a body that cannot be found ({why}); give the body file as "
+                             "the second argument", stage_path)
+        return path, record
+    given = Path(given)
+    if record is None or stages.sha256_file(given) != record.get("sha256"):
+        record = None
+    return given, record
+
+
+def simulation_body(settings: BodySettings, given, stage, stage_path, curves, found: tuple | None = None) -> tuple:
     """The body a run of a stage file's model uses, and the transform that brings it into the groom's frame.
 
     ``given``: a body file named on the command line, or None for the recorded one (:func:`find_recorded_body`,
@@ -463,23 +479,15 @@ def simulation_body(settings: BodySettings, given, stage, stage_path, curves) ->
     -------
     (path or None, (4, 4) transform or None, list of str, mesh or None): the notes say what was done; the
     mesh is the body file as read (:func:`formats.read_mesh`) where its size was needed, for
-    :func:`load_body` to take instead of reading it again.
+    :func:`load_body` to take instead of reading it again. ``found``: :func:`run_body_record`'s answer, when
+    the caller has it.
     """
     scale = float(curves.attrs.get("scale_to_m", 1.0))
     flip = str(curves.config.get("import", {}).get("flip", ""))
     up = np.asarray(curves.attrs.get("up", (0.0, 1.0, 0.0)), dtype=np.float64)
-    path, record, why = find_recorded_body(stage, stage_path, (stages.CONTACTS, stages.MODEL))
-    if given is None:
-        if why:
-            raise InputError(f"was inverted against a body that cannot be found ({why}); give the body file as "
-                             "the second argument", stage_path)
-        if path is None:
-            return None, None, [], None
-    else:
-        given = Path(given)
-        if record is None or stages.sha256_file(given) != record.get("sha256"):
-            record = None
-        path = given
+    path, record = run_body_record(given, stage, stage_path) if found is None else found
+    if path is None:
+        return None, None, [], None
     if frame_settings(settings) != BodySettings():
         mesh = formats.read_mesh(path)
         size = float(np.linalg.norm(np.ptp(np.asarray(mesh.vertices), axis=0)))
@@ -488,16 +496,13 @@ def simulation_body(settings: BodySettings, given, stage, stage_path, curves) ->
     return path, recorded_body_transform(record, scale, flip, path), [], None
 
 
-def simulation_pose(settings: BodySettings, body_path, stage, stage_path) -> dict:
+def simulation_pose(settings: BodySettings, body_path, record: dict | None, stage_path) -> dict:
     """The pose the groom was made on, for a run of a stage file's model on ``body_path``: the one ``settings``
-    give (``--bind-time``, ``--body-rest``), else the one recorded with that very body file (same SHA-256), else
-    its rest pose (``{}``)."""
+    give (``--bind-time``, ``--body-rest``), else the one ``record`` (that very body file's provenance, from
+    :func:`run_body_record`) holds, else its rest pose (``{}``)."""
     given = pose_setting(settings, body_path)
     if given or body_path is None:
         return given
-    _, record, _ = find_recorded_body(stage, stage_path, (stages.CONTACTS, stages.MODEL))
-    if record is None or stages.sha256_file(body_path) != record.get("sha256"):
-        return {}
     return recorded_pose(record, stage_path)
 
 

@@ -207,7 +207,8 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
 
     from .dynamics.scene import Scene, check_run_length
     from .dynamics.simulate import validate_settings
-    from .groom import load_body, pose_words, posed_animation, posed_mesh, simulation_body, simulation_pose
+    from .groom import (load_body, pose_words, posed_animation, posed_mesh, run_body_record, simulation_body,
+                        simulation_pose)
 
     loaded = Scene.load(scene)
     animated = None
@@ -239,10 +240,11 @@ def load(model, body=None, sources: Sources | None = None, scene: str = "still",
     contacts = Contacts.from_group(stage[stages.CONTACTS]) if stages.CONTACTS in stage else None
     if init == "inverted":
         check_equilibrium(model, helices, contacts, stage[stages.MODEL])
-    body, to_groom, notes, read = simulation_body(settings.body, body, stage, model, curves)
+    found = run_body_record(body, stage, model)  # the file's SHA-256 taken once
+    body, to_groom, notes, read = simulation_body(settings.body, body, stage, model, curves, found)
     mesh = None
     shot = None
-    pose = simulation_pose(settings.body, body, stage, model)
+    pose = simulation_pose(settings.body, body, found[1], model)
     if body is not None:
         for line in notes:
             say(line)
