@@ -307,6 +307,12 @@ class DynamicsSettings:
     is linearised at its start, and a strand springing towards a distant rest shape is far from linear."""
     max_substeps: int = 6
     """Largest number of halvings of one step (down to 1/64 of it)."""
+    sleep_speed: float = 1e-6
+    """m/s. Strands at rest are put to sleep, island by island (strands joined by hair-hair contact), and
+    cost nothing until the body's motion changes, the body moves near them or a strand hits them: at rest
+    means that no point of any strand of the island has moved faster than this for three steps in a row
+    under an unchanged body motion (docs/dynamics.md, "Sleeping"). 0: nothing sleeps. ``verify`` never
+    lets strands sleep: it checks that they stay still."""
 
 
 @dataclass(frozen=True)
@@ -421,6 +427,7 @@ SETTING_RANGE = {
     "dynamics.inertia_radius": (0.0, 1.0, "m"),
     "dynamics.max_turn": (0.0, 3.2, "rad"),
     "dynamics.max_substeps": (0, 12, "halvings"),
+    "dynamics.sleep_speed": (0.0, 1.0, "m/s"),
 }
 
 #: Settings whose 0 means something of its own, outside their range.

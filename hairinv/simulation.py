@@ -132,9 +132,13 @@ class Run:
 
     def check_still(self, tolerance: float = STILL_TOLERANCE, full: bool = False, on_step=None) -> Verdict:
         """Simulate and judge whether no strand point moves more than ``tolerance`` (m): the run stops at
-        the first frame past it, unless ``full``."""
+        the first frame past it, unless ``full``. No strand sleeps (``dynamics.sleep_speed`` 0): a strand
+        at rest for a few steps could still be drifting away from round-off, which is what is checked."""
         from .dynamics.verify import judge
 
+        if self.settings.dynamics.sleep_speed:
+            self.settings = dataclasses.replace(
+                self.settings, dynamics=dataclasses.replace(self.settings.dynamics, sleep_speed=0.0))
         stop = None if full else (lambda log: log.displacement > tolerance)
         return judge(self.simulate(on_frame=stop, on_step=on_step), tolerance, self.seconds)
 

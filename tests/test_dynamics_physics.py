@@ -470,7 +470,8 @@ def _floor(depth, x=0.3):
 def _inverted_on_a_floor(**dynamics):
     """A horizontal strand lying on a floor 1 mm below it, inverted with its contacts, and the
     simulation started from that model (``dynamics``: settings changed from the defaults):
-    (helices, body, material, simulation)."""
+    (helices, body, material, simulation). Nothing sleeps unless ``dynamics`` says so: the steps
+    themselves are what is tested (sleeping: tests/test_sleep.py)."""
     from hairinv.contacts import detect_contacts
     from hairinv.invert import invert
 
@@ -482,7 +483,8 @@ def _inverted_on_a_floor(**dynamics):
     mat = material()
     model, _ = invert(helices, contacts, mat, settings.solver)
     sim = Simulation(helices, model.omega_rest, mat, body, settings.contacts,
-                     dataclasses.replace(settings.dynamics, **dynamics), initial=contacts, initial_force=model.force)
+                     dataclasses.replace(settings.dynamics, **{"sleep_speed": 0.0, **dynamics}), initial=contacts,
+                     initial_force=model.force)
     return helices, body, mat, sim
 
 

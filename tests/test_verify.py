@@ -17,6 +17,7 @@ import pytest
 
 from conftest import ROUNDOFF, SAMPLES, assert_refused, hairinv
 from hairinv import simulation
+from hairinv.config import Sources
 from hairinv.dynamics.verify import StrandMotion, Verdict, parse_length
 from hairinv.errors import InputError
 from hairinv.rod.helix import points_at
@@ -101,10 +102,12 @@ def test_inverted_model_passes(model):
 
 
 def test_verify_runs_the_still_scene_of_simulate(model):
-    """The same frames as ``simulate --scene still``, a JSON summary that says so, and nothing past it."""
+    """The same frames as ``simulate --scene still`` where nothing sleeps (verify lets no strand sleep), a JSON
+    summary that says so, and nothing past it."""
     verified = hairinv(model, "verify", "model.h5", "--seconds", "0.3", "--json", "-o", "verified.h5")
     assert verified.returncode == 0, verified.stderr
-    simulated = hairinv(model, "simulate", "model.h5", "--scene", "still", "--seconds", "0.3", "-o", "simulated.h5")
+    simulated = hairinv(model, "simulate", "model.h5", "--scene", "still", "--seconds", "0.3", "-o", "simulated.h5",
+                        "--set", "dynamics.sleep_speed=0")
     assert simulated.returncode == 0, simulated.stderr
     summary = json.loads(verified.stdout)  # stdout holds the JSON and nothing else
     assert_the_still_scene(summary, model / "verified.h5", model / "simulated.h5")
@@ -113,7 +116,8 @@ def test_verify_runs_the_still_scene_of_simulate(model):
 def test_verify_in_process_runs_the_still_scene_of_simulate(model):
     """The same as library calls: :func:`simulation.verify` and :func:`simulation.simulate`."""
     verdict, run = simulation.verify(model / "model.h5", seconds=0.3, output=model / "verified_call.h5")
-    simulation.simulate(model / "model.h5", scene="still", seconds=0.3, output=model / "simulated_call.h5")
+    simulation.simulate(model / "model.h5", scene="still", seconds=0.3, output=model / "simulated_call.h5",
+                        sources=Sources(sets=("dynamics.sleep_speed=0",)))
     assert verdict.passed and run.scene.name == "still"
     assert_the_still_scene(verdict.as_dict(), model / "verified_call.h5", model / "simulated_call.h5")
 

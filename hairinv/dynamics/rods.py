@@ -171,11 +171,13 @@ class StepMatrices:
         self.hess_q = None
         self.hess_gravity = None
 
-    def stale_strands(self, model: RodModel, q: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+    def stale_strands(self, model: RodModel, q: np.ndarray, gravity: np.ndarray,
+                      awake: np.ndarray | None = None) -> np.ndarray:
         """Strands whose gravity Hessian and mass matrix must be taken again, (S,) bool: they only shape
         the implicit matrix, so they (and its factor) are kept while no element has turned by more than
         0.01 rad since, and gravity (in the strand's frame, ``gravity`` (S, 3)) has not turned by more than
-        0.01 rad. A still groom then costs a gravity evaluation and two triangular solves per strand and step."""
+        0.01 rad. A still groom then costs a gravity evaluation and two triangular solves per strand and step.
+        Only ``awake`` strands (S,) bool are stepped, and so taken afresh (None: all)."""
         helices = model.helices
         n = helices.n_strands
         if self.hess_q is None:
@@ -188,6 +190,9 @@ class StepMatrices:
             fresh = turned.copy()
             if len(turn):
                 fresh |= np.maximum.reduceat(turn, helices.offsets[:-1]) > 1e-2
+            if awake is not None:
+                turned &= awake
+                fresh &= awake
         if fresh.any():
             if self.hess_q is None or fresh.all():
                 self.hess_q = q.copy()

@@ -43,10 +43,11 @@ from ..solver.status import Status
 from .contact import CoulombSettings, coulomb_problem, factored_blocks, factored_rows, reachable, solve_coulomb
 from .inertia import strand_mass, strand_velocity_forces
 from .rods import RodModel, RodState, StepMatrices
+from .sleep import Sleepers, islands
 # points_on and _strand_moves are named here too, where callers found them before the tracker had its module
 from .tracking import ContactTracker, _strand_moves, points_on  # noqa: F401
 
-__all__ = ["Motion", "Simulation", "StepReport", "points_on", "strand_dynamics", "validate_settings"]
+__all__ = ["Motion", "PhaseClock", "Simulation", "StepReport", "points_on", "strand_dynamics", "validate_settings"]
 
 
 def validate_settings(settings: DynamicsSettings) -> None:
@@ -55,7 +56,7 @@ def validate_settings(settings: DynamicsSettings) -> None:
         if not getattr(settings, name) > 0:
             raise InputError(f"dynamics.{name} must be > 0, got {getattr(settings, name)}")
     for name in ("damping", "air_damping", "body_thickness", "hair_thickness", "push_speed", "tolerance",
-                 "inertia_radius"):
+                 "inertia_radius", "sleep_speed"):
         value = getattr(settings, name)
         if not (value >= 0 and np.isfinite(value)):
             raise InputError(f"dynamics.{name} must be >= 0 and finite, got {value}")
@@ -110,6 +111,8 @@ class StepReport:
     """the strand whose element turned furthest in the last attempt thrown away for turning too far
     (-1: none was); a step that starts halved (``Simulation.start_depth``) without throwing an attempt
     away names the strand that last did. Halvings for a failed contact solve name no strand."""
+    asleep: int = 0
+    """strands asleep after the step (:mod:`hairinv.dynamics.sleep`)"""
 
 
 def _joined(first: StepReport, second: StepReport) -> StepReport:
@@ -160,6 +163,39 @@ class Motion:
         """(n, 5, 3): :meth:`packed` for each of ``n`` strands, as the kernels take it (a deforming body gives
         each strand its own, :class:`hairinv.dynamics.skin.SkinStep`)."""
         return np.ascontiguousarray(np.broadcast_to(self.packed(), (n, 5, 3)))
+
+
+class PhaseClock:
+    """Seconds spent in each phase of a simulation's steps, summed over every attempt, kept or thrown away.
+
+    Attributes
+    ----------
+    seconds : dict, phase name -> s (in the order the phases first ran)
+    thrown_away : float, s, in attempts thrown away for a halved step (also counted in their phases)
+    attempts, kept : int, attempts made and kept
+    """
+
+    def __init__(self):
+        self.seconds: dict[str, float] = {}
+        self.thrown_away = 0.0
+        self.attempts = 0
+        self.kept = 0
+        self._mark = time.perf_counter()
+
+    def start(self) -> float:
+        """Start an attempt; returns when."""
+        self.attempts += 1
+        self._mark = time.perf_counter()
+        return self._mark
+
+    def lap(self, phase: str) -> None:
+        """The time since the last lap (or start) was spent in ``phase``."""
+        now = time.perf_counter()
+        self.seconds[phase] = self.seconds.get(phase, 0.0) + now - self._mark
+        self._mark = now
+
+    def total(self) -> float:
+        return float(sum(self.seconds.values()))
 
 
 # A halved attempt is kept, although an element turns further than max_turn, when it turns more than
@@ -327,7 +363,17 @@ _CONTACT_CHUNK = 256
 @jit
 def _free_chunk(root, frame0, offsets, length, q, v, q0, stiff, lam, rot, damping, air, h, motion, gx, gw,
                 chol, chol_ptr, v_free, kinetic, hess, mass, fresh, factored_h, held, lo, hi):
-    for k in range(lo, hi):
+    """:func:`strand_dynamics` of the strands ``lo:hi``."""
+    _free_listed(np.arange(lo, hi), root, frame0, offsets, length, q, v, q0, stiff, lam, rot, damping, air, h, motion,
+                 gx, gw, chol, chol_ptr, v_free, kinetic, hess, mass, fresh, factored_h, held, 0, hi - lo)
+
+
+@jit
+def _free_listed(strands, root, frame0, offsets, length, q, v, q0, stiff, lam, rot, damping, air, h, motion, gx, gw,
+                 chol, chol_ptr, v_free, kinetic, hess, mass, fresh, factored_h, held, lo, hi):
+    """:func:`strand_dynamics` of the strands ``strands[lo:hi]``."""
+    for w in range(lo, hi):
+        k = strands[w]
         a = offsets[k]
         z = offsets[k + 1]
         kinetic[k] = strand_dynamics(root[k], frame0[k], q[a:z], v[a:z], q0[a:z], stiff[3 * a:3 * z], length[a:z],
@@ -368,6 +414,8 @@ class Simulation:
     matrices : StepMatrices, each strand's step matrix and its factor, kept while the strand hardly turns
     last : StepReport or None, the last step's
     start_depth : int, the halvings the next step starts with (see :meth:`step`)
+    clock : PhaseClock, the seconds the steps so far spent in each of their phases
+    sleepers : Sleepers, the strands at rest that are not stepped (:mod:`hairinv.dynamics.sleep`)
     """
 
     def __init__(self, helices: Helices, rest: np.ndarray, material: Material, body: BodyMesh | None,
@@ -382,6 +430,9 @@ class Simulation:
         # halvings a step starts with (see step), and the strand that last made a step halve
         self.start_depth = 0
         self._halved_by = -1
+        self.clock = PhaseClock()
+        self.sleepers = Sleepers(self.model.n_strands, settings.sleep_speed)
+        self._packed, self._carried = None, None  # the last attempt's motion per strand, and the frames it carried
 
     # ------------------------------------------------------------------ the parts, by their former names
     helices = property(lambda self: self.model.helices)
@@ -401,7 +452,7 @@ class Simulation:
     mass = property(lambda self: self.matrices.mass)
     factored_h = property(lambda self: self.matrices.factored_h)
     kinetic = property(lambda self: self.state.kinetic)
-    contacts = property(lambda self: self.tracker.contacts)
+    contacts = property(lambda self: self.tracker.shown())
     _last_found = property(lambda self: self.tracker.last_found)
     _redetected = property(lambda self: self.tracker.redetected)
     _own = property(lambda self: self.tracker.own)
@@ -547,6 +598,11 @@ class Simulation:
         elif start > 0:
             self.start_depth = start - 1
         self.start_depth = min(self.start_depth, settings.max_substeps)
+        self._settle()
+        report.asleep = int(np.count_nonzero(self.sleepers.asleep))
+        if self.tracker.parked is not None:  # the sleeping strands' contacts hold as they were
+            shown = self.tracker.shown()
+            report.contacts, report.n_body = shown.n_contacts, shown.n_body
         report.seconds = time.perf_counter() - started
         self.last = report
         return report
@@ -554,6 +610,8 @@ class Simulation:
 
     def _step(self, motion, h: float, depth: int, parent_turn: float = np.inf) -> StepReport:
         model, state, tracker, matrices = self.model, self.state, self.tracker, self.matrices
+        clock = self.clock
+        started = clock.start()
         settings = model.settings
         helices = model.helices
         offsets = helices.offsets
@@ -568,23 +626,41 @@ class Simulation:
             if skin.body is not None:
                 body = skin.body
         tracker.begin(skin, body)
-        fresh = matrices.stale_strands(model, state.q, packed[:, 0])
+        sleepers = self.sleepers
+        self._packed, self._carried = packed, self._carried_by(skin)
+        if sleepers.any():
+            self._wake(sleepers.stirred(packed, skin))
+        clock.lap("body")
+        fresh = matrices.stale_strands(model, state.q, packed[:, 0], ~sleepers.asleep if sleepers.any() else None)
 
-        def free(lo: int, hi: int) -> None:
-            _free_chunk(helices.root, helices.frame0, offsets, helices.length, state.q, state.v, model.rest,
-                        model.stiff, model.lam, model.rot, settings.damping, settings.air_damping, h,
-                        packed, model.gx, model.gw, matrices.chol, model.chol_ptr, v_free, state.kinetic,
-                        matrices.hess, matrices.mass, fresh, matrices.factored_h, held, lo, hi)
+        def free(strands: np.ndarray) -> None:
+            run_chunks(lambda lo, hi: _free_listed(
+                strands, helices.root, helices.frame0, offsets, helices.length, state.q, state.v, model.rest,
+                model.stiff, model.lam, model.rot, settings.damping, settings.air_damping, h, packed, model.gx,
+                model.gw, matrices.chol, model.chol_ptr, v_free, state.kinetic, matrices.hess, matrices.mass, fresh,
+                matrices.factored_h, held, lo, hi), len(strands), 64)
+            if not np.all(np.isfinite(v_free)):
+                raise FloatingPointError("the free velocity is not finite")
 
         held = self._contact_hessians(fresh)
-        run_chunks(free, helices.n_strands, 64)
-        if not np.all(np.isfinite(v_free)):
-            raise FloatingPointError("the free velocity is not finite")
+        clock.lap("matrices")
+        free(np.flatnonzero(~sleepers.asleep))
+        clock.lap("free motion")
         tracker.own = tracker.own_sweep(state, h) if body is not None and model.contact_settings.body else \
             np.zeros(helices.n_strands)
         found = tracker.detect(state)
+        if sleepers.any():
+            # a strand awake that touches a sleeping one wakes its island, for this very step
+            while True:
+                hit = self._hit(found)
+                if not hit.any():
+                    break
+                free(np.flatnonzero(self._wake(hit)))
+            found = tracker.awake_only(found, sleepers.asleep)
+        clock.lap("detection")
         found, anchors = tracker.persist(state, found, h)
         keys, thickness, impulse = tracker.remember(found, h)
+        clock.lap("persistence")
         report = StepReport(found.n_contacts, found.n_body, 0, 0.0, Status.CONVERGED, 0, 0.0, depth=depth, last_depth=depth)
         v_new = v_free
         reached = ""  # what the contact solve reached, for the message of a step that fails at every length
@@ -607,18 +683,23 @@ class Simulation:
             b = rows.matvec(v_free.ravel()) + reachable(Wd, push)
             gamma = compliance(Wd)
             Wd[:, [0, 1, 2], [0, 1, 2]] += gamma[:, None]
+            clock.lap("contact rows")
             # the last step's impulses may already meet the tolerance (a groom still at its equilibrium):
             # then the factored rows, the step's largest arrays, are never built
             result, correction = self._warm_start(rows, gamma, b, found.mu, Wd, impulse, h)
+            clock.lap("warm start")
             if result is None:
                 z_rows = factored_rows(rows, found.strand, offsets, matrices.chol, model.chol_ptr, run=contact_run)
                 problem = coulomb_problem(z_rows, gamma, b, found.mu, found.strand, helices.n_strands,
                                           model.velocity_scale * h, s=found.s,
                                           part_of=split_strands(helices.root, found.strand))
+                clock.lap("contact rows")
                 coulomb = CoulombSettings(settings.tolerance, settings.max_sweeps, stall_rounds=settings.stall_rounds)
                 result = solve_coulomb(problem, coulomb, impulse, Wd=Wd)
+                clock.lap("contact solve")
                 correction = self._mass_solve(z_rows.rmatvec(result.r), factored=True)
                 del z_rows
+                clock.lap("contact rows")
             failed = result.status == Status.NUMERICAL_ERROR
             reached = (f": {result.status} after {result.sweeps} sweeps, relative residual "
                        f"{result.relative_residual:.3g}, {found.n_contacts} contacts")
@@ -641,6 +722,8 @@ class Simulation:
         futile = not failed and turn <= _FUTILE_CAP * settings.max_turn and turn > _HALVING_GAIN * parent_turn
         if (failed or turn > settings.max_turn) and not futile and depth < settings.max_substeps:
             # nothing is kept of this attempt: two half steps instead
+            clock.lap("update")
+            clock.thrown_away += time.perf_counter() - started
             replaced = np.inf if failed else turn
             tracker.skin = None
             first = self._step(motion, 0.5 * h, depth + 1, replaced)
@@ -661,7 +744,58 @@ class Simulation:
             state.R, state.c = skin.R, skin.c
             state.placed = True
         tracker.skin = None
+        clock.lap("update")
+        clock.kept += 1
         return report
+
+    # ------------------------------------------------------------------ sleeping
+    @staticmethod
+    def _carried_by(skin) -> np.ndarray | None:
+        """(S,) bool, the strands whose frame a deforming body's step moves (None for a rigid motion)."""
+        if skin is None:
+            return None
+        n = len(skin.c)
+        return (np.abs(skin.R - skin.R_start).reshape(n, -1).max(axis=1, initial=0.0) > 0.0) | \
+            (np.abs(skin.c - skin.c_start).max(axis=1, initial=0.0) > 0.0)
+
+    def _hit(self, found: Contacts) -> np.ndarray:
+        """(S,) bool: the sleeping strands a contact of ``found`` joins to an awake strand."""
+        asleep = self.sleepers.asleep
+        pair = found.strand
+        first = asleep[pair[:, 0]]
+        second = np.where(pair[:, 1] >= 0, asleep[np.maximum(pair[:, 1], 0)], first)
+        cross = first != second
+        hit = np.zeros_like(asleep)
+        hit[pair[cross & first, 0]] = True
+        hit[pair[cross & second, 1]] = True
+        return hit
+
+    def _wake(self, which: np.ndarray) -> np.ndarray:
+        """Wake the islands of the sleeping strands ``which`` (S,) bool; returns (S,) bool, the strands woken."""
+        woken = self.sleepers.wake(which)
+        if woken.any():
+            self.tracker.unpark(woken)
+        return woken
+
+    def _settle(self) -> None:
+        """After a kept step: count the strands at rest, and put to sleep the islands at rest long enough."""
+        sleepers, model, state = self.sleepers, self.model, self.state
+        if sleepers.speed <= 0 or not model.helices.n_elements:
+            return
+        hel = model.helices
+        speeds = np.add.reduceat(np.linalg.norm(state.v, axis=1) * hel.length, hel.offsets[:-1]) * \
+            model.strand_length
+        carried = self._carried if self._carried is not None else np.zeros(hel.n_strands, dtype=np.bool_)
+        sleepers.settle(speeds, self._packed, carried)
+        ready = sleepers.ready(islands(hel.n_strands, self.tracker.pair))
+        if not ready.any():
+            return
+        mask = np.repeat(ready, np.diff(hel.offsets))
+        state.v[mask] = 0.0
+        state.kinetic[ready] = 0.0
+        reach = model.contact_settings.body_distance if model.contact_settings.body else 0.0
+        sleepers.sleep(ready, islands(hel.n_strands, self.tracker.pair), state.current(model), reach)
+        self.tracker.park(sleepers.asleep)
 
     def _mass_solve(self, y: np.ndarray, factored: bool = False) -> np.ndarray:
         """``M^-1 y`` strand by strand through the strands' Cholesky factors ``M = L L^T`` (``L^-T y``

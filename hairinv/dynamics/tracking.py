@@ -35,6 +35,18 @@ _PERSIST_SLACK = 1e-5
 _MOVING_REFINE = 12
 
 
+def joined(first: Contacts, second: Contacts) -> Contacts:
+    """The contacts of ``first`` and then those of ``second`` (their gaps and elements where both have them)."""
+    return Contacts(*(None if a is None or b is None else np.concatenate([a, b]) for a, b in zip(
+        (first.strand, first.s, first.point, first.frame, first.mu, first.gap, first.element),
+        (second.strand, second.s, second.point, second.frame, second.mu, second.gap, second.element))))
+
+
+def _on(asleep: np.ndarray, pair: np.ndarray) -> np.ndarray:
+    """(C,) bool: the contacts ``pair`` (C, 2) whose every strand is in ``asleep`` (S,) bool."""
+    return asleep[pair[:, 0]] & ((pair[:, 1] < 0) | asleep[np.maximum(pair[:, 1], 0)])
+
+
 def points_on(helices: Helices, omega: np.ndarray, strand: np.ndarray, s: np.ndarray) -> np.ndarray:
     """:func:`hairinv.rod.helix.strand_points` of ``helices`` with the curvatures ``omega``, (n, 3)."""
     return strand_points(helices.root, helices.frame0, helices.offsets, omega, helices.length, strand, s)
@@ -164,6 +176,7 @@ class ContactTracker:
         self.body = model.body
         self.margin = (0.0, 0.0)
         self.own = np.zeros(helices.n_strands)
+        self.parked = None  # the sleeping strands' remembered contacts (see park)
 
     # ------------------------------------------------------------------ the step being taken
     def begin(self, skin, body: BodyMesh | None) -> None:
@@ -259,9 +272,7 @@ class ContactTracker:
             fresh = self._within_sweep(fresh)
         last = self.last_found
         kept = last.subset(~np.isin(last.strand[:, 0], which))
-        merged = Contacts(*(np.concatenate([a, b]) for a, b in zip(
-            (kept.strand, kept.s, kept.point, kept.frame, kept.mu, kept.gap, kept.element),
-            (fresh.strand, fresh.s, fresh.point, fresh.frame, fresh.mu, fresh.gap, fresh.element))))
+        merged = joined(kept, fresh)
         order = np.lexsort((merged.s[:, 0], merged.strand[:, 0]))  # as detect_contacts orders body contacts
         found = merged.subset(order)
         self.stale = (order < kept.n_contacts)
@@ -506,6 +517,68 @@ class ContactTracker:
             anchors = (np.full_like(anchors[0], np.nan),) + tuple(anchors[1:])
         self.anchor = tuple(a[order] for a in anchors)
         self.contacts = found
+
+    # ------------------------------------------------------------------ sleeping strands
+    _REMEMBERED = ("keys", "thickness", "impulse", "arc", "pair", "mu", "elements")
+
+    def park(self, asleep: np.ndarray) -> None:
+        """Set aside the remembered contacts of the sleeping strands ``asleep`` (S,) bool (their islands
+        whole: none of them touches an awake strand), as they are: steps neither measure nor solve
+        them, and :meth:`unpark` gives them back."""
+        mask = _on(asleep, self.pair)
+        shown = _on(asleep, self.contacts.strand)
+        if not mask.any() and not shown.any():
+            return
+        parked = self.parked
+        out = {name: getattr(self, name)[mask] for name in self._REMEMBERED}
+        out["anchor"] = tuple(a[mask] for a in self.anchor)
+        for name in self._REMEMBERED:
+            setattr(self, name, getattr(self, name)[~mask])
+        self.anchor = tuple(a[~mask] for a in self.anchor)
+        contacts = self.contacts.subset(shown)
+        self.contacts = self.contacts.subset(~shown)
+        if parked is not None:
+            out = {name: np.concatenate([parked[name], out[name]]) for name in self._REMEMBERED} | {
+                "anchor": tuple(np.concatenate([a, b]) for a, b in zip(parked["anchor"], out["anchor"]))}
+            contacts = joined(parked["contacts"], contacts)
+        out["contacts"] = contacts
+        self.parked = out
+
+    def unpark(self, woken: np.ndarray) -> None:
+        """Give back the parked contacts of the strands ``woken`` (S,) bool, their islands whole."""
+        parked = self.parked
+        if parked is None:
+            return
+        mask = woken[parked["pair"][:, 0]]
+        shown = woken[parked["contacts"].strand[:, 0]]
+        if not mask.any() and not shown.any():
+            return
+        merged = {name: np.concatenate([getattr(self, name), parked[name][mask]]) for name in self._REMEMBERED}
+        order = np.argsort(merged["keys"], kind="stable")
+        for name in self._REMEMBERED:
+            setattr(self, name, merged[name][order])
+        self.anchor = tuple(np.concatenate([a, b[mask]])[order] for a, b in zip(self.anchor, parked["anchor"]))
+        self.contacts = joined(self.contacts, parked["contacts"].subset(shown))
+        rest = {name: parked[name][~mask] for name in self._REMEMBERED}
+        rest["anchor"] = tuple(a[~mask] for a in parked["anchor"])
+        rest["contacts"] = parked["contacts"].subset(~shown)
+        self.parked = rest
+
+    def awake_only(self, found: Contacts, asleep: np.ndarray) -> Contacts:
+        """``found`` without the contacts between sleeping strands (their remembered ones are parked); the
+        detection's flags follow."""
+        keep = ~_on(asleep, found.strand)
+        if keep.all():
+            return found
+        self.stale = self.stale[keep]
+        return found.subset(keep)
+
+    def shown(self) -> Contacts:
+        """Every contact of the last step, the sleeping strands' included."""
+        parked = self.parked
+        if parked is None or not parked["contacts"].n_contacts:
+            return self.contacts
+        return joined(self.contacts, parked["contacts"])
 
     # ------------------------------------------------------------------ the contacts' motion
     def rooted(self, found: Contacts) -> np.ndarray:
