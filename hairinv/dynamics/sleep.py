@@ -91,7 +91,7 @@ class Sleepers:
 
     def _near_moving_skin(self, sleeping: np.ndarray, skin) -> np.ndarray:
         """(n,) bool: which of the ``sleeping`` strands' boxes a triangle that moves over the step meets."""
-        moved = np.any(skin.vertices != skin.vertices_start, axis=1)
+        moved = np.abs(skin.vertices - skin.vertices_start).max(axis=1) > _SAME
         near = np.zeros(len(sleeping), dtype=np.bool_)
         if not moved.any():
             return near
