@@ -41,6 +41,7 @@ else:
 sys.path.insert(0, str(ROOT))
 
 from hairinv import config, stages  # noqa: E402
+from hairinv.config import DynamicsSettings  # noqa: E402
 from hairinv.contacts import detect_contacts  # noqa: E402
 from hairinv.contacts.body import BodyMesh  # noqa: E402
 from hairinv.dynamics.run import _samples  # noqa: E402
@@ -65,6 +66,8 @@ TRIM_SECONDS = smoke(1.0, 0.02)
 SPEED_GUIDES = smoke(300, 4)
 SPEED_MOTION_SECONDS = smoke(1.0, 0.02)
 RUBY_SECONDS = smoke(0.04, 0.01)  # one frame: the drawn groom has strands that no rest shape holds (see speed())
+RUBY_STILL_SECONDS = smoke(1.0, 0.05)  # sleeping: the strands at rest sleep after three steps
+SLEEP_SPEED = DynamicsSettings().sleep_speed  # the default, for the speed rows
 RUBY_MOTION_START = 0.5  # s into the motion scene: the head turns fastest (about 95 degrees/s)
 RUBY_MOTION_SECONDS = smoke(0.08, 0.01)  # two frames
 RUBY_COARSE_TURN = 0.1  # rad: steps halved only past twice the default turn
@@ -74,6 +77,9 @@ PLOT_SHAPES = IMG / "bench_dynamics_shapes.png"
 
 
 def _settings(**sections):
+    """The defaults with ``sections`` changed; nothing sleeps unless ``dynamics.sleep_speed`` is given: the
+    physics is measured step by step (the speed rows say where strands sleep, as they do by default)."""
+    sections = {**sections, "dynamics": {"sleep_speed": 0.0, **sections.get("dynamics", {})}}
     return config.apply(config.resolve(), sections)
 
 
@@ -288,7 +294,8 @@ def speed() -> list[dict]:
     straight sample) the simulation spends its time on strands falling away, in halved steps.
     """
     points = []
-    settings = _settings(**{"import": {"guides": SPEED_GUIDES}, "contacts": {"hair_hair": False}})
+    settings = _settings(**{"import": {"guides": SPEED_GUIDES}, "contacts": {"hair_hair": False},
+                            "dynamics": {"sleep_speed": SLEEP_SPEED}})
     scene = prepare(SAMPLES / "straight.h5", SAMPLES / "body.obj", settings, contacts=False)
     mat = Material.from_settings(settings.material, scene.up)
     body = BodyMesh.from_mesh(scene.body)
@@ -303,10 +310,13 @@ def speed() -> list[dict]:
     for label, rest, force, motion_at, seconds in (
             ("settled straight, its own rest shape, still", np.zeros_like(settled.omega), None, still, 1.0),
             ("settled straight, inverted, still", model.omega_rest, model.force, still, 1.0),
+            ("same, nothing sleeps (dynamics.sleep_speed 0)", model.omega_rest, model.force, still, 1.0),
             ("settled straight, inverted, motion scene", model.omega_rest, model.force,
              _moving(mat, settled.root), SPEED_MOTION_SECONDS)):
         log(f"speed: {label}")
-        sim = Simulation(settled, rest, mat, body, settings.contacts, settings.dynamics,
+        dynamics = dataclasses.replace(settings.dynamics, sleep_speed=0.0) if "nothing sleeps" in label else \
+            settings.dynamics
+        sim = Simulation(settled, rest, mat, body, settings.contacts, dynamics,
                          initial=contacts if force is not None else None, initial_force=force)
         points.append(_speed_row(label, sim, seconds, motion_at, False, mat))
     points[0]["settle_seconds"] = settle_seconds
@@ -314,7 +324,7 @@ def speed() -> list[dict]:
     if ruby.exists():
         log("speed: ruby short, 1,867 strands, hair-hair on")
         extra = {"import": {"scale": 0.002, "guides": smoke(0, 10)}, "contacts": {"hair_hair": True},
-                 "solver": {"max_sweeps": smoke(300, 20)}}
+                 "solver": {"max_sweeps": smoke(300, 20)}, "dynamics": {"sleep_speed": SLEEP_SPEED}}
         rs = _settings(**extra)
         rscene = prepare(ruby, DATA / "ruby" / "ruby_head.obj", rs)
         rmat = Material.from_settings(rs.material, rscene.up)
@@ -322,7 +332,12 @@ def speed() -> list[dict]:
         rbody = BodyMesh.from_mesh(rscene.body)
         sim = Simulation(rscene.helices, rmodel.omega_rest, rmat, rbody, rs.contacts, rs.dynamics,
                          initial=rscene.contacts, initial_force=rmodel.force)
-        points.append(_speed_row("ruby short (as drawn), inverted, still, one frame", sim, RUBY_SECONDS,
+        points.append(_speed_row(f"ruby short (as drawn), inverted, still, {RUBY_STILL_SECONDS:g} s", sim,
+                                 RUBY_STILL_SECONDS, lambda t: Motion.still(rmat.gravity), True, rmat))
+        sim = Simulation(rscene.helices, rmodel.omega_rest, rmat, rbody, rs.contacts,
+                         dataclasses.replace(rs.dynamics, sleep_speed=0.0), initial=rscene.contacts,
+                         initial_force=rmodel.force)
+        points.append(_speed_row("same, one frame, nothing sleeps (dynamics.sleep_speed 0)", sim, RUBY_SECONDS,
                                  lambda t: Motion.still(rmat.gravity), True, rmat))
         turning = _moving(rmat, rscene.helices.root)
         # the default; the same with steps halved only past twice the default turn: the speed a coarser
@@ -492,15 +507,17 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               f"({SETTLE_SECONDS:g} s, straight rest shape, no hair-hair contact; the settling itself took "
               f"{points[0].get('settle_seconds', float('nan')):.0f} s), then simulated from their own rest shape "
               "and from the model inverted with target zero, with the body still and in the `motion` scene "
-              "(head turn and lean); and ruby short as drawn, inverted, still, over one frame (a drawn groom "
+              "(head turn and lean); and ruby short as drawn, inverted, still, over one frame with nothing asleep (a drawn groom "
               "has strands that no rest shape holds, see below; over longer runs ruby's set off and slow "
-              f"the steps down), and in the `motion` scene over {RUBY_MOTION_SECONDS / 0.04:.0f} frames from "
+              f"the steps down) and over {RUBY_STILL_SECONDS:g} s at the defaults, where the strands at rest sleep, and in the `motion` scene over {RUBY_MOTION_SECONDS / 0.04:.0f} frames from "
               f"{RUBY_MOTION_START:g} s, where the head turns fastest (the simulation starts there from the "
               "inverted model at rest on the body, so the hair is jerked into the turn; run on past 0.25 s, it goes into a cascade of halved steps at 1-3 minutes each, docs/dynamics.md). Each run starts after one "
               "warm-up step; `moved` is the largest displacement of any strand point at the end. A drawn "
               "groom is not used for the small case: many of its strands rest in an unstable equilibrium "
               "whatever their rest shape (docs/dynamics.md), and once round-off has grown, after about "
-              "0.2 s, the steps are spent on strands falling away. Targets: 300 strands without hair-hair "
+              "0.2 s, the steps are spent on strands falling away. The speed rows run at the defaults, where strands at rest "
+              "sleep (`dynamics.sleep_speed`, docs/dynamics.md) unless the row says otherwise; the other sections of this "
+              "benchmark measure the physics with nothing asleep. Targets: 300 strands without hair-hair "
               "contact faster than real time (1 s per simulated second), 2,000 strands with hair-hair "
               "contact under 5 s per 1/25 s frame.", ""]
     rows = [(p["label"], str(p["strands"]), str(p["elements"]), "on" if p["hair_hair"] else "off", str(p["contacts"]),
