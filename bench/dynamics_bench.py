@@ -286,14 +286,27 @@ def _strand_deviation(helices: Helices, q: np.ndarray, q_ref: np.ndarray) -> np.
                      for a, b in zip(_samples(helices, q), _samples(helices, q_ref))])
 
 
-def speed() -> list[dict]:
-    """Seconds per simulated second on grooms at rest (settled by simulation), still and moving.
+@dataclasses.dataclass
+class SpeedGroom:
+    """A groom of the speed rows, inverted and ready to simulate at the defaults (strands at rest sleep)."""
 
-    A drawn groom is not a fair case: many of its strands rest in an unstable equilibrium whatever
-    their rest shape (docs/dynamics.md), so once round-off has grown (about 0.2 s for the drawn
-    straight sample) the simulation spends its time on strands falling away, in halved steps.
-    """
-    points = []
+    settings: object
+    mat: Material
+    body: BodyMesh
+    helices: Helices
+    contacts: object
+    model: object
+
+    def simulation(self, **dynamics) -> Simulation:
+        """From the inverted model at rest (``dynamics``: settings changed from the groom's)."""
+        return Simulation(self.helices, self.model.omega_rest, self.mat, self.body, self.settings.contacts,
+                          dataclasses.replace(self.settings.dynamics, **dynamics), initial=self.contacts,
+                          initial_force=self.model.force)
+
+
+def settled_straight() -> tuple[SpeedGroom, float]:
+    """``SPEED_GUIDES`` strands of the straight sample settled on the bust without hair-hair contact and
+    inverted with target zero, and the seconds the settling took."""
     settings = _settings(**{"import": {"guides": SPEED_GUIDES}, "contacts": {"hair_hair": False},
                             "dynamics": {"sleep_speed": SLEEP_SPEED}})
     scene = prepare(SAMPLES / "straight.h5", SAMPLES / "body.obj", settings, contacts=False)
@@ -306,6 +319,36 @@ def speed() -> list[dict]:
     contacts, _ = detect_contacts(settled, body, settings.contacts)
     model, _ = invert(settled, contacts, mat, dataclasses.replace(settings.solver, target="zero"),
                       check_stability=False)
+    return SpeedGroom(settings, mat, body, settled, contacts, model), settle_seconds
+
+
+def ruby_short() -> SpeedGroom | None:
+    """Ruby short as drawn (1,867 strands, hair-hair contact), inverted with ``solver.max_sweeps`` 300; None
+    without the real data."""
+    ruby = DATA / "ruby" / "ruby_short_hair_16_guide.tfx"
+    if not ruby.exists():
+        return None
+    log("speed: ruby short, 1,867 strands, hair-hair on")
+    extra = {"import": {"scale": 0.002, "guides": smoke(0, 10)}, "contacts": {"hair_hair": True},
+             "solver": {"max_sweeps": smoke(300, 20)}, "dynamics": {"sleep_speed": SLEEP_SPEED}}
+    settings = _settings(**extra)
+    scene = prepare(ruby, DATA / "ruby" / "ruby_head.obj", settings)
+    mat = Material.from_settings(settings.material, scene.up)
+    model, _ = invert(scene.helices, scene.contacts, mat, settings.solver, check_stability=False)
+    return SpeedGroom(settings, mat, BodyMesh.from_mesh(scene.body), scene.helices, scene.contacts, model)
+
+
+def speed() -> list[dict]:
+    """Seconds per simulated second on grooms at rest (settled by simulation), still and moving.
+
+    A drawn groom is not a fair case: many of its strands rest in an unstable equilibrium whatever
+    their rest shape (docs/dynamics.md), so once round-off has grown (about 0.2 s for the drawn
+    straight sample) the simulation spends its time on strands falling away, in halved steps.
+    """
+    points = []
+    straight, settle_seconds = settled_straight()
+    settings, mat, body, settled, contacts, model = (straight.settings, straight.mat, straight.body,
+                                                     straight.helices, straight.contacts, straight.model)
     still = lambda t: Motion.still(mat.gravity)  # noqa: E731
     for label, rest, force, motion_at, seconds in (
             ("settled straight, its own rest shape, still", np.zeros_like(settled.omega), None, still, 1.0),
@@ -320,23 +363,13 @@ def speed() -> list[dict]:
                          initial=contacts if force is not None else None, initial_force=force)
         points.append(_speed_row(label, sim, seconds, motion_at, False, mat))
     points[0]["settle_seconds"] = settle_seconds
-    ruby = DATA / "ruby" / "ruby_short_hair_16_guide.tfx"
-    if ruby.exists():
-        log("speed: ruby short, 1,867 strands, hair-hair on")
-        extra = {"import": {"scale": 0.002, "guides": smoke(0, 10)}, "contacts": {"hair_hair": True},
-                 "solver": {"max_sweeps": smoke(300, 20)}, "dynamics": {"sleep_speed": SLEEP_SPEED}}
-        rs = _settings(**extra)
-        rscene = prepare(ruby, DATA / "ruby" / "ruby_head.obj", rs)
-        rmat = Material.from_settings(rs.material, rscene.up)
-        rmodel, _ = invert(rscene.helices, rscene.contacts, rmat, rs.solver, check_stability=False)
-        rbody = BodyMesh.from_mesh(rscene.body)
-        sim = Simulation(rscene.helices, rmodel.omega_rest, rmat, rbody, rs.contacts, rs.dynamics,
-                         initial=rscene.contacts, initial_force=rmodel.force)
-        points.append(_speed_row(f"ruby short (as drawn), inverted, still, {RUBY_STILL_SECONDS:g} s", sim,
-                                 RUBY_STILL_SECONDS, lambda t: Motion.still(rmat.gravity), True, rmat))
-        sim = Simulation(rscene.helices, rmodel.omega_rest, rmat, rbody, rs.contacts,
-                         dataclasses.replace(rs.dynamics, sleep_speed=0.0), initial=rscene.contacts,
-                         initial_force=rmodel.force)
+    ruby = ruby_short()
+    if ruby is not None:
+        rs, rmat, rscene = ruby.settings, ruby.mat, ruby
+        points.append(_speed_row(f"ruby short (as drawn), inverted, still, {RUBY_STILL_SECONDS:g} s",
+                                 ruby.simulation(), RUBY_STILL_SECONDS, lambda t: Motion.still(rmat.gravity), True,
+                                 rmat))
+        sim = ruby.simulation(sleep_speed=0.0)
         points.append(_speed_row("same, one frame, nothing sleeps (dynamics.sleep_speed 0)", sim, RUBY_SECONDS,
                                  lambda t: Motion.still(rmat.gravity), True, rmat))
         turning = _moving(rmat, rscene.helices.root)
@@ -354,10 +387,7 @@ def speed() -> list[dict]:
                 (f"reference: max_turn {RUBY_COARSE_TURN:g}, every sweep, {RUBY_REFERENCE_SWEEPS} per step",
                  dict(max_turn=RUBY_COARSE_TURN, stall_rounds=0, max_sweeps=RUBY_REFERENCE_SWEEPS))):
             log(f"speed: ruby short, motion scene, {label}")
-            sim = Simulation(rscene.helices, rmodel.omega_rest, rmat, rbody, rs.contacts,
-                             dataclasses.replace(rs.dynamics, **changes), initial=rscene.contacts,
-                             initial_force=rmodel.force)
-            points.append(_speed_row(label, sim, RUBY_MOTION_SECONDS, lambda t: turning(RUBY_MOTION_START + t),
+            points.append(_speed_row(label, ruby.simulation(**changes), RUBY_MOTION_SECONDS, lambda t: turning(RUBY_MOTION_START + t),
                                      True, rmat))
             moving.append(points[-1])
         for p in moving[:-1]:

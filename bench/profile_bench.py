@@ -26,13 +26,12 @@ step by phase, kept or thrown away for a halved step:
 The scenes are those of the dynamics benchmark ("Simulating an inverted
 groom", "Speed"): 300 guides of the straight sample settled on the sample
 bust without hair-hair contact and inverted, in the ``motion`` scene; ruby
-short (1,867 strands, hair-hair contact) inverted, still for one frame and
-in the ``motion`` scene from 0.5 s for two frames.
+short (1,867 strands, hair-hair contact) inverted, still for one frame with
+nothing asleep, and in the ``motion`` scene from 0.5 s for two frames.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -41,21 +40,16 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import DATA, ROOT, log, machine, machine_markdown, smoke, table  # type: ignore
+    from common import ROOT, log, machine, machine_markdown, smoke, table  # type: ignore
 else:
-    from .common import DATA, ROOT, log, machine, machine_markdown, smoke, table
+    from .common import ROOT, log, machine, machine_markdown, smoke, table
 
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from dynamics_bench import (SAMPLES, SPEED_GUIDES, _moving, _settings, settle)  # type: ignore  # noqa: E402
+from dynamics_bench import _moving, ruby_short, settled_straight  # type: ignore  # noqa: E402
 
-from hairinv.contacts import detect_contacts  # noqa: E402
-from hairinv.contacts.body import BodyMesh  # noqa: E402
 from hairinv.dynamics.simulate import Motion, Simulation  # noqa: E402
-from hairinv.invert import invert  # noqa: E402
-from hairinv.model import Material  # noqa: E402
-from hairinv.pipeline import prepare  # noqa: E402
 
 TITLE = "Where a step's time goes"
 MOTION_SECONDS = smoke(0.5, 0.02)
@@ -88,38 +82,17 @@ def profile(label: str, sim: Simulation, seconds: float, motion_at) -> dict:
 
 def scenes() -> list[dict]:
     rows = []
-    settings = _settings(**{"import": {"guides": SPEED_GUIDES}, "contacts": {"hair_hair": False}})
-    scene = prepare(SAMPLES / "straight.h5", SAMPLES / "body.obj", settings, contacts=False)
-    mat = Material.from_settings(settings.material, scene.up)
-    body = BodyMesh.from_mesh(scene.body)
-    log(f"profile: settling {SPEED_GUIDES} straight strands")
-    settled, _ = settle(scene.helices, mat, body, settings)
-    contacts, _ = detect_contacts(settled, body, settings.contacts)
-    model, _ = invert(settled, contacts, mat, dataclasses.replace(settings.solver, target="zero"),
-                      check_stability=False)
-    sim = Simulation(settled, model.omega_rest, mat, body, settings.contacts, settings.dynamics,
-                     initial=contacts, initial_force=model.force)
-    rows.append(profile(f"{settled.n_strands} settled straight, motion scene", sim, MOTION_SECONDS,
-                        _moving(mat, settled.root)))
-    ruby = DATA / "ruby" / "ruby_short_hair_16_guide.tfx"
-    if not ruby.exists():
+    straight, _ = settled_straight()
+    rows.append(profile(f"{straight.helices.n_strands} settled straight, motion scene", straight.simulation(),
+                        MOTION_SECONDS, _moving(straight.mat, straight.helices.root)))
+    ruby = ruby_short()
+    if ruby is None:
         return rows
-    extra = {"import": {"scale": 0.002, "guides": smoke(0, 10)}, "contacts": {"hair_hair": True},
-             "solver": {"max_sweeps": smoke(300, 20)}}
-    rs = _settings(**extra)
-    rscene = prepare(ruby, DATA / "ruby" / "ruby_head.obj", rs)
-    rmat = Material.from_settings(rs.material, rscene.up)
-    rmodel, _ = invert(rscene.helices, rscene.contacts, rmat, rs.solver, check_stability=False)
-    rbody = BodyMesh.from_mesh(rscene.body)
-
-    def ruby_sim():
-        return Simulation(rscene.helices, rmodel.omega_rest, rmat, rbody, rs.contacts, rs.dynamics,
-                          initial=rscene.contacts, initial_force=rmodel.force)
-    rows.append(profile(f"ruby short ({rscene.helices.n_strands} strands), still", ruby_sim(), RUBY_STILL_SECONDS,
-                        lambda t: Motion.still(rmat.gravity)))
-    turning = _moving(rmat, rscene.helices.root)
-    rows.append(profile(f"ruby short, motion scene from {RUBY_MOTION_START:g} s", ruby_sim(), RUBY_MOTION_SECONDS,
-                        lambda t: turning(RUBY_MOTION_START + t)))
+    rows.append(profile(f"ruby short ({ruby.helices.n_strands} strands), still, nothing asleep",
+                        ruby.simulation(sleep_speed=0.0), RUBY_STILL_SECONDS, lambda t: Motion.still(ruby.mat.gravity)))
+    turning = _moving(ruby.mat, ruby.helices.root)
+    rows.append(profile(f"ruby short, motion scene from {RUBY_MOTION_START:g} s", ruby.simulation(),
+                        RUBY_MOTION_SECONDS, lambda t: turning(RUBY_MOTION_START + t)))
     return rows
 
 
@@ -148,7 +121,8 @@ def render(rows: list[dict]) -> str:
     return "\n".join([
         f"## {TITLE}", "",
         "`bench/profile_bench.py`: the wall time of `Simulation.step` by phase (`Simulation.clock`), per kept "
-        "10 ms step at the defaults, each scene stepped in one process after a warm-up step. A halved step's "
+        "10 ms step at the defaults (the still row with nothing asleep: what a step of a still groom costs before "
+        "it sleeps, and what `verify` pays), each scene stepped in one process after a warm-up step. A halved step's "
         "attempts all count, and the row below the total says how much of it went to attempts thrown away. "
         "The phases are listed in the module's docstring.", "",
         table(head, body), "",

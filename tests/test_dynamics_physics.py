@@ -924,3 +924,19 @@ def test_a_contact_problem_with_non_finite_data_is_a_numerical_error_at_once():
     # the same problem without the NaN is solved: the first contact sticks with r_N = 1 / w
     fine, _ = _solve([1.0, 2.0], [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]], [0.5, 0.5])
     assert fine.status == "CONVERGED" and fine.r[0, 0] == pytest.approx(1.0) and np.all(fine.r[1] == 0.0)
+
+
+def test_a_shorter_step_starts_from_the_same_forces():
+    """A still groom at its equilibrium holds the same contact forces whatever the step: after steps of
+    10 ms, a step of 5 ms (as a halved step is) and one of 2.5 ms start from the forces times their own
+    length, which already meet the tolerance: no sweep runs, and the strand stays put. (The impulses of
+    the longer step, twice the forces' over a half step, would push the strand up and need the sweeps.)"""
+    helices, _, mat, sim = _inverted_on_a_floor()
+    still = Motion.still(mat.gravity)
+    start = _tip(helices, helices.omega)
+    for _ in range(3):
+        sim.step(still)
+    for h in (0.005, 0.0025, 0.01):
+        report = sim.step(still, h)
+        assert report.status == "CONVERGED" and report.sweeps == 0, (h, report)
+    assert np.linalg.norm(_tip(helices, sim.q) - start) < 1e-9

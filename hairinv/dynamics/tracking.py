@@ -498,7 +498,8 @@ class ContactTracker:
         impulse = np.zeros((found.n_contacts, 3))
         if len(self.keys):
             thickness[known] = self.thickness[where[known]]
-            world = self.impulse[where[known]] * (h if self.first else 1.0)
+            # the same forces over this step's length (a halved step starts from half the impulses)
+            world = self.impulse[where[known]] * (h / self.impulse_step)
             impulse[known] = np.einsum("cij,cj->ci", found.frame[known], world)
         return keys, thickness, impulse
 
