@@ -941,30 +941,3 @@ def test_a_shorter_step_starts_from_the_same_forces():
         assert report.status == "CONVERGED" and report.sweeps == 0, (h, report)
     assert np.linalg.norm(_tip(helices, sim.q) - start) < 1e-9
 
-
-def test_a_still_groom_builds_its_contact_rows_once(monkeypatch):
-    """At rest, the rows of ``H`` of the first step serve the next ones (the strands have moved by
-    round-off only); the motion is the one of a run that builds them at every step, to round-off. Under
-    twice the gravity the strand moves, and the steps after the first build their rows again."""
-    import hairinv.dynamics.simulate as simulate
-
-    real = simulate.contact_rows
-    built = []
-    monkeypatch.setattr(simulate, "contact_rows", lambda *a, **k: built.append(1) or real(*a, **k))
-    helices, _, mat, kept = _inverted_on_a_floor()
-    still = Motion.still(mat.gravity)
-    for _ in range(10):
-        kept.step(still)
-    assert len(built) == 1
-    monkeypatch.setattr(simulate, "_ROWS_SLACK", 0.0)  # every step builds its rows
-    fresh = _inverted_on_a_floor()[3]
-    for _ in range(10):
-        fresh.step(still)
-    assert len(built) == 11
-    np.testing.assert_allclose(kept.q, fresh.q, rtol=0, atol=1e-12)
-    assert np.linalg.norm(_tip(helices, kept.q) - _tip(helices, fresh.q)) < 1e-13
-    monkeypatch.setattr(simulate, "_ROWS_SLACK", 1e-3)
-    built.clear()
-    for _ in range(3):
-        kept.step(Motion.still(2.0 * mat.gravity))
-    assert len(built) == 2  # the first of these steps starts where the strand rested: its rows serve

@@ -206,9 +206,6 @@ class PhaseClock:
 _WEIGHTLESS_GRAVITY = MaterialSettings().gravity
 _HALVING_GAIN = 0.75
 _FUTILE_CAP = 4.0
-#: the rows of H are kept while no point of the strands they touch moves by more than this fraction of the
-#: anchor's slack (Simulation._rows): 2.5e-13 m at the defaults, far above a still groom's round-off
-_ROWS_SLACK = 1e-3
 #: a contact close to the root may be unable to move along one direction (W_ii of rank 2): a compliance
 #: of this fraction of its own W_ii (its trace over 3) picks the smallest force along it
 COMPLIANCE = 1e-9
@@ -436,7 +433,6 @@ class Simulation:
         self.clock = PhaseClock()
         self.sleepers = Sleepers(self.model.n_strands, settings.sleep_speed)
         self._packed, self._carried = None, None  # the last attempt's motion per strand, and the frames it carried
-        self._kept_rows = None  # the rows of H a still groom's next step may use again (see _rows)
 
     # ------------------------------------------------------------------ the parts, by their former names
     helices = property(lambda self: self.model.helices)
@@ -648,8 +644,6 @@ class Simulation:
 
         held = self._contact_hessians(fresh)
         clock.lap("matrices")
-        if ((fresh | (matrices.factored_h != h)) & ~sleepers.asleep).any():
-            self._kept_rows = None  # a factor the kept rows' blocks were made with is made again
         free(np.flatnonzero(~sleepers.asleep))
         clock.lap("free motion")
         tracker.own = tracker.own_sweep(state, h) if body is not None and model.contact_settings.body else \
@@ -672,7 +666,8 @@ class Simulation:
         reached = ""  # what the contact solve reached, for the message of a step that fails at every length
         if found.n_contacts:
             contact_run = lambda work, n: run_chunks(work, n, _CONTACT_CHUNK)  # noqa: E731
-            rows, Wd = self._rows(found, keys, h, skin, contact_run)
+            rows = contact_rows(state.current(model), found, run=contact_run)
+            Wd = factored_blocks(rows, found.strand, offsets, matrices.chol, model.chol_ptr, run=contact_run)
             gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
             push = np.zeros((found.n_contacts, 3))
             if skin is not None:
@@ -752,32 +747,6 @@ class Simulation:
         clock.lap("update")
         clock.kept += 1
         return report
-
-    def _rows(self, found: Contacts, keys: np.ndarray, h: float, skin, run) -> tuple:
-        """The rows of ``H`` of this step's contacts and their blocks ``W_ii`` (a copy the step may change).
-
-        Those of the last step serve again while its contacts are the same ones (keys, strands and arc
-        lengths), the body has not moved, no strand's step matrix has been factored again since, and no
-        point of a strand they touch has moved by more than ``_ROWS_SLACK`` of what a body contact's anchor
-        allows (:meth:`ContactTracker.persist`): rows that close change the contact velocities by far less
-        than the solve's tolerance. A still groom then builds its rows once, as long as it is not put to sleep
-        (``hairinv verify`` lets nothing sleep)."""
-        model, state, matrices = self.model, self.state, self.matrices
-        kept = self._kept_rows
-        if kept is not None and skin is None and kept["h"] == h and np.array_equal(kept["keys"], keys) \
-                and np.array_equal(kept["strand"], found.strand) and np.array_equal(kept["s"], found.s):
-            hel = model.helices
-            moved = np.add.reduceat(np.linalg.norm(state.q - kept["q"], axis=1) * hel.length, hel.offsets[:-1]) \
-                * model.strand_length if hel.n_elements else np.zeros(hel.n_strands)
-            touched = np.unique(found.strand[found.strand >= 0])
-            slack = _ROWS_SLACK * 0.25 * model.settings.tolerance * model.velocity_scale * h * h
-            if moved[touched].max(initial=0.0) <= slack:
-                return kept["rows"], kept["Wd"].copy()
-        rows = contact_rows(state.current(model), found, run=run)
-        Wd = factored_blocks(rows, found.strand, model.helices.offsets, matrices.chol, model.chol_ptr, run=run)
-        self._kept_rows = {"h": h, "keys": keys.copy(), "strand": found.strand.copy(), "s": found.s.copy(),
-                           "q": state.q.copy(), "rows": rows, "Wd": Wd.copy()} if skin is None else None
-        return rows, Wd
 
     # ------------------------------------------------------------------ sleeping
     @staticmethod
