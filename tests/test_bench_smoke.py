@@ -26,7 +26,7 @@ MODULES = sorted(p.stem for p in BENCH.glob("*_bench.py"))
 # the benchmarks that read the real grooms (the others generate theirs or use samples/)
 NEEDS_REAL = {"fit_bench", "fit_any_bench", "invert_bench", "solver_study_bench", "ipm_linear_algebra_bench",
               "blender_bench", "dynamics_bench", "full_head_bench", "contact_budget_bench",
-              "interior_bench", "bounded_forces_bench", "schwarz_bench"}
+              "interior_bench", "bounded_forces_bench", "schwarz_bench", "scale_bench"}
 
 
 def _docs_state() -> dict:
