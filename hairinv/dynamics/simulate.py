@@ -43,7 +43,7 @@ from ..solver.status import Status
 from .contact import CoulombSettings, coulomb_problem, factored_blocks, factored_rows, reachable, solve_coulomb
 from .inertia import strand_mass, strand_velocity_forces
 from .rods import RodModel, RodState, StepMatrices
-from .sleep import Sleepers, islands
+from .sleep import Sleepers, carried, islands
 # points_on and _strand_moves are named here too, where callers found them before the tracker had its module
 from .tracking import ContactTracker, _strand_moves, points_on  # noqa: F401
 
@@ -627,7 +627,7 @@ class Simulation:
                 body = skin.body
         tracker.begin(skin, body)
         sleepers = self.sleepers
-        self._packed, self._carried = packed, self._carried_by(skin)
+        self._packed, self._carried = packed, (carried(skin) if skin is not None else None)
         if sleepers.any():
             self._wake(sleepers.stirred(packed, skin))
         clock.lap("body")
@@ -749,15 +749,6 @@ class Simulation:
         return report
 
     # ------------------------------------------------------------------ sleeping
-    @staticmethod
-    def _carried_by(skin) -> np.ndarray | None:
-        """(S,) bool, the strands whose frame a deforming body's step moves (None for a rigid motion)."""
-        if skin is None:
-            return None
-        n = len(skin.c)
-        return (np.abs(skin.R - skin.R_start).reshape(n, -1).max(axis=1, initial=0.0) > 0.0) | \
-            (np.abs(skin.c - skin.c_start).max(axis=1, initial=0.0) > 0.0)
-
     def _hit(self, found: Contacts) -> np.ndarray:
         """(S,) bool: the sleeping strands a contact of ``found`` joins to an awake strand."""
         asleep = self.sleepers.asleep
@@ -785,16 +776,17 @@ class Simulation:
         hel = model.helices
         speeds = np.add.reduceat(np.linalg.norm(state.v, axis=1) * hel.length, hel.offsets[:-1]) * \
             model.strand_length
-        carried = self._carried if self._carried is not None else np.zeros(hel.n_strands, dtype=np.bool_)
-        sleepers.settle(speeds, self._packed, carried)
-        ready = sleepers.ready(islands(hel.n_strands, self.tracker.pair))
+        moved = self._carried if self._carried is not None else np.zeros(hel.n_strands, dtype=np.bool_)
+        sleepers.settle(speeds, self._packed, moved)
+        island = islands(hel.n_strands, self.tracker.pair)
+        ready = sleepers.ready(island)
         if not ready.any():
             return
         mask = np.repeat(ready, np.diff(hel.offsets))
         state.v[mask] = 0.0
         state.kinetic[ready] = 0.0
         reach = model.contact_settings.body_distance if model.contact_settings.body else 0.0
-        sleepers.sleep(ready, islands(hel.n_strands, self.tracker.pair), state.current(model), reach)
+        sleepers.sleep(ready, island, state.current(model), reach)
         self.tracker.park(sleepers.asleep)
 
     def _mass_solve(self, y: np.ndarray, factored: bool = False) -> np.ndarray:

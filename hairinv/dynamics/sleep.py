@@ -12,8 +12,8 @@ when
 * a deforming body moves a triangle within the body's contact distance of it;
 * a strand that is awake comes into contact with it (a neighbour hits it).
 
-For a groom at rest this is exact up to ``dynamics.sleep_speed``: the still promise makes an inverted
-groom's velocity round-off, so a still run with sleeping is the run without it, stopped. At rest here
+For a groom at rest this is exact up to ``dynamics.sleep_speed``: the still promise leaves an inverted
+groom's velocity far below it, so a still run with sleeping is the run without it, stopped. At rest here
 means that no point of the strand moves faster than ``sleep_speed`` (bound: ``L sum |v_e| l_e``).
 """
 
@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..rod.helix import strand_points
 
-__all__ = ["SLEEP_STEPS", "Sleepers", "islands"]
+__all__ = ["SLEEP_STEPS", "Sleepers", "carried", "islands"]
 
 #: kept steps in a row a strand must be at rest, under an unchanged motion, before its island sleeps: a
 #: swinging strand is that slow for a small part of one step at the end of its swing
@@ -33,6 +33,14 @@ SLEEP_STEPS = 3
 # a motion (m/s^2, m/s, rad/s, rad/s^2) or a frame (m, or a rotation's entries) counts as changed by more
 # than this (relative to gravity for the motion, absolute for the frame): round-off of the same input
 _SAME = 1e-12
+
+
+def carried(skin) -> np.ndarray:
+    """(S,) bool: the strands whose frame a deforming body's step (:class:`~hairinv.dynamics.skin.SkinStep`)
+    moves by more than round-off."""
+    n = len(skin.c)
+    return (np.abs(skin.R - skin.R_start).reshape(n, -1).max(axis=1, initial=0.0) > _SAME) | \
+        (np.abs(skin.c - skin.c_start).max(axis=1, initial=0.0) > _SAME)
 
 
 def islands(n_strands: int, pair: np.ndarray) -> np.ndarray:
@@ -82,8 +90,7 @@ class Sleepers:
         scale = _SAME * max(float(np.linalg.norm(packed[0, 0])), 1.0)
         changed = np.abs(packed[sleeping] - self.motion[sleeping]).reshape(len(sleeping), -1).max(axis=1) > scale
         if skin is not None:
-            changed |= np.abs(skin.R[sleeping] - skin.R_start[sleeping]).reshape(len(sleeping), -1).max(axis=1) > _SAME
-            changed |= np.abs(skin.c[sleeping] - skin.c_start[sleeping]).max(axis=1) > _SAME
+            changed |= carried(skin)[sleeping]
             if skin.body is not None:
                 changed |= self._near_moving_skin(sleeping, skin)
         stirred[sleeping[changed]] = True
