@@ -103,6 +103,15 @@ class RodModel:
     def n_strands(self) -> int:
         return self.helices.n_strands
 
+    def swing(self, dq: np.ndarray, factor: float = 1.0) -> np.ndarray:
+        """(S,) a cheap bound on how far any point of each strand moves for a change ``factor * dq`` (E, 3)
+        of its curvatures (or how fast, for rates): every element's turn ``|d omega_e| l_e`` swings the whole
+        strand, ``L sum_e factor |dq_e| l_e``. Zeros for a groom without elements."""
+        h = self.helices
+        if not h.n_elements:
+            return np.zeros(h.n_strands)
+        return np.add.reduceat(factor * np.linalg.norm(dq, axis=1) * h.length, h.offsets[:-1]) * self.strand_length
+
 
 @dataclass
 class RodState:

@@ -629,7 +629,7 @@ class Simulation:
         sleepers = self.sleepers
         self._packed, self._carried = packed, (carried(skin) if skin is not None else None)
         if sleepers.any():
-            self._wake(sleepers.stirred(packed, skin))
+            self._wake(sleepers.stirred(packed, skin, self._carried))
         clock.lap("body")
         fresh = matrices.stale_strands(model, state.q, packed[:, 0], ~sleepers.asleep if sleepers.any() else None)
 
@@ -774,8 +774,7 @@ class Simulation:
         if sleepers.speed <= 0 or not model.helices.n_elements:
             return
         hel = model.helices
-        speeds = np.add.reduceat(np.linalg.norm(state.v, axis=1) * hel.length, hel.offsets[:-1]) * \
-            model.strand_length
+        speeds = model.swing(state.v)
         moved = self._carried if self._carried is not None else np.zeros(hel.n_strands, dtype=np.bool_)
         sleepers.settle(speeds, self._packed, moved)
         island = islands(hel.n_strands, self.tracker.pair)

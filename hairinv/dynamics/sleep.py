@@ -80,9 +80,10 @@ class Sleepers:
     def any(self) -> bool:
         return bool(self.asleep.any())
 
-    def stirred(self, packed: np.ndarray, skin) -> np.ndarray:
+    def stirred(self, packed: np.ndarray, skin, moved: np.ndarray | None = None) -> np.ndarray:
         """(S,) bool: sleeping strands a step's motion wakes (``packed`` (S, 5, 3), the step's motion per
-        strand; ``skin``: its :class:`~hairinv.dynamics.skin.SkinStep`, or None for a rigid motion)."""
+        strand; ``skin``: its :class:`~hairinv.dynamics.skin.SkinStep`, or None for a rigid motion; ``moved``
+        its :func:`carried`, if already known)."""
         stirred = np.zeros_like(self.asleep)
         sleeping = np.flatnonzero(self.asleep)
         if not len(sleeping):
@@ -90,7 +91,7 @@ class Sleepers:
         scale = _SAME * max(float(np.linalg.norm(packed[0, 0])), 1.0)
         changed = np.abs(packed[sleeping] - self.motion[sleeping]).reshape(len(sleeping), -1).max(axis=1) > scale
         if skin is not None:
-            changed |= carried(skin)[sleeping]
+            changed |= (carried(skin) if moved is None else moved)[sleeping]
             if skin.body is not None:
                 changed |= self._near_moving_skin(sleeping, skin)
         stirred[sleeping[changed]] = True

@@ -218,8 +218,7 @@ class ContactTracker:
         if self.last_found is not None and h.n_elements and not moving:
             reach = 0.25 * self.detect_distance
             # first the cheap bound: every element's turn |d omega_e| l_e swings the whole strand
-            turn = np.linalg.norm(q - self.q_detected, axis=1) * h.length
-            redo = np.add.reduceat(turn, h.offsets[:-1]) * model.strand_length >= reach
+            redo = model.swing(q - self.q_detected) >= reach
             if redo.any():
                 moves = np.zeros(S)
                 _strand_moves(h.root, h.frame0, h.offsets, self.q_detected, q, h.length, moves)
@@ -296,8 +295,7 @@ class ContactTracker:
         if not hel.n_elements or not np.isfinite(self.detect_distance):
             return own
         reach = 0.25 * self.detect_distance
-        cheap = np.add.reduceat(h * np.linalg.norm(state.v, axis=1) * hel.length, hel.offsets[:-1]) * \
-            self.model.strand_length
+        cheap = self.model.swing(state.v, h)
         if cheap.max() < reach:
             return own
         _strand_moves(hel.root, hel.frame0, hel.offsets, state.q, state.q + h * state.v, hel.length, own)
