@@ -563,7 +563,9 @@ class Simulation:
 
         The step is linearised at its start, so it is split in halves (up to
         ``dynamics.max_substeps`` times) while any element would turn by more
-        than ``dynamics.max_turn`` within it. An attempt that turns too far is
+        than ``dynamics.max_turn`` within it: an attempt that turns ``k`` times
+        too far is replaced by ``2^ceil(log2 k)`` substeps at once (a motion
+        turns about half as far in half the time). An attempt that turns too far is
         thrown away, and costs as much as a kept one, so a step that needed more
         halvings than it started with makes the next one start with as many
         as its own last substep needed (``start_depth``); a step that needed no
@@ -726,8 +728,14 @@ class Simulation:
             clock.thrown_away += time.perf_counter() - started
             replaced = np.inf if failed else turn
             tracker.skin = None
-            first = self._step(motion, 0.5 * h, depth + 1, replaced)
-            joined = _joined(first, self._step(motion, 0.5 * h, depth + 1, replaced))
+            # as many halvings at once as the turn asks for (each halving halves it, for a motion that
+            # turns less in less time): halving one level at a time throws an attempt away at each
+            levels = 1 if failed else max(1, int(np.ceil(np.log2(turn / settings.max_turn))))
+            levels = min(levels, settings.max_substeps - depth)
+            joined = None
+            for _ in range(2 ** levels):
+                part = self._step(motion, h / 2 ** levels, depth + levels, replaced)
+                joined = part if joined is None else _joined(joined, part)
             joined.rejected += 1
             if joined.turned < 0 and not failed:
                 joined.turned = int(np.searchsorted(offsets, int(np.argmax(turns)), side="right") - 1)
