@@ -892,6 +892,33 @@ def test_first_order_body_gaps_are_exact_on_a_flat_floor(monkeypatch):
     assert np.abs(c.gap[on_body] - exact).max() < 1e-3 * normal_motion
 
 
+def test_a_step_that_turns_k_times_too_far_takes_its_halvings_at_once(monkeypatch):
+    """An attempt that turns ``k`` times ``max_turn`` is replaced by ``2^ceil(log2 k)`` substeps straight
+    away, not by halves thrown away in turn: the substeps cover the step, and each turns within
+    ``max_turn`` where the motion turns about half as far, or less, in half the time (a horizontal strand
+    falling from rest under five times gravity, no contact)."""
+    import copy
+
+    helices = strands([horizontal_strand(n=4, total=0.08)])
+    fall = Motion.still(5.0 * material().gravity)
+    probe = _sim(helices, helices.omega.copy(), 0.01, max_turn=10.0)
+    whole = copy.deepcopy(probe).step(fall)  # the whole step's turn, nothing halved
+    assert whole.depth == 0 and whole.rejected == 0 and whole.turn > 0.0
+    for ratio, levels in ((1.5, 1), (3.0, 2), (6.5, 3)):
+        sim = _sim(helices, helices.omega.copy(), 0.01, max_turn=whole.turn / ratio)
+        lengths = []
+        real_step = sim._step
+        monkeypatch.setattr(sim, "_step", lambda motion, h, depth, *rest, real=real_step, out=lengths:
+                            out.append(h) or real(motion, h, depth, *rest))
+        report = sim.step(fall)
+        # straight to the depth the turn asks for: no attempt of a length in between
+        assert lengths[0] == 0.01 and lengths[1] == 0.01 / 2 ** levels and max(lengths[1:]) == lengths[1]
+        assert report.depth >= levels and report.turn <= whole.turn / ratio
+        if ratio < 4.0:  # and there, none of the substeps thrown away: they cover the step
+            assert lengths[1:] == [0.01 / 2 ** levels] * 2 ** levels
+            assert report.rejected == 1 and report.depth == levels
+
+
 def test_a_halved_step_names_the_strand_that_turned_too_far():
     """Two strands without contact, one at rest and one released far from its rest shape: the
     springing one turns an element past ``max_turn`` in a full step, so the step is halved and the

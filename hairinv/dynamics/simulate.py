@@ -610,7 +610,7 @@ class Simulation:
         return report
 
 
-    def _step(self, motion, h: float, depth: int, parent_turn: float = np.inf) -> StepReport:
+    def _step(self, motion, h: float, depth: int, parent_turn: float = np.inf, parent_depth: int = -1) -> StepReport:
         model, state, tracker, matrices = self.model, self.state, self.tracker, self.matrices
         clock = self.clock
         started = clock.start()
@@ -723,7 +723,7 @@ class Simulation:
         # not slow the motion down (a push asked within the step, whatever its length): it is kept
         futile = not failed and turn <= _FUTILE_CAP * settings.max_turn and turn > _HALVING_GAIN * parent_turn
         if (failed or turn > settings.max_turn) and not futile and depth < settings.max_substeps:
-            # nothing is kept of this attempt: two half steps instead
+            # nothing is kept of this attempt: shorter substeps instead
             clock.lap("update")
             clock.thrown_away += time.perf_counter() - started
             replaced = np.inf if failed else turn
@@ -734,7 +734,7 @@ class Simulation:
             levels = min(levels, settings.max_substeps - depth)
             joined = None
             for _ in range(2 ** levels):
-                part = self._step(motion, h / 2 ** levels, depth + levels, replaced)
+                part = self._step(motion, h / 2 ** levels, depth + levels, replaced, depth)
                 joined = part if joined is None else _joined(joined, part)
             joined.rejected += 1
             if joined.turned < 0 and not failed:
@@ -743,7 +743,7 @@ class Simulation:
         report.turn = turn
         if futile and turn > settings.max_turn:
             report.kept_turning = 1
-            report.last_depth = depth - 1  # the attempt it replaced would have done as well
+            report.last_depth = parent_depth  # the attempt it replaced would have done as well
         tracker.keep(found, keys, thickness, impulse, anchors, h)
         state.v = v_new
         state.q = state.q + h * v_new
