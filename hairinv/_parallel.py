@@ -95,6 +95,14 @@ def run_chunks(work: Callable[[int, int], None], count: int, chunk: int,
         _run(work, count, chunk, progress)
 
 
+def balanced(count: int, chunk: int, parts: int = 8) -> int:
+    """A chunk size for :func:`run_chunks` of ``count`` costly items: ``chunk`` (what a large count is cut into),
+    or smaller, so that a small count still makes at least ``parts`` chunks. With fewer chunks than a few per
+    worker, the last worker waits on its neighbour: 150 strands in chunks of 64 keep two threads 1.5 times
+    as long as an even split. (It depends on ``count`` only: the chunks are the same on any number of threads.)"""
+    return max(1, min(int(chunk), -(-int(count) // int(parts))))
+
+
 def run_ranges(work: Callable[[int, int], None], ranges: list[tuple[int, int]]) -> None:
     """Call ``work(lo, hi)`` for each range, on worker threads (inline on one, or from a worker); each call
     must write only its own outputs. BLAS is left as it is (callers pin it where they need to)."""

@@ -31,3 +31,25 @@ def test_blas_is_pinned_to_one_thread_including_the_lapack_numba_calls():
     env.pop("OMP_NUM_THREADS", None)
     out = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, env=env, check=True)
     assert out.stdout.split()[-1] == "1", out.stdout + out.stderr
+
+
+@pytest.mark.parametrize("count", [1, 5, 150, 300, 512, 10_000])
+def test_balanced_chunks_cover_every_item_once_in_at_least_eight_chunks_or_full_ones(count):
+    """``balanced`` cuts a small count of costly items into at least 8 chunks (so that two workers finish
+    together) and a large one into the chunks asked for; ``run_chunks`` then visits every item exactly once."""
+    from hairinv._parallel import balanced, run_chunks
+
+    chunk = balanced(count, 64)
+    visits = [0] * count
+    calls = []
+
+    def work(lo, hi):
+        calls.append((lo, hi))
+        for i in range(lo, hi):
+            visits[i] += 1
+
+    run_chunks(work, count, chunk)
+    assert visits == [1] * count
+    assert len(calls) >= min(8, count) and max(hi - lo for lo, hi in calls) <= 64
+    if count >= 8 * 64:
+        assert chunk == 64

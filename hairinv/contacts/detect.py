@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._jit import jit
-from .._parallel import run_chunks
+from .._parallel import balanced, run_chunks
 from .._sorting import float_order, stable_order
 from ..config import ContactSettings
 from .._text import counted
@@ -436,7 +436,7 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
                                   COINCIDENT * float(settings.body_distance), int(refine_iterations), inside, deepest,
                                   has, sigma, b_point, b_normal, b_sd)
 
-    run_chunks(strands_chunk, count, CHUNK, progress)
+    run_chunks(strands_chunk, count, balanced(count, CHUNK), progress)
 
     layer = np.zeros(elements, dtype=bool)
     layer_gaps = np.zeros(0)

@@ -30,7 +30,7 @@ import numpy as np
 
 from .._dense import cholesky
 from .._jit import jit
-from .._parallel import run_chunks
+from .._parallel import balanced, run_chunks
 from ..config import ContactSettings, DynamicsSettings, MaterialSettings
 from ..contacts.body import BodyMesh
 from ..contacts.rows import contact_rows
@@ -640,7 +640,7 @@ class Simulation:
                 strands, helices.root, helices.frame0, offsets, helices.length, state.q, state.v, model.rest,
                 model.stiff, model.lam, model.rot, settings.damping, settings.air_damping, h, packed, model.gx,
                 model.gw, matrices.chol, model.chol_ptr, v_free, state.kinetic, matrices.hess, matrices.mass, fresh,
-                matrices.factored_h, held, lo, hi), len(strands), 64)
+                matrices.factored_h, held, lo, hi), len(strands), balanced(len(strands), 64))
             if not np.all(np.isfinite(v_free)):
                 raise FloatingPointError("the free velocity is not finite")
 
