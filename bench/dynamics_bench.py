@@ -72,6 +72,8 @@ RUBY_MOTION_START = 0.5  # s into the motion scene: the head turns fastest (abou
 RUBY_MOTION_SECONDS = smoke(0.08, 0.01)  # two frames
 RUBY_COARSE_TURN = 0.1  # rad: steps halved only past twice the default turn
 RUBY_REFERENCE_SWEEPS = smoke(1000, 20)  # per step, every one of them: the reference the moving rows are measured against
+RUBY_NUDGE = 1e-9  # 1/m: the curvatures' perturbation (times a standard normal each) of the run that shows how far
+# apart two runs drift that differ only by round-off-sized changes
 PLOT_STILL = IMG / "bench_dynamics_still.png"
 PLOT_SHAPES = IMG / "bench_dynamics_shapes.png"
 
@@ -376,22 +378,38 @@ def speed() -> list[dict]:
         # the default; the same with steps halved only past twice the default turn: the speed a coarser
         # linearisation buys; then with every sweep (no early stop of a stalled contact solve), and the
         # reference: every sweep, RUBY_REFERENCE_SWEEPS of them. Each moving row is measured against the reference.
+        # Two more runs show how far apart runs drift that should agree: the default from a start perturbed by
+        # round-off-sized curvatures, and the reference at the default max_turn
         moving = []
-        for label, changes in (
+        for label, changes, nudge in (
                 (f"ruby short (as drawn), inverted, motion scene from {RUBY_MOTION_START:g} s, "
-                 f"{RUBY_MOTION_SECONDS / 0.04:.0f} frames", {}),
+                 f"{RUBY_MOTION_SECONDS / 0.04:.0f} frames", {}, False),
                 (f"same, dynamics.max_turn {RUBY_COARSE_TURN:g} (default {rs.dynamics.max_turn:g})",
-                 dict(max_turn=RUBY_COARSE_TURN)),
+                 dict(max_turn=RUBY_COARSE_TURN), False),
                 (f"same, max_turn {RUBY_COARSE_TURN:g}, every sweep (dynamics.stall_rounds 0)",
-                 dict(max_turn=RUBY_COARSE_TURN, stall_rounds=0)),
+                 dict(max_turn=RUBY_COARSE_TURN, stall_rounds=0), False),
+                (f"the defaults, the start's curvatures perturbed by {RUBY_NUDGE:g} 1/m", {}, True),
+                (f"reference at the default max_turn {rs.dynamics.max_turn:g}: every sweep, "
+                 f"{RUBY_REFERENCE_SWEEPS} per step", dict(stall_rounds=0, max_sweeps=RUBY_REFERENCE_SWEEPS), False),
                 (f"reference: max_turn {RUBY_COARSE_TURN:g}, every sweep, {RUBY_REFERENCE_SWEEPS} per step",
-                 dict(max_turn=RUBY_COARSE_TURN, stall_rounds=0, max_sweeps=RUBY_REFERENCE_SWEEPS))):
+                 dict(max_turn=RUBY_COARSE_TURN, stall_rounds=0, max_sweeps=RUBY_REFERENCE_SWEEPS), False)):
             log(f"speed: ruby short, motion scene, {label}")
-            points.append(_speed_row(label, ruby.simulation(**changes), RUBY_MOTION_SECONDS, lambda t: turning(RUBY_MOTION_START + t),
+            sim = ruby.simulation(**changes)
+            if nudge:
+                sim.q = sim.q + RUBY_NUDGE * np.random.default_rng(0).standard_normal(sim.q.shape)
+            points.append(_speed_row(label, sim, RUBY_MOTION_SECONDS, lambda t: turning(RUBY_MOTION_START + t),
                                      True, rmat))
             moving.append(points[-1])
         for p in moving[:-1]:
             p["deviation"] = _strand_deviation(rscene.helices, p["q"], moving[-1]["q"])
+        default, nudged, fine_reference, reference = moving[0], moving[3], moving[4], moving[5]
+        default["spread"] = [
+            ("the defaults, and the same from the perturbed start", default, nudged),
+            (f"the reference at max_turn {RUBY_COARSE_TURN:g}, and at the default {rs.dynamics.max_turn:g}",
+             reference, fine_reference),
+            (f"the defaults, and the reference at the same max_turn {rs.dynamics.max_turn:g}", default, fine_reference)]
+        default["spread"] = [(label, _strand_deviation(rscene.helices, a["q"], b["q"]))
+                             for label, a, b in default["spread"]]
     return points
 
 
@@ -563,6 +581,14 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               "and largest over the strands. Dense moving hair-hair contact solved contact by contact rarely "
               "meets the tolerance: each step runs until its residual stops halving (`dynamics.stall_rounds`, "
               "three rounds) or all its sweeps are spent.", ""]
+    spread = next((p["spread"] for p in points if "spread" in p), None)
+    if spread:
+        lines += ["How far apart runs drift that should agree, measured the same way (the two runs of each line against "
+                  "each other): the moving groom is sensitive, to its start and to how each step is solved, so a "
+                  "distance from the reference means something only against these.", "",
+                  table(["runs", "apart (mm): median / 90% / largest"],
+                        [(label, " / ".join(_mm(x) for x in np.percentile(d, [50, 90, 100]))) for label, d in spread]),
+                  ""]
     return "\n".join(lines)
 
 
