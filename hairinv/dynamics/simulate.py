@@ -40,7 +40,8 @@ from ..rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from ..solver.gauss_seidel import SolverResult, natural_residuals, split_strands
 from ..solver.problem import COULOMB
 from ..solver.status import Status
-from .contact import CoulombSettings, coulomb_problem, factored_blocks, factored_rows, reachable, solve_coulomb
+from .contact import (CoulombSettings, coulomb_problem, delassus_blocks, factored_blocks, factored_rows, reachable,
+                      solve_coulomb)
 from .inertia import strand_mass, strand_velocity_forces
 from .rods import RodModel, RodState, StepMatrices
 from .sleep import Sleepers, carried, islands
@@ -433,6 +434,7 @@ class Simulation:
         self.clock = PhaseClock()
         self.sleepers = Sleepers(self.model.n_strands, settings.sleep_speed)
         self._packed, self._carried = None, None  # the last attempt's motion per strand, and the frames it carried
+        self._swept = False  # whether the last attempt's contacts needed sweeps (its warm start did not do)
 
     # ------------------------------------------------------------------ the parts, by their former names
     helices = property(lambda self: self.model.helices)
@@ -669,7 +671,14 @@ class Simulation:
         if found.n_contacts:
             contact_run = lambda work, n: run_chunks(work, n, _CONTACT_CHUNK)  # noqa: E731
             rows = contact_rows(state.current(model), found, run=contact_run)
-            Wd = factored_blocks(rows, found.strand, offsets, matrices.chol, model.chol_ptr, run=contact_run)
+            if self._swept:
+                # the last attempt's warm start did not do (a moving groom): the factored rows will be needed, and
+                # give the blocks (the same, bit for bit) without a second forward substitution
+                z_rows = factored_rows(rows, found.strand, offsets, matrices.chol, model.chol_ptr, run=contact_run)
+                Wd = delassus_blocks(z_rows, np.zeros(found.n_contacts))
+            else:
+                z_rows = None
+                Wd = factored_blocks(rows, found.strand, offsets, matrices.chol, model.chol_ptr, run=contact_run)
             gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
             push = np.zeros((found.n_contacts, 3))
             if skin is not None:
@@ -690,8 +699,11 @@ class Simulation:
             # then the factored rows, the step's largest arrays, are never built
             result, correction = self._warm_start(rows, gamma, b, found.mu, Wd, impulse, h)
             clock.lap("warm start")
+            self._swept = result is None
             if result is None:
-                z_rows = factored_rows(rows, found.strand, offsets, matrices.chol, model.chol_ptr, run=contact_run)
+                if z_rows is None:
+                    z_rows = factored_rows(rows, found.strand, offsets, matrices.chol, model.chol_ptr,
+                                           run=contact_run)
                 problem = coulomb_problem(z_rows, gamma, b, found.mu, found.strand, helices.n_strands,
                                           model.velocity_scale * h, s=found.s,
                                           part_of=split_strands(helices.root, found.strand))
@@ -700,8 +712,8 @@ class Simulation:
                 result = solve_coulomb(problem, coulomb, impulse, Wd=Wd)
                 clock.lap("contact solve")
                 correction = self._mass_solve(z_rows.rmatvec(result.r), factored=True)
-                del z_rows
                 clock.lap("contact rows")
+            del z_rows
             failed = result.status == Status.NUMERICAL_ERROR
             reached = (f": {result.status} after {result.sweeps} sweeps, relative residual "
                        f"{result.relative_residual:.3g}, {found.n_contacts} contacts")
