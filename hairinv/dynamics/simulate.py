@@ -671,10 +671,12 @@ class Simulation:
         if found.n_contacts:
             contact_run = lambda work, n: run_chunks(work, n, _CONTACT_CHUNK)  # noqa: E731
             rows = contact_rows(state.current(model), found, run=contact_run)
+            factor = lambda: factored_rows(rows, found.strand, offsets, matrices.chol, model.chol_ptr,  # noqa: E731
+                                           run=contact_run)
             if self._swept:
                 # the last attempt's warm start did not do (a moving groom): the factored rows will be needed, and
                 # give the blocks (the same, bit for bit) without a second forward substitution
-                z_rows = factored_rows(rows, found.strand, offsets, matrices.chol, model.chol_ptr, run=contact_run)
+                z_rows = factor()
                 Wd = delassus_blocks(z_rows, np.zeros(found.n_contacts))
             else:
                 z_rows = None
@@ -702,8 +704,7 @@ class Simulation:
             self._swept = result is None
             if result is None:
                 if z_rows is None:
-                    z_rows = factored_rows(rows, found.strand, offsets, matrices.chol, model.chol_ptr,
-                                           run=contact_run)
+                    z_rows = factor()
                 problem = coulomb_problem(z_rows, gamma, b, found.mu, found.strand, helices.n_strands,
                                           model.velocity_scale * h, s=found.s,
                                           part_of=split_strands(helices.root, found.strand))
