@@ -99,10 +99,8 @@ def _two_strands_on_a_floor():
     rest[a] = model.omega_rest[a]
 
     def sim(speed):
-        # every sweep (stall_rounds 0): the runs with and without sleeping are compared to 1e-8 m, closer than
-        # a hair-hair solve stopped on a stall lands from starts that differ by round-off
         return Simulation(helices, rest, mat, body, settings.contacts,
-                          dataclasses.replace(settings.dynamics, sleep_speed=speed, stall_rounds=0), initial=contacts,
+                          dataclasses.replace(settings.dynamics, sleep_speed=speed), initial=contacts,
                           initial_force=model.force)
     return helices, mat, sim
 
