@@ -579,8 +579,9 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               "The last column: for each strand, the largest distance between a point at the end of the run and "
               "the same point at the end of the reference run (the last row), then the median, 90th percentile "
               "and largest over the strands. Dense moving hair-hair contact solved contact by contact rarely "
-              "meets the tolerance: each step runs until its residual stops halving (`dynamics.stall_rounds`, "
-              "three rounds) or all its sweeps are spent.", ""]
+              "meets the tolerance: each step runs until its residual stops halving (`dynamics.stall_rounds`: "
+              f"{DynamicsSettings().stall_rounds} round{'s' if DynamicsSettings().stall_rounds != 1 else ''} "
+              "that did not halve it) or all its sweeps are spent.", ""]
     spread = next((p["spread"] for p in points if "spread" in p), None)
     if spread:
         lines += ["How far apart runs drift that should agree, measured the same way (the two runs of each line against "

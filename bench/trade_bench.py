@@ -758,7 +758,7 @@ def simulate_section(result: dict) -> list[str]:
         f"the `default` dynamics, or takes a preset's `[dynamics]` (the fit and the inversion stay the default's). "
         f"The contact solve of a step stops at the first of: every contact within `tolerance` (a fraction of "
         f"g h), `max_sweeps` sweeps, or `stall_rounds` rounds in a row that did not halve its residual (the "
-        f"default 3). The `max_sweeps` rows keep the default tolerance; the `tolerance` rows raise the cap to "
+        f"default {config.DynamicsSettings().stall_rounds}). The `max_sweeps` rows keep the default tolerance; the `tolerance` rows raise the cap to "
         f"{SIM_TOLERANCE_CAP:,} sweeps, so that the tolerance or the stall, not the cap, stops them (a row whose "
         f"most sweeps equal the cap says where a step still took all of them); the `stall_rounds 0` rows "
         f"never stop on a stall. The reference (its own row): time_step {ref['time_step']:g} s, max_turn "
