@@ -971,34 +971,3 @@ def test_a_shorter_step_starts_from_the_same_forces():
         assert report.status == "CONVERGED" and report.sweeps == 0, (h, report)
     assert np.linalg.norm(_tip(helices, sim.q) - start) < 1e-9
 
-
-
-def test_the_next_step_lengthens_its_substeps_as_far_as_their_turn_leaves_room_for():
-    """After a step, the next starts with its last substep's halvings less as many as the furthest turn
-    leaves room for: each halving fewer doubles a smooth motion's turn, and the turn so predicted stays
-    within max_turn while one halving fewer still would exceed it. A step that needed no more halvings
-    than it started with tries at least one fewer; one halved for a failed solve, or kept although it
-    turned too far, keeps its length."""
-    from hairinv.dynamics.simulate import StepReport, _next_depth
-
-    def report(depth, last, turn, failed=0):
-        return StepReport(0, 0, 0, 0.0, "CONVERGED", 0, 0.0, depth=depth, last_depth=last, turn=turn, failed=failed)
-
-    max_turn = 0.05
-    # an attempt that went astray became 16 substeps turning 0.011 rad: two halvings fewer turn about 0.044
-    assert _next_depth(report(4, 4, 0.011), 0, max_turn) == 2
-    for last in range(7):
-        for turn in np.geomspace(1e-4, max_turn, 40):
-            depth = _next_depth(report(last, last, turn), 0, max_turn)  # it needed more than it started with
-            assert 0 <= depth <= last
-            assert turn * 2.0 ** (last - depth) <= max_turn * (1 + 1e-12)
-            assert depth == 0 or turn * 2.0 ** (last - depth + 1) > max_turn
-    # needed no more than it started with: one fewer at least, even at a turn over half max_turn
-    assert _next_depth(report(1, 1, 0.04), 1, max_turn) == 0
-    assert _next_depth(report(3, 3, 0.04), 3, max_turn) == 2
-    assert _next_depth(report(3, 3, 0.01), 3, max_turn) == 1
-    # a failed solve's halvings, or a turn that halving did not bring within max_turn: the length kept
-    assert _next_depth(report(2, 2, 1e-9, failed=1), 0, max_turn) == 2
-    assert _next_depth(report(2, 1, 0.08), 0, max_turn) == 1
-    # nothing turned at all: the whole step
-    assert _next_depth(report(3, 3, 0.0), 0, max_turn) == 0

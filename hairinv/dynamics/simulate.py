@@ -114,31 +114,6 @@ class StepReport:
     away names the strand that last did. Halvings for a failed contact solve name no strand."""
     asleep: int = 0
     """strands asleep after the step (:mod:`hairinv.dynamics.sleep`)"""
-    failed: int = 0
-    """of the attempts thrown away, those whose contact solve failed or whose velocity was not finite"""
-
-
-def _next_depth(report: StepReport, start: int, max_turn: float) -> int:
-    """The halvings the step after ``report`` starts with (``start``: those it started with).
-
-    Its last substep's, less as many as its largest turn leaves room for: a motion turns about half as
-    far in half the time, so each halving fewer doubles the turn. An attempt that turned ``k`` times too
-    far is replaced by ``2^ceil(log2 k)`` substeps, and where that long attempt went astray (a contact
-    solve ending poorly on dense hair-hair contact) they turn much less than ``max_turn``: the next step
-    lengthens them back at once, not one halving a step. A step that needed no more halvings than it
-    started with tries at least one fewer (at the cost of an attempt thrown away if it turns too far).
-    A step halved for a failed solve, whose turns say nothing of the length it needs, keeps the length
-    that worked; so does one whose turn halving did not bring within ``max_turn``.
-    """
-    if report.failed or report.turn > max_turn:
-        spare = 0
-    elif report.turn <= 0.0:
-        spare = report.last_depth
-    else:
-        spare = int(np.floor(np.log2(max_turn / report.turn)))
-    if report.depth <= start:
-        spare = max(spare, 1)
-    return max(0, report.last_depth - spare)
 
 
 def _joined(first: StepReport, second: StepReport) -> StepReport:
@@ -152,7 +127,6 @@ def _joined(first: StepReport, second: StepReport) -> StepReport:
     second.rejected = first.rejected + second.rejected
     second.depth = max(first.depth, second.depth)
     second.kept_turning = first.kept_turning + second.kept_turning
-    second.failed = first.failed + second.failed
     second.turn = max(first.turn, second.turn)
     if second.turned < 0:
         second.turned = first.turned
@@ -596,12 +570,11 @@ class Simulation:
         turns about half as far in half the time). An attempt that turns too far is
         thrown away, and costs as much as a kept one, so a step that needed more
         halvings than it started with makes the next one start with as many
-        as its own last substep needed (``start_depth``), less as many as the
-        furthest turn of its substeps leaves room for; a step that needed no
-        more makes the next one try one halving fewer, or more where its turn
-        leaves room (``_next_depth``). Halvings are needed over stretches of
-        time, so this throws fewer attempts away, and it halves fewer whole
-        steps than starting from the step's deepest substep would.
+        as its own last substep needed (``start_depth``); a step that needed no
+        more makes the next one try one halving fewer. Halvings are needed
+        over stretches of time, so this throws fewer attempts away, and it
+        halves fewer whole steps than starting from the step's deepest
+        substep would.
 
         Halving helps only a motion that turns less in less time. A push
         asked within the step (a contact found inside the body is moved out
@@ -624,7 +597,11 @@ class Simulation:
             self._halved_by = report.turned
         elif start > 0:
             report.turned = self._halved_by  # halved from the start for what an earlier step's strand needed
-        self.start_depth = min(_next_depth(report, start, settings.max_turn), settings.max_substeps)
+        if report.depth > start:
+            self.start_depth = report.last_depth
+        elif start > 0:
+            self.start_depth = start - 1
+        self.start_depth = min(self.start_depth, settings.max_substeps)
         self._settle()
         report.asleep = int(np.count_nonzero(self.sleepers.asleep))
         if self.tracker.parked is not None:  # the sleeping strands' contacts hold as they were
@@ -773,7 +750,6 @@ class Simulation:
                 part = self._step(motion, h / 2 ** levels, depth + levels, replaced, depth)
                 joined = part if joined is None else _joined(joined, part)
             joined.rejected += 1
-            joined.failed += int(failed)
             if joined.turned < 0 and not failed:
                 joined.turned = int(np.searchsorted(offsets, int(np.argmax(turns)), side="right") - 1)
             return joined
