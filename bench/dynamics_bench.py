@@ -41,6 +41,7 @@ else:
 sys.path.insert(0, str(ROOT))
 
 from hairinv import config, stages  # noqa: E402
+from hairinv._text import counted  # noqa: E402
 from hairinv.config import DynamicsSettings  # noqa: E402
 from hairinv.contacts import detect_contacts  # noqa: E402
 from hairinv.contacts.body import BodyMesh  # noqa: E402
@@ -469,10 +470,6 @@ def run() -> str:
     return render(v, mt, points)
 
 
-def _rounds(n: int) -> str:
-    return f"{n} round" if n == 1 else f"{n} rounds"
-
-
 def _mm(x: float) -> str:
     if x == 0:
         return "0"
@@ -584,7 +581,7 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               "the same point at the end of the reference run (the last row), then the median, 90th percentile "
               "and largest over the strands. Dense moving hair-hair contact solved contact by contact rarely "
               "meets the tolerance: each step runs until its residual stops halving (`dynamics.stall_rounds`: "
-              f"{_rounds(DynamicsSettings().stall_rounds)} that did not halve it) or all its sweeps are spent.", ""]
+              f"{counted(DynamicsSettings().stall_rounds, 'round')} that did not halve it) or all its sweeps are spent.", ""]
     spread = next((p["spread"] for p in points if "spread" in p), None)
     if spread:
         lines += ["How far apart runs drift that should agree, measured the same way (the two runs of each line against "
