@@ -302,9 +302,9 @@ class SpeedGroom:
 
     def simulation(self, **dynamics) -> Simulation:
         """From the inverted model at rest (``dynamics``: settings changed from the groom's)."""
-        return Simulation(self.helices, self.model.omega_rest, self.mat, self.body, self.settings.contacts,
+        return Simulation(self.helices, self.model.rest, self.mat, self.body, self.settings.contacts,
                           dataclasses.replace(self.settings.dynamics, **dynamics), initial=self.contacts,
-                          initial_force=self.model.force)
+                          initial_force=self.model.force, stiffening=self.model.stiffening)
 
 
 def settled_straight() -> tuple[SpeedGroom, float]:
@@ -337,7 +337,7 @@ def ruby_short() -> SpeedGroom | None:
     settings = _settings(**extra)
     scene = prepare(ruby, DATA / "ruby" / "ruby_head.obj", settings)
     mat = Material.from_settings(settings.material, scene.up)
-    model, _ = invert(scene.helices, scene.contacts, mat, settings.solver, check_stability=False)
+    model, _ = invert(scene.helices, scene.contacts, mat, settings.solver)  # as `hairinv invert` does: checked
     return SpeedGroom(settings, mat, BodyMesh.from_mesh(scene.body), scene.helices, scene.contacts, model)
 
 

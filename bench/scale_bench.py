@@ -84,12 +84,12 @@ def measure(n: int, folder: Path) -> dict:
                             "dynamics": {"sleep_speed": DynamicsSettings().sleep_speed}})
     scene = prepare(path, DATA / "ruby" / "ruby_head.obj", settings)
     mat = Material.from_settings(settings.material, scene.up)
-    model, _ = invert(scene.helices, scene.contacts, mat, settings.solver, check_stability=False)
+    model, _ = invert(scene.helices, scene.contacts, mat, settings.solver)  # as `hairinv invert` does: checked
     body = BodyMesh.from_mesh(scene.body)
 
     def sim():
-        return Simulation(scene.helices, model.omega_rest, mat, body, settings.contacts, settings.dynamics,
-                          initial=scene.contacts, initial_force=model.force)
+        return Simulation(scene.helices, model.rest, mat, body, settings.contacts, settings.dynamics,
+                          initial=scene.contacts, initial_force=model.force, stiffening=model.stiffening)
     turning = _moving(mat, scene.helices.root)
     log(f"scale: {n} strands, {scene.contacts.n_contacts} contacts, moving")
     moving = _frames(sim(), MOTION_SECONDS, lambda t: turning(MOTION_START + t))
