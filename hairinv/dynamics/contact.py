@@ -314,7 +314,7 @@ class CoulombSettings:
     """sweeps over all contacts in all (a round of the fixed point counts its sweeps)"""
     max_rounds: int = 20
     """rounds of the fixed point of convex problems"""
-    stall_rounds: int = 3
+    stall_rounds: int = 1
     """stop once this many rounds in a row (after the first) have not halved the best residual (0: never)"""
 
 
