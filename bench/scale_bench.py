@@ -9,8 +9,10 @@ The grooms are the full-head family of ``bench/full_head.py`` below its
 evenly over the scalp, as ``--guides N`` keeps), so a larger groom is a fuller
 one on the same head. Each is prepared at the defaults (fitted, contacts
 detected with hair-hair contact), inverted (``solver.max_sweeps`` 300, as the
-dynamics benchmark inverts ruby short) and simulated in one process, after a
-warm-up step:
+dynamics benchmark inverts ruby short; with the stability check, which
+stiffens the strands whose equilibrium is unstable, as ``hairinv invert``
+does) and simulated with that stiffening in one process, after a warm-up
+step:
 
 * moving: the ``motion`` scene from 0.5 s, where the head turns fastest, for
   one 1/25 s frame (the dynamics benchmark's ruby rows run two); once a frame
@@ -96,7 +98,8 @@ def measure(n: int, folder: Path) -> dict:
     log(f"scale: {n} strands: {moving['per_frame']:.2f} s a frame moving; still")
     still = _frames(sim(), STILL_SECONDS, lambda t: Motion.still(mat.gravity))
     return {"strands": scene.helices.n_strands, "elements": scene.helices.n_elements,
-            "contacts": scene.contacts.n_contacts, "hair": scene.contacts.n_hair, "moving": moving, "still": still}
+            "contacts": scene.contacts.n_contacts, "hair": scene.contacts.n_hair, "moving": moving, "still": still,
+            "stiffened": 0 if model.stiffening is None else int(np.count_nonzero(model.stiffening > 1.0))}
 
 
 def _shares(phases: dict) -> str:
@@ -146,7 +149,7 @@ def run() -> str:
             rows.append(measure(n, Path(folder)))
     plot(rows, PLOT)
     n = [r["strands"] for r in rows]
-    body = [[f"{r['strands']:,}", f"{r['elements']:,}", f"{r['contacts']:,} ({r['hair']:,})",
+    body = [[f"{r['strands']:,}", f"{r['elements']:,}", f"{r['contacts']:,} ({r['hair']:,})", f"{r['stiffened']:,}",
              f"{r['moving']['per_frame']:.2f} s", f"{r['moving']['attempts'] / r['moving']['steps']:.2f}",
              f"{r['moving']['sweeps']:.0f}", f"{r['moving']['unconverged']} of {r['moving']['steps']}",
              _shares(r["moving"]["phases"]), f"{r['still']['per_frame']:.3f} s", f"{r['still']['asleep']:,}"]
@@ -158,11 +161,13 @@ def run() -> str:
         f"## {TITLE}", "",
         "`bench/scale_bench.py`: grooms of 300 to 4,867 strands from the guides of ruby short and long on ruby's "
         "head (`bench/full_head.py`: a subset spread over the scalp), each fitted, detected with hair-hair "
-        "contact and inverted at the defaults (`solver.max_sweeps` 300), then simulated in one process after a "
+        "contact and inverted as `hairinv invert` does (`solver.max_sweeps` 300; the stability check stiffens the "
+        "strands whose equilibrium is unstable, and the simulation runs with their stiffening), then simulated in one "
+        "process after a "
         "warm-up step: the `motion` scene from 0.5 s, where the head turns fastest, for one 1/25 s frame (its "
         "attempts per step count the halved steps' attempts, kept or thrown away), and "
         "the still scene for 1 s, at the defaults (strands at rest sleep). Wall time per frame.", "",
-        table(["strands", "elements", "contacts (hair-hair)", "moving: s a frame", "attempts per step",
+        table(["strands", "elements", "contacts (hair-hair)", "strands stiffened", "moving: s a frame", "attempts per step",
                "sweeps per step", "steps unconverged", "moving: largest phases", "still: s a frame",
                "asleep at the end"], body), "",
         f"Exponent (least-squares slope of log time against log strands): moving {moving:.2f}, still {still:.2f}."
