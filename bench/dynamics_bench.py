@@ -326,8 +326,8 @@ def settled_straight() -> tuple[SpeedGroom, float]:
 
 
 def ruby_short() -> SpeedGroom | None:
-    """Ruby short as drawn (1,867 strands, hair-hair contact), inverted with ``solver.max_sweeps`` 300; None
-    without the real data."""
+    """Ruby short as drawn (1,867 strands, hair-hair contact), inverted with ``solver.max_sweeps`` 300 and the
+    stability check (as ``hairinv invert`` does); None without the real data."""
     ruby = DATA / "ruby" / "ruby_short_hair_16_guide.tfx"
     if not ruby.exists():
         return None
@@ -556,15 +556,15 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               f"({SETTLE_SECONDS:g} s, straight rest shape, no hair-hair contact; the settling itself took "
               f"{points[0].get('settle_seconds', float('nan')):.0f} s), then simulated from their own rest shape "
               "and from the model inverted with target zero, with the body still and in the `motion` scene "
-              "(head turn and lean); and ruby short as drawn, inverted, still, over one frame with nothing asleep (a drawn groom "
-              "has strands that no rest shape holds, see below; over longer runs ruby's set off and slow "
-              f"the steps down) and over {RUBY_STILL_SECONDS:g} s at the defaults, where the strands at rest sleep, and in the `motion` scene over {RUBY_MOTION_SECONDS / 0.04:.0f} frames from "
+              "(head turn and lean); and ruby short as drawn, inverted as `hairinv invert` does (its stability check "
+              "stiffens the strands whose equilibrium no rest shape makes stable, and the simulation runs with their "
+              "stiffening), still, over one frame with nothing asleep "
+              f"and over {RUBY_STILL_SECONDS:g} s at the defaults, where the strands at rest sleep, and in the `motion` scene over {RUBY_MOTION_SECONDS / 0.04:.0f} frames from "
               f"{RUBY_MOTION_START:g} s, where the head turns fastest (the simulation starts there from the "
-              "inverted model at rest on the body, so the hair is jerked into the turn; run on past 0.25 s, it goes into a cascade of halved steps at 1-3 minutes each, docs/dynamics.md). Each run starts after one "
-              "warm-up step; `moved` is the largest displacement of any strand point at the end. A drawn "
-              "groom is not used for the small case: many of its strands rest in an unstable equilibrium "
-              "whatever their rest shape (docs/dynamics.md), and once round-off has grown, after about "
-              "0.2 s, the steps are spent on strands falling away. The speed rows run at the defaults, where strands at rest "
+              "inverted model at rest on the body, so the hair is jerked into the turn). Each run starts after one "
+              "warm-up step; `moved` is the largest displacement of any strand point at the end. The small case is "
+              "a settled groom, whose strands rest stably without stiffening; many of a drawn groom's need it "
+              "(docs/dynamics.md). The speed rows run at the defaults, where strands at rest "
               "sleep (`dynamics.sleep_speed`, docs/dynamics.md) unless the row says otherwise; the other sections of this "
               "benchmark measure the physics with nothing asleep. Targets: 300 strands without hair-hair "
               "contact faster than real time (1 s per simulated second), 2,000 strands with hair-hair "
