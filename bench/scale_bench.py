@@ -149,9 +149,10 @@ def run() -> str:
             rows.append(measure(n, Path(folder)))
     plot(rows, PLOT)
     n = [r["strands"] for r in rows]
-    body = [[f"{r['strands']:,}", f"{r['elements']:,}", f"{r['contacts']:,} ({r['hair']:,})", f"{r['stiffened']:,}",
-             f"{r['moving']['per_frame']:.2f} s", f"{r['moving']['attempts'] / r['moving']['steps']:.2f}",
-             f"{r['moving']['sweeps']:.0f}", f"{r['moving']['unconverged']} of {r['moving']['steps']}",
+    body = [[f"{r['strands']:,}", f"{r['elements']:,}", f"{r['contacts']:,} ({r['hair']:,})",
+             f"{r['stiffened']:,}", f"{r['moving']['per_frame']:.2f} s",
+             f"{r['moving']['attempts'] / r['moving']['steps']:.2f}", f"{r['moving']['sweeps']:.0f}",
+             f"{r['moving']['unconverged']} of {r['moving']['steps']}",
              _shares(r["moving"]["phases"]), f"{r['still']['per_frame']:.3f} s", f"{r['still']['asleep']:,}"]
             for r in rows]
     moving = exponent(n, [r["moving"]["per_frame"] for r in rows])
@@ -167,8 +168,8 @@ def run() -> str:
         "warm-up step: the `motion` scene from 0.5 s, where the head turns fastest, for one 1/25 s frame (its "
         "attempts per step count the halved steps' attempts, kept or thrown away), and "
         "the still scene for 1 s, at the defaults (strands at rest sleep). Wall time per frame.", "",
-        table(["strands", "elements", "contacts (hair-hair)", "strands stiffened", "moving: s a frame", "attempts per step",
-               "sweeps per step", "steps unconverged", "moving: largest phases", "still: s a frame",
+        table(["strands", "elements", "contacts (hair-hair)", "strands stiffened", "moving: s a frame",
+               "attempts per step", "sweeps per step", "steps unconverged", "moving: largest phases", "still: s a frame",
                "asleep at the end"], body), "",
         f"Exponent (least-squares slope of log time against log strands): moving {moving:.2f}, still {still:.2f}."
         + (f" Not run: {', '.join(f'{n:,}' for n in skipped)} strands, after a moving frame took more than "
