@@ -335,9 +335,10 @@ def solve_coulomb(problem: ConeProblem, settings: CoulombSettings, start: np.nda
     better of the two is kept. Once ``stall_rounds`` rounds in a row (after
     the first) have not halved the best residual, the solve stops there with
     its best iterate and no fail-safe (0: never): on ruby short's moving groom,
-    hair-hair contact by contact, 200 sweeps per step then become about 120,
-    and the strands' median distance after two frames from a 1,000-sweep
-    reference goes from 0.25 to 0.27 mm (docs/benchmarks.md).
+    hair-hair contact by contact, with one stalled round (the default) 200
+    sweeps per step become about 50, and the strands' median distance after
+    two frames from a 1,000-sweep reference is 0.08-0.11 mm, where runs from
+    starts 1e-9 apart end 0.04-0.08 mm apart (docs/dynamics.md).
 
     Body contacts only (no hair-hair contact): the strands do not interact,
     so the rounds run strand by strand, in the kernel, on each strand's dense
