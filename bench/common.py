@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 # A smoke run (HAIRINV_BENCH_SMOKE=1, what the test suite does): every benchmark on tiny inputs, once,
@@ -188,6 +190,11 @@ def table(header: Sequence[str], rows: Sequence[Sequence[object]], align: Sequen
 
 
 _T0 = time.perf_counter()
+
+
+def stiffened_strands(inverted) -> int:
+    """Strands an inversion stiffened (``inverted``: its model or its report, anything with ``stiffening``)."""
+    return 0 if inverted.stiffening is None else int(np.count_nonzero(inverted.stiffening > 1.0))
 
 
 def log(message: str) -> None:

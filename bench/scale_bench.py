@@ -35,9 +35,9 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import DATA, IMG, ROOT, log, machine, machine_markdown, smoke, table  # type: ignore
+    from common import DATA, IMG, ROOT, log, machine, machine_markdown, smoke, stiffened_strands, table  # type: ignore
 else:
-    from .common import DATA, IMG, ROOT, log, machine, machine_markdown, smoke, table
+    from .common import DATA, IMG, ROOT, log, machine, machine_markdown, smoke, stiffened_strands, table
 
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
@@ -99,7 +99,7 @@ def measure(n: int, folder: Path) -> dict:
     still = _frames(sim(), STILL_SECONDS, lambda t: Motion.still(mat.gravity))
     return {"strands": scene.helices.n_strands, "elements": scene.helices.n_elements,
             "contacts": scene.contacts.n_contacts, "hair": scene.contacts.n_hair, "moving": moving, "still": still,
-            "stiffened": 0 if model.stiffening is None else int(np.count_nonzero(model.stiffening > 1.0))}
+            "stiffened": stiffened_strands(model)}
 
 
 def _shares(phases: dict) -> str:

@@ -24,7 +24,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import common  # noqa: E402
-from common import ROOT, log, median_time, table  # noqa: E402
+from common import ROOT, log, median_time, stiffened_strands, table  # noqa: E402
 
 TITLE = "What an absent feature costs"
 SMOKE = getattr(common, "SMOKE", False)
@@ -58,11 +58,6 @@ def _solved(result) -> str:
         return sweeps
     steps = f"{result.interior_steps} interior-point steps"
     return steps + (f" and {result.sweeps} sweeps" if result.sweeps else "") + f" ({1e3 * result.seconds:.0f} ms)"
-
-
-def _stiffened(report) -> int:
-    """Strands an inversion stiffened."""
-    return 0 if report.stiffening is None else int(np.count_nonzero(report.stiffening > 1.0))
 
 
 def run() -> str:
@@ -137,8 +132,8 @@ def run() -> str:
                  _ratio(on, off), f"{ron.carrying} of {ron.contacts} contacts carrying force → {roff.carrying}; "
                  f"largest force {np.abs(on.result[0].force).max():.2g} → {np.abs(off.result[0].force).max():.2g} N "
                  f"({left:.2g} of the heaviest strand's weight under "
-                 f"9.81 m/s²); {_solved(ron.result)} → {_solved(roff.result)}; {_stiffened(ron)} strands "
-                 f"stiffened → {_stiffened(roff)}"])
+                 f"9.81 m/s²); {_solved(ron.result)} → {_solved(roff.result)}; {stiffened_strands(ron)} strands "
+                 f"stiffened → {stiffened_strands(roff)}"])
 
     # ---- simulate (the still scene unless said)
     def model_group(settings, contacts):
