@@ -901,8 +901,7 @@ def test_elements_holding_the_cap_close_by_are_searched_no_farther(monkeypatch, 
         settings = dataclasses.replace(SETTINGS, layer=False, max_hair_per_element=cap, root_clearance=clearance)
         monkeypatch.setattr(detect_module, "_hair_candidates", candidates)
         narrow, report = detect_contacts(h, plane(), settings, up=up)
-        monkeypatch.setattr(detect_module, "_hair_candidates", functools.partial(candidates, narrow=False))
-        every, report_every = detect_contacts(h, plane(), settings, up=up)
+        every, report_every = detect_contacts(h, plane(), settings, up=up, narrow=False)
         assert_same_detection(narrow, report, every, report_every)
         assert narrow.n_hair > 0
         if groom in ("dense", "packed", "tilted"):
@@ -919,6 +918,31 @@ def test_elements_holding_the_cap_close_by_are_searched_no_farther(monkeypatch, 
                              f"than {1e3 * closer:g} mm within root_clearance ({1e3 * clearance:g} mm) of both roots "
                              f"were not declared; nor were farther ones there, not all of which were searched or counted"]
 
+
+@pytest.mark.parametrize("cap", [1, 8, 40])
+def test_a_simulation_searches_narrowly_first_where_half_the_elements_held_the_cap(cap):
+    """A simulation's detection (``ContactTracker.detect``) takes the narrow first search where at least half
+    the elements held ``max_hair_per_element`` hair-hair contacts at its last detection, counted here from the
+    contacts themselves; either way the contacts are the same (the test above)."""
+    from conftest import material
+
+    from hairinv.config import DynamicsSettings
+    from hairinv.dynamics.simulate import Simulation
+
+    h = dense_head(3)
+    settings = dataclasses.replace(SETTINGS, layer=False, wisp=False, max_hair_per_element=cap)
+    found, _ = detect_contacts(h, None, settings)
+    held = np.zeros(h.n_elements, dtype=np.int64)
+    for pair in found.element[found.strand[:, 1] >= 0]:
+        held[pair] += 1
+    share = np.mean(held >= cap)
+    sim = Simulation(h, h.omega.copy(), material(), None, settings, DynamicsSettings(), initial=found)
+    assert sim.tracker.last_found is not None  # the starting contacts are its last detection
+    assert sim.tracker._narrow_pays() == (share >= 0.5)
+    if cap == 1:
+        assert share >= 0.5  # (both answers are met in these cases)
+    if cap == 40:
+        assert share < 0.5
 
 def nearly_parallel(offset):
     """Three strands where segment_closest's parallel shortcut overstates a polyline gap: A, one 7 cm element
