@@ -819,8 +819,7 @@ def test_pairs_refined_only_where_needed_give_the_same_contacts(monkeypatch, see
 
     monkeypatch.setattr(detect_module, "_cap_pairs", spy)
     candidates = detect_module._hair_candidates
-    monkeypatch.setattr(detect_module, "_hair_candidates", functools.partial(candidates, narrow=False))
-    lazy, report = detect_contacts(h, plane(), settings, up=up)
+    lazy, report = detect_contacts(h, plane(), settings, up=up, narrow=False)
     monkeypatch.setattr(detect_module, "_hair_candidates", functools.partial(candidates, lazy=False))
     eager, report_eager = detect_contacts(h, plane(), settings, up=up)
     assert_same_detection(lazy, report, eager, report_eager)
@@ -919,6 +918,31 @@ def test_elements_holding_the_cap_close_by_are_searched_no_farther(monkeypatch, 
                              f"were not declared; nor were farther ones there, not all of which were searched or counted"]
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_hair_pairs_touching_given_strands_are_those_of_the_whole_search(seed):
+    """``touching``: without the per-element cap, the hair-hair contacts with a strand among the given ones are
+    exactly those of detecting every pair, and no others; with the cap, every contact touches them and no
+    element holds more than the cap (it counts only those pairs)."""
+    h = dense_head(seed, guides=6, follow=6)
+    rng = np.random.default_rng(seed)
+    touching = rng.random(h.n_strands) < 0.3
+    for cap in (0, 2):
+        settings = dataclasses.replace(SETTINGS, layer=False, wisp=False, max_hair_per_element=cap)
+        some, _ = detect_contacts(h, plane(), settings, touching=touching)
+        every, _ = detect_contacts(h, plane(), settings)
+        hair = some.strand[:, 1] >= 0
+        assert np.array_equal(some.subset(~hair).s, every.subset(every.strand[:, 1] < 0).s)  # body as before
+        assert touching[some.strand[hair]].any(axis=1).all() and hair.sum() > 10
+        if cap == 0:
+            mine = every.subset((every.strand[:, 1] >= 0) & touching[np.maximum(every.strand, 0)].any(axis=1))
+            for name in ("strand", "s", "gap", "element", "point"):
+                np.testing.assert_array_equal(getattr(some.subset(hair), name), getattr(mine, name))
+        else:
+            held = np.bincount(some.element[hair].ravel(), minlength=h.n_elements)
+            assert held.max() <= cap
+    with pytest.raises(ValueError, match="wisp"):
+        detect_contacts(h, plane(), SETTINGS, up=np.array([0.0, 1.0, 0.0]), touching=touching)
+
 @pytest.mark.parametrize("cap", [1, 8, 40])
 def test_a_simulation_searches_narrowly_first_where_half_the_elements_held_the_cap(cap):
     """A simulation's detection (``ContactTracker.detect``) takes the narrow first search where at least half
@@ -994,8 +1018,9 @@ def test_nearly_parallel_segments_hide_no_pair(monkeypatch, offset):
         settings = dataclasses.replace(SETTINGS, layer=False, body=False, max_hair_per_element=1,
                                        root_clearance=clearance)
         for variant in ({}, {"narrow": False}, {"lazy": False}):
-            monkeypatch.setattr(detect_module, "_hair_candidates", functools.partial(candidates, **variant))
-            out.append(detect_contacts(h, None, settings))
+            lazy = {k: v for k, v in variant.items() if k != "narrow"}
+            monkeypatch.setattr(detect_module, "_hair_candidates", functools.partial(candidates, **lazy))
+            out.append(detect_contacts(h, None, settings, narrow=variant.get("narrow", True)))
         for contacts, report in out[-2:]:
             assert_same_detection(*out[-3], contacts, report)
         assert out[-1][0].element.tolist() == [[0, 1]]

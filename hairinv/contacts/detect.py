@@ -355,7 +355,8 @@ def _keep_closest(pairs: "_Pairs", keep, cap: int, within: float, s0, length, is
 
 def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=None,
                     up: np.ndarray | None = None,
-                    refine_iterations: int = REFINE_ITERATIONS, narrow: bool = True) -> tuple[Contacts, DetectReport]:
+                    refine_iterations: int = REFINE_ITERATIONS, narrow: bool = True,
+                    touching: np.ndarray | None = None) -> tuple[Contacts, DetectReport]:
     """Declare hair-body and hair-hair contacts of fitted strands.
 
     Parameters
@@ -385,6 +386,10 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         wasted: on ruby short's 1,867 guides, moving, 20 of 12,797 elements held it, and detection took
         0.35 s with it against 0.24 s without (one thread). A simulation chooses from its last detection
         (:meth:`~hairinv.dynamics.tracking.ContactTracker.detect`).
+    touching : (S,) bool, optional
+        Only the hair-hair pairs with at least one strand among these are searched and declared (the
+        per-element cap counts only those); body contacts are unaffected. The wisp rule needs every pair, so
+        it must be off. None: every pair.
 
     Returns
     -------
@@ -468,8 +473,11 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
     wisp_radius = np.zeros(0)
     if settings.hair_hair and elements:
         wisp = settings.wisp and up is not None and settings.hair_max_distance > settings.hair_distance
-        pairs, keep, dense, settled = _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0,
-                                                       count, settings, wisp, narrow=narrow)
+        if touching is not None and wisp:
+            raise ValueError("hair pairs touching given strands are searched without the wisp rule")
+        pairs, keep, dense, settled = _hair_candidates(
+            samples, xs, Fs, omega, length, strand_of, is_last, s0, count, settings, wisp, narrow=narrow,
+            touching=None if touching is None else np.ascontiguousarray(np.asarray(touching, dtype=bool)[strand_of]))
         ea, eb, sa, sb, dist = pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist
         wisp_radius = np.full(count, float(settings.hair_distance))
         by_wisp = np.zeros(len(ea), dtype=bool)
@@ -769,8 +777,9 @@ def _kept(ea, eb, sa, sb, dist, within: float, length, is_last) -> np.ndarray:
 
 
 def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, count: int, settings: ContactSettings,
-                     wisp: bool, two_pass: bool = True, lazy: bool = True,
-                     narrow: bool = True) -> tuple[_Pairs, np.ndarray, np.ndarray | None, np.ndarray | None]:
+                     wisp: bool, two_pass: bool = True, lazy: bool = True, narrow: bool = True,
+                     touching: np.ndarray | None = None) -> tuple[_Pairs, np.ndarray, np.ndarray | None,
+                                                                  np.ndarray | None]:
     """The element pairs the hair-hair rules choose from, within ``hair_distance``, and with the wisp rule
     within ``hair_max_distance`` wherever a wisp may be that wide.
 
@@ -795,6 +804,8 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     the pairs that may still bring an element within ``hair_distance / WISP_WIDTH``), where both points may
     lie within ``root_clearance`` of the roots, and in :func:`_cap_pairs` where both elements still hold
     fewer contacts than the cap. Every other pair is refined at once; the contacts are the same.
+
+    ``touching`` (E,) bool, without the wisp rule: only the pairs with an element among these.
 
     ``narrow`` (with ``lazy``): the search within ``hair_distance`` is made first to ``NARROW`` times it,
     and an element that then holds the cap (:func:`_held_within`) is searched no farther. The pairs left out
@@ -822,16 +833,17 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
 
     def search_near() -> tuple[_Pairs, np.ndarray | None]:
         if not (lazy and narrow):
-            return search(near, near, on_demand=lazy), None
-        inner = search(NARROW * near, NARROW * near, on_demand=True)
+            return search(near, near, wide=touching, on_demand=lazy), None
+        inner = search(NARROW * near, NARROW * near, wide=touching, on_demand=True)
         settled = _held_within(inner, NARROW * near, cap, s0, length, is_last, rc, xs, Fs, omega) >= cap
         if not settled.any():
-            return search(near, near, on_demand=True), None
+            return search(near, near, wide=touching, on_demand=True), None
         # only the pairs of two elements the cap may still take. A settled element has a neighbour within
         # hair_distance / WISP_WIDTH (a contact it holds), so it still counts towards a dense strand; an element
         # whose neighbour that close is settled may no longer, but a strand then taken as sparse gets every pair
         # from the second search, and its radius comes out as hair_distance, a dense strand's, all the same
-        pairs = _union([inner, search(near, near, on_demand=True, among=np.flatnonzero(~settled))], len(length))
+        pairs = _union([inner, search(near, near, wide=touching, on_demand=True, among=np.flatnonzero(~settled))],
+                       len(length))
         return pairs, settled
 
     if not wisp:

@@ -39,6 +39,9 @@ _MOVING_REFINE = 12
 # 30,000 strands around 400 and 1,500 guides (bench/full_head.py): 32 %, 1.8 s against 2.1-2.5; 65 %, 18 s
 # against 13
 _NARROW_SHARE = 0.5
+# with hair-hair contact, the share of strands up to which a detection redoes only the strands that moved
+# (see ContactTracker._detect_strands); beyond it the whole groom
+_PARTIAL_SHARE = 0.5
 
 
 def joined(first: Contacts, second: Contacts) -> Contacts:
@@ -92,6 +95,18 @@ def _strand_moves(root, frame0, offsets, q_from, q_to, length, out):
                 bound += np.sqrt(dF) * length[a + e] + 0.5 * length[a + e] ** 2 * np.sqrt(dw)
             worst = max(worst, bound)
         out[k] = worst
+
+
+@jit
+def _closest_per_element(ea, eb, order, cap, held, out):
+    """Mark in ``out`` the element pairs taken in ``order`` while both of their elements hold fewer than ``cap``
+    (``held``, per element, zeros on entry)."""
+    for k in range(order.shape[0]):
+        p = order[k]
+        if held[ea[p]] < cap and held[eb[p]] < cap:
+            held[ea[p]] += 1
+            held[eb[p]] += 1
+            out[p] = True
 
 
 class ContactTracker:
@@ -228,17 +243,13 @@ class ContactTracker:
             if redo.any():
                 moves = np.zeros(S)
                 _strand_moves(h.root, h.frame0, h.offsets, self.q_detected, q, h.length, moves)
-                if model.contact_settings.hair_hair:
-                    # a pair of strands: the whole groom is detected again, or not at all
-                    redo[:] = moves.max() >= reach
-                else:
-                    redo &= moves >= reach  # either bound will do, strand by strand
-            redo |= swings.any() if model.contact_settings.hair_hair else swings
+                redo &= moves >= reach  # either bound will do, strand by strand
+            redo |= swings
             if not redo.any():
                 self.stale = np.ones(self.last_found.n_contacts, dtype=np.bool_)
                 self.redetected = 0
                 return self.last_found
-            if not model.contact_settings.hair_hair and not redo.all():
+            if not redo.all() and (not model.contact_settings.hair_hair or redo.mean() <= _PARTIAL_SHARE):
                 return self._detect_strands(state, np.flatnonzero(redo))
         # the first detection is the model's own, on the starting shape: the same rules as the contacts it was
         # inverted with (the hair layer and wisps included), so the first step meets them again
@@ -274,13 +285,17 @@ class ContactTracker:
         return np.count_nonzero(held >= cap) >= _NARROW_SHARE * n
 
     def _detect_strands(self, state: RodState, which: np.ndarray) -> Contacts:
-        """Body contacts only: the strands ``which`` detected afresh, the others' last detection kept."""
+        """The strands ``which`` detected afresh, the others' last detection kept: their body contacts, and with
+        hair-hair contact every pair with a strand among them, searched against the whole groom; the pairs of two
+        other strands are the last detection's, and each element then keeps its ``max_hair_per_element``
+        closest pairs of the two (the rule of a whole detection, on the distances each was detected at)."""
         h = state.current(self.model)  # placed by their frames, under a deforming body
         counts = np.diff(h.offsets)
         elements = np.concatenate([np.arange(h.offsets[k], h.offsets[k + 1]) for k in which])
         sub = Helices(h.root[which], h.frame0[which], np.r_[0, np.cumsum(counts[which])].astype(np.int64),
                       h.length[elements], state.q[elements], h.fit_error[which])
-        rules, own = self.detect_settings, float(self.own[which].max(initial=0.0))
+        rules = dataclasses.replace(self.detect_settings, hair_hair=False)  # (the pairs: _hair_strands)
+        own = float(self.own[which].max(initial=0.0))
         if own:  # as far as the strands' own motion goes (see detect)
             rules = dataclasses.replace(rules, body_distance=rules.body_distance + own)
         fresh, _ = detect_contacts(sub, self.body, rules, refine_iterations=_MOVING_REFINE)
@@ -290,15 +305,45 @@ class ContactTracker:
         if own:
             fresh = self._within_sweep(fresh)
         last = self.last_found
-        kept = last.subset(~np.isin(last.strand[:, 0], which))
+        redone = np.zeros(h.n_strands, dtype=bool)
+        redone[which] = True
+        body = last.strand[:, 1] < 0
+        kept = last.subset(body & ~redone[last.strand[:, 0]])
         merged = joined(kept, fresh)
         order = np.lexsort((merged.s[:, 0], merged.strand[:, 0]))  # as detect_contacts orders body contacts
         found = merged.subset(order)
-        self.stale = (order < kept.n_contacts)
+        stale = order < kept.n_contacts
+        if self.model.contact_settings.hair_hair:
+            hair, hair_stale = self._hair_strands(h, last.subset(~body), redone)
+            found, stale = joined(found, hair), np.concatenate([stale, hair_stale])
+        self.stale = stale
         self.redetected = len(which)
         self.q_detected[elements] = state.q[elements]
         self.last_found = found
         return found
+
+    def _hair_strands(self, h: Helices, last: Contacts, redone: np.ndarray) -> tuple[Contacts, np.ndarray]:
+        """Hair-hair contacts of ``h`` (the strands as they are), the pairs with a strand in ``redone`` (S,) bool
+        detected afresh and those of two other strands kept from ``last`` (the last detection's hair-hair
+        contacts), each element keeping its ``max_hair_per_element`` closest; and which are kept ones."""
+        rules = dataclasses.replace(self.detect_settings, body=False)
+        fresh, _ = detect_contacts(h, None, rules, refine_iterations=_MOVING_REFINE, narrow=self._narrow_pays(),
+                                   touching=redone)
+        kept = last.subset(~(redone[last.strand[:, 0]] | redone[last.strand[:, 1]]))
+        both = joined(kept, fresh)
+        cap = int(rules.max_hair_per_element)
+        if cap > 0 and both.n_contacts:
+            elements = self.elements_of(both)
+            gap = np.concatenate([kept.gap if kept.gap is not None else np.zeros(kept.n_contacts), fresh.gap])
+            closest = np.zeros(both.n_contacts, dtype=np.bool_)
+            _closest_per_element(elements[:, 0], elements[:, 1], np.argsort(gap, kind="stable"), cap,
+                                 np.zeros(self.model.helices.n_elements, dtype=np.int64), closest)
+        else:
+            closest = np.ones(both.n_contacts, dtype=np.bool_)
+        # as detect_contacts orders hair-hair contacts
+        order = np.flatnonzero(closest)
+        order = order[np.lexsort((both.s[order, 1], both.s[order, 0], both.strand[order, 1], both.strand[order, 0]))]
+        return both.subset(order), order < kept.n_contacts
 
     def own_sweep(self, state: RodState, h: float) -> np.ndarray:
         """(S,) m: how far each strand's own motion carries its points in its frame over the step, at the velocity
