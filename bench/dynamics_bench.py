@@ -71,6 +71,7 @@ RUBY_STILL_SECONDS = smoke(1.0, 0.05)  # sleeping: the strands at rest sleep aft
 SLEEP_SPEED = DynamicsSettings().sleep_speed  # the default, for the speed rows
 RUBY_MOTION_START = 0.5  # s into the motion scene: the head turns fastest (about 95 degrees/s)
 RUBY_MOTION_SECONDS = smoke(0.08, 0.01)  # two frames
+RUBY_START_SECONDS = smoke(0.2, 0.01)  # five frames from the scene's start, where the head starts turning
 RUBY_COARSE_TURN = 0.1  # rad: steps halved only past twice the default turn
 RUBY_REFERENCE_SWEEPS = smoke(1000, 20)  # per step, every one of them: the reference the moving rows are measured against
 RUBY_NUDGE = 1e-9  # 1/m: the curvatures' perturbation (times a standard normal each) of the run that shows how far
@@ -411,6 +412,9 @@ def speed() -> list[dict]:
             (f"the defaults, and the reference at the same max_turn {rs.dynamics.max_turn:g}", default, fine_reference)]
         default["spread"] = [(label, _strand_deviation(rscene.helices, a["q"], b["q"]))
                              for label, a, b in default["spread"]]
+        label = f"the defaults, motion scene from its start, {RUBY_START_SECONDS / 0.04:.0f} frames"
+        log(f"speed: ruby short, {label}")
+        points.append(_speed_row(label, ruby.simulation(), RUBY_START_SECONDS, turning, True, rmat))
     return points
 
 
@@ -561,7 +565,9 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               "stiffening), still, over one frame with nothing asleep "
               f"and over {RUBY_STILL_SECONDS:g} s at the defaults, where the strands at rest sleep, and in the `motion` scene over {RUBY_MOTION_SECONDS / 0.04:.0f} frames from "
               f"{RUBY_MOTION_START:g} s, where the head turns fastest (the simulation starts there from the "
-              "inverted model at rest on the body, so the hair is jerked into the turn). Each run starts after one "
+              "inverted model at rest on the body, so the hair is jerked into the turn), and over "
+              f"{RUBY_START_SECONDS / 0.04:.0f} frames from the scene's start, as a user's run starts, where the head "
+              "starts turning (its row has no reference: one would take minutes a frame). Each run starts after one "
               "warm-up step; `moved` is the largest displacement of any strand point at the end. The small case is "
               "a settled groom, whose strands rest stably without stiffening; many of a drawn groom's need it "
               "(docs/dynamics.md). The speed rows run at the defaults, where strands at rest "
