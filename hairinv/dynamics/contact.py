@@ -314,7 +314,7 @@ class CoulombSettings:
     """sweeps over all contacts in all (a round of the fixed point counts its sweeps)"""
     max_rounds: int = 20
     """rounds of the fixed point of convex problems"""
-    stall_rounds: int = 1
+    stall_rounds: int = 3
     """stop once this many rounds in a row (after the first) have not halved the best residual (0: never)"""
 
 
@@ -335,10 +335,12 @@ def solve_coulomb(problem: ConeProblem, settings: CoulombSettings, start: np.nda
     better of the two is kept. Once ``stall_rounds`` rounds in a row (after
     the first) have not halved the best residual, the solve stops there with
     its best iterate and no fail-safe (0: never): on ruby short's moving groom,
-    hair-hair contact by contact, with one stalled round (the default) 200
-    sweeps per step become about 50, and the strands' median distance after
-    two frames from a 1,000-sweep reference is 0.08-0.11 mm, where runs from
-    starts 1e-9 apart end 0.04-0.08 mm apart (docs/dynamics.md).
+    hair-hair contact by contact, with one stalled round 200 sweeps per step
+    become about 50, and the strands' median distance after two frames from a
+    1,000-sweep reference is 0.08-0.11 mm, where runs from starts 1e-9 apart
+    end 0.04-0.08 mm apart; but from the start of the motion the looser solves
+    let errors grow into cascades of halved steps, which three stalled rounds
+    (the default) do not (docs/dynamics.md).
 
     Body contacts only (no hair-hair contact): the strands do not interact,
     so the rounds run strand by strand, in the kernel, on each strand's dense
