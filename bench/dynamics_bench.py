@@ -584,7 +584,7 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
                      "sweeps per step", "extra substeps", "s per simulated s", "s per 1/25 s frame",
                      "from the reference (mm): median / 90% / largest"], rows), "",
               "The last column: for each strand, the largest distance between a point at the end of the run and "
-              "the same point at the end of the reference run (the row "reference: max_turn ..."), then the median, 90th percentile "
+              "the same point at the end of the reference run (the row `reference: max_turn ...`), then the median, 90th percentile "
               "and largest over the strands. Dense moving hair-hair contact solved contact by contact rarely "
               "meets the tolerance: each step runs until its residual stops halving (`dynamics.stall_rounds`: "
               f"{counted(DynamicsSettings().stall_rounds, 'round')} that did not halve it) or all its sweeps are spent.", ""]
