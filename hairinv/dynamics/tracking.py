@@ -28,6 +28,10 @@ __all__ = ["ContactTracker", "points_on"]
 # m: a remembered contact point stays while it is at most this much farther from the surface than
 # the point detection finds on the same element
 _PERSIST_SLACK = 1e-5
+# of its element's length: how far along it from a body contact holding the element at its thickness the point
+# detection finds closer must be to become the element's second contact (see ContactTracker.persist); closer
+# points are the same support, and two contacts that near on one element only make the solve stiffer
+_SECOND_APART = 0.25
 # golden-section steps placing a body contact along its element once the groom moves: 3.1e-3 of the bracket
 # between two samples (10-30 um on the samples' elements), where the distance found is off by the square
 # of that over twice the radius of curvature (below 1e-8 m); the first detection (the model's own contacts)
@@ -412,7 +416,7 @@ class ContactTracker:
         return point, contacts.frame[order, 0].copy(), gap.copy()
 
     # ------------------------------------------------------------------ remembered contacts
-    def persist(self, state: RodState, found: Contacts, dt: float) -> tuple[Contacts, tuple]:
+    def persist(self, state: RodState, found: Contacts, dt: float) -> tuple[Contacts, tuple, np.ndarray]:
         """Contacts that persist stay on the same material points of their strands.
 
         Detection picks each element's closest point afresh; where a strand lies
@@ -434,8 +438,8 @@ class ContactTracker:
         contact velocity by under half the contact solve's tolerance. A still
         groom then makes no closest-point queries.
 
-        Returns the contacts and their anchors (point, normal, gap; NaN points for
-        hair-hair contacts), for :meth:`keep`.
+        Returns the contacts, their anchors (point, normal, gap; NaN points for
+        hair-hair contacts) and their keys, for :meth:`remember` and :meth:`keep`.
         """
         model = self.model
         settings, contact_settings = model.settings, model.contact_settings
@@ -443,7 +447,7 @@ class ContactTracker:
         if (self.first and not moving) or not (len(self.keys) or self.stale.any()):
             # the first step meets the starting contacts as detected (see remember), and so does a
             # fresh detection with nothing remembered
-            return found, self.anchors_of(found, np.arange(found.n_contacts))
+            return found, self.anchors_of(found, np.arange(found.n_contacts)), self.keys_of(found)
         keys = self.keys_of(found)
         where, known = self._match(keys)
         missing = np.ones(len(self.keys), bool)
@@ -526,7 +530,18 @@ class ContactTracker:
         redetected = np.flatnonzero(known)
         detected_gap = found.gap[redetected] if found.gap is not None else gap[redetected]
         # (not from a reused detection: its closest points are not this shape's)
-        moved = redetected[(gap[redetected] > detected_gap + _PERSIST_SLACK) & ~self.stale[redetected]]
+        deeper = (gap[redetected] > detected_gap + _PERSIST_SLACK) & ~self.stale[redetected]
+        # but a body contact whose remembered point holds the strand at its thickness stays, and the point
+        # found becomes its element's second contact: an element lying along the body (a strand resting on
+        # it) rests on two points, and moving its only one from end to end would rock it for ever (one
+        # found inside, being pushed out, moves as the others)
+        touches = np.zeros(len(redetected), dtype=bool)
+        body_found = deeper & (strand[redetected, 1] < 0)
+        if body_found.any() and len(self.thickness):
+            on = redetected[body_found]
+            apart = np.abs(found.s[on, 0] - arc[on, 0]) >= _SECOND_APART * self.model.helices.length[element[on, 0]]
+            touches[body_found] = apart & (np.abs(gap[on] - self.thickness[where[on]]) <= _PERSIST_SLACK)
+        moved = redetected[deeper & ~touches]
         arc[moved], point[moved], frame[moved], gap[moved] = (found.s[moved], found.point[moved], found.frame[moved],
                                                               detected_gap[np.searchsorted(redetected, moved)])
         keep[moved] = True
@@ -534,16 +549,52 @@ class ContactTracker:
         anchor_point[moved_body] = point[moved_body]
         anchor_normal[moved_body] = frame[moved_body, 0]
         anchor_gap[moved_body] = gap[moved_body]
+        keys = np.concatenate([keys, self.keys[extra]])
+        second = redetected[touches]
+        if len(second):
+            # its element's second contact, if it has one already (among the remembered ones detection
+            # does not name), moves there only if the point found is clearly closer than it too
+            second_gap = detected_gap[touches]
+            second_key = self.second_key(element[second, 0])
+            remembered_keys = self.keys[extra]
+            at = np.minimum(np.searchsorted(remembered_keys, second_key), max(len(extra) - 1, 0))
+            has = remembered_keys[at] == second_key if len(extra) else np.zeros(len(second), bool)
+            old = found.n_contacts + at[has]
+            shift = gap[old] > second_gap[has] + _PERSIST_SLACK
+            old, source = old[shift], second[has][shift]
+            arc[old], point[old], frame[old], gap[old] = found.s[source], found.point[source], \
+                found.frame[source], second_gap[has][shift]
+            keep[old] = True
+            anchor_point[old], anchor_normal[old], anchor_gap[old] = point[old], frame[old, 0], gap[old]
+            new = second[~has]
+            new_gap = second_gap[~has]
+            strand, arc, mu, element = (np.concatenate([strand, found.strand[new]]), np.concatenate([arc, found.s[new]]),
+                                        np.concatenate([mu, found.mu[new]]), np.concatenate([element, element[new]]))
+            point, frame, gap = (np.concatenate([point, found.point[new]]), np.concatenate([frame, found.frame[new]]),
+                                 np.concatenate([gap, new_gap]))
+            anchor_point = np.concatenate([anchor_point, found.point[new]])
+            anchor_normal = np.concatenate([anchor_normal, found.frame[new, 0]])
+            anchor_gap = np.concatenate([anchor_gap, new_gap])
+            keep = np.concatenate([keep, np.ones(len(new), bool)])
+            keys = np.concatenate([keys, second_key[~has]])
         merged = Contacts(strand, arc, point, frame, mu, gap, element)
         anchors = (anchor_point, anchor_normal, anchor_gap)
         if keep.all():
-            return merged, anchors
-        return merged.subset(keep), tuple(a[keep] for a in anchors)
+            return merged, anchors, keys
+        return merged.subset(keep), tuple(a[keep] for a in anchors), keys[keep]
 
-    def remember(self, found: Contacts, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Keys, thickness and warm-start impulse of this step's contacts."""
+    def second_key(self, element: np.ndarray) -> np.ndarray:
+        """The key of a body contact that is its element's second (see :meth:`persist`): beyond every
+        element's and element pair's."""
+        n = self.model.helices.n_elements
+        return n * (n + 1) + element
+
+    def remember(self, found: Contacts, h: float, keys: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Keys, thickness and warm-start impulse of this step's contacts (``keys``: theirs from :meth:`persist`;
+        None: named by their elements)."""
         model = self.model
-        keys = self.keys_of(found)
+        keys = self.keys_of(found) if keys is None else keys
         gap = found.gap if found.gap is not None else np.zeros(found.n_contacts)
         initial = self.initial
         if self.first and initial is not None and initial.n_contacts == found.n_contacts \
@@ -565,6 +616,12 @@ class ContactTracker:
         impulse = np.zeros((found.n_contacts, 3))
         if len(self.keys):
             thickness[known] = self.thickness[where[known]]
+            # a new second contact of an element (see persist) keeps the room its first one keeps (as the
+            # first would, moved there): where the groom was drawn into the body, both hold the element inside
+            first_key = self.second_key(0)
+            second = np.flatnonzero(~known & (keys >= first_key))
+            at, has = self._match(keys[second] - first_key)
+            thickness[second[has]] = self.thickness[at[has]]
             # the same forces over this step's length (a halved step starts from half the impulses)
             world = self.impulse[where[known]] * (h / self.impulse_step)
             impulse[known] = np.einsum("cij,cj->ci", found.frame[known], world)
