@@ -284,7 +284,9 @@ class DynamicsSettings:
     hair_thickness: float = 5e-4
     """m. The same for new hair-hair contacts: the closest two centerlines may come."""
     push_speed: float = 0.05
-    """m/s. Largest speed at which a strand found closer than its thickness is pushed back out."""
+    """m/s. Largest speed at which a strand found closer than its thickness is pushed back out; near a root
+    less, at most ``0.05 max_turn s / time_step`` at arc ``s`` from it, so that a push does not bend the root
+    element past ``max_turn`` (docs/dynamics.md)."""
     tolerance: float = 1e-6
     """Contact solve stops when every contact's velocity error (the natural-map residual times the
     contact's own Delassus scale) is below this fraction of g h, the speed gravity adds in one step."""

@@ -35,7 +35,7 @@ from ..config import ContactSettings, DynamicsSettings, MaterialSettings
 from ..contacts.body import BodyMesh
 from ..contacts.rows import contact_rows
 from ..errors import InputError
-from ..model import Contacts, Helices, Material
+from ..model import BODY, Contacts, Helices, Material
 from ..rod.statics import gravity_forces, gravity_hessian, point_load_hessian
 from ..solver.gauss_seidel import SolverResult, natural_residuals, split_strands
 from ..solver.problem import COULOMB
@@ -213,6 +213,24 @@ COMPLIANCE = 1e-9
 #: g h: a warm start is accepted by the contact law without the compliance (see Simulation._warm_start)
 #: only while the compliance leaves a residual below this (or below the tolerance, if larger)
 _COMPLIANCE_SLACK = 1e-6
+#: a push out may move a contact's point by at most this times max_turn times its arc from the root, per
+#: time_step (see push_limit)
+_PUSH_TURN = 0.05
+
+
+def push_limit(found: Contacts, settings: DynamicsSettings) -> np.ndarray:
+    """(C,) m/s: the fastest each contact found closer than its thickness is pushed back out.
+
+    ``push_speed``, and near a root less: a push bends the elements between the contact and the root, and
+    one that turns them past ``max_turn`` in a step turns them as far in a halved step (the push is the
+    gap over the step taken), so halving cannot help and the step cascades into halvings. Pushing a point
+    at arc ``s`` by ``d`` bends a root element of length ``l`` by about ``2 d l / s^2``: on ruby short a
+    contact 11.7 mm along an 18.5 mm root element, pushed at 0.05 m/s, turned it by 0.14 rad in 10 ms,
+    and pushes passed on through hair-hair contacts near other strands' roots turn those. A push is
+    therefore kept to ``_PUSH_TURN max_turn s`` per ``time_step`` (``s``: the contact's arc from the
+    nearer root of its strands): 2.9 mm/s at 11.7 mm, 25 mm/s at 100 mm (docs/dynamics.md)."""
+    s = np.where(found.strand[:, 1] == BODY, found.s[:, 0], np.minimum(found.s[:, 0], found.s[:, 1]))
+    return np.minimum(settings.push_speed, _PUSH_TURN * settings.max_turn * s / settings.time_step)
 
 
 def compliance(Wd: np.ndarray) -> np.ndarray:
@@ -662,8 +680,8 @@ class Simulation:
                 free(np.flatnonzero(self._wake(hit)))
             found = tracker.awake_only(found, sleepers.asleep)
         clock.lap("detection")
-        found, anchors = tracker.persist(state, found, h)
-        keys, thickness, impulse = tracker.remember(found, h)
+        found, anchors, keys = tracker.persist(state, found, h)
+        keys, thickness, impulse = tracker.remember(found, h, keys)
         clock.lap("persistence")
         report = StepReport(found.n_contacts, found.n_body, 0, 0.0, Status.CONVERGED, 0, 0.0, depth=depth, last_depth=depth)
         v_new = v_free
@@ -690,7 +708,7 @@ class Simulation:
                 # whole length about the root
                 rooted = tracker.rooted(found)
                 thickness[rooted] = np.minimum(thickness[rooted], gap[rooted])
-            push[:, 0] = np.maximum((gap - thickness) / h, -settings.push_speed)
+            push[:, 0] = np.maximum((gap - thickness) / h, -push_limit(found, settings))
             if tracker.moving:  # and how the frames carry each contact's sides against each other
                 push[~rooted] += tracker.drift(state, found.subset(~rooted))
             b = rows.matvec(v_free.ravel()) + reachable(Wd, push)
