@@ -556,10 +556,9 @@ class ContactTracker:
             # does not name), moves there only if the point found is clearly closer than it too
             second_gap = detected_gap[touches]
             second_key = self.second_key(element[second, 0])
-            remembered_keys = self.keys[extra]
-            at = np.minimum(np.searchsorted(remembered_keys, second_key), max(len(extra) - 1, 0))
-            has = remembered_keys[at] == second_key if len(extra) else np.zeros(len(second), bool)
-            old = found.n_contacts + at[has]
+            at, has = self._match(second_key)
+            # (detection never names a second contact: a remembered one is among the extra ones)
+            old = found.n_contacts + np.searchsorted(extra, at[has])
             shift = gap[old] > second_gap[has] + _PERSIST_SLACK
             old, source = old[shift], second[has][shift]
             arc[old], point[old], frame[old], gap[old] = found.s[source], found.point[source], \
