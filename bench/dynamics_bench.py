@@ -66,13 +66,17 @@ MOTION_SECONDS = smoke(3.0, 0.05)
 TRIM_SECONDS = smoke(1.0, 0.02)
 SPEED_GUIDES = smoke(300, 4)
 SPEED_MOTION_SECONDS = smoke(1.0, 0.02)
+SPEED_REFERENCE_STEP = 0.0025  # s: the 300-strand motion scene's reference, a quarter of the default step
 RUBY_SECONDS = smoke(0.04, 0.01)  # one frame: the drawn groom has strands that no rest shape holds (see speed())
 RUBY_STILL_SECONDS = smoke(1.0, 0.05)  # sleeping: the strands at rest sleep after three steps
 SLEEP_SPEED = DynamicsSettings().sleep_speed  # the default, for the speed rows
 RUBY_MOTION_START = 0.5  # s into the motion scene: the head turns fastest (about 95 degrees/s)
 RUBY_MOTION_SECONDS = smoke(0.08, 0.01)  # two frames
 RUBY_START_SECONDS = smoke(0.2, 0.01)  # five frames from the scene's start, where the head starts turning
-RUBY_COARSE_TURN = 0.1  # rad: steps halved only past twice the default turn
+RUBY_TIGHT = dict(max_turn=0.1, stall_rounds=0)  # the tight reference: the default max_turn, every sweep (and
+# RUBY_REFERENCE_SWEEPS of them)
+RUBY_BEFORE = dict(max_turn=0.05, max_sweeps=200)  # the defaults before 2026-12-07: steps halved at half the turn,
+# four times the sweeps
 RUBY_REFERENCE_SWEEPS = smoke(1000, 20)  # per step, every one of them: the reference the moving rows are measured against
 RUBY_NUDGE = 1e-9  # 1/m: the curvatures' perturbation (times a standard normal each) of the run that shows how far
 # apart two runs drift that differ only by round-off-sized changes
@@ -366,6 +370,20 @@ def speed() -> list[dict]:
         sim = Simulation(settled, rest, mat, body, settings.contacts, dynamics,
                          initial=contacts if force is not None else None, initial_force=force)
         points.append(_speed_row(label, sim, seconds, motion_at, False, mat))
+    # the motion scene at the defaults before 2026-12-07, and a reference with a quarter of the step, every sweep
+    motion_rows = [points[-1]]
+    for label, changes in ((f"same, the defaults before 2026-12-07 (dynamics."
+                            f"{', '.join(f'{k} {v:g}' for k, v in RUBY_BEFORE.items())})", RUBY_BEFORE),
+                           (f"reference: time_step {SPEED_REFERENCE_STEP:g}, tolerance 1e-08, every sweep",
+                            dict(time_step=SPEED_REFERENCE_STEP, tolerance=1e-8, max_sweeps=1000, stall_rounds=0))):
+        log(f"speed: settled straight, motion scene, {label}")
+        sim = Simulation(settled, model.omega_rest, mat, body, settings.contacts,
+                         dataclasses.replace(settings.dynamics, **changes), initial=contacts,
+                         initial_force=model.force)
+        points.append(_speed_row(label, sim, SPEED_MOTION_SECONDS, _moving(mat, settled.root), False, mat))
+        motion_rows.append(points[-1])
+    for p in motion_rows[:-1]:
+        p["deviation"] = _strand_deviation(settled, p["q"], motion_rows[-1]["q"])
     points[0]["settle_seconds"] = settle_seconds
     ruby = ruby_short()
     if ruby is not None:
@@ -377,24 +395,24 @@ def speed() -> list[dict]:
         points.append(_speed_row("same, one frame, nothing sleeps (dynamics.sleep_speed 0)", sim, RUBY_SECONDS,
                                  lambda t: Motion.still(rmat.gravity), True, rmat))
         turning = _moving(rmat, rscene.helices.root)
-        # the default; the same with steps halved only past twice the default turn: the speed a coarser
-        # linearisation buys; then with every sweep (no early stop of a stalled contact solve), and the
-        # reference: every sweep, RUBY_REFERENCE_SWEEPS of them. Each moving row is measured against the reference.
-        # Two more runs show how far apart runs drift that should agree: the default from a start perturbed by
-        # round-off-sized curvatures, and the reference at the default max_turn
+        # the defaults; the defaults before 2026-12-07 (half the turn before a step is halved, four times the
+        # sweeps); the defaults with every sweep (no early stop of a stalled contact solve, the sweeps of the
+        # defaults before), and the reference: every sweep, RUBY_REFERENCE_SWEEPS of them. Each moving row is
+        # measured against the reference. Two more runs show how far apart runs drift that should agree: the
+        # default from a start perturbed by round-off-sized curvatures, and the reference at the earlier max_turn
+        before = ", ".join(f"{k} {v:g}" for k, v in RUBY_BEFORE.items())
         moving = []
         for label, changes, nudge in (
                 (f"ruby short (as drawn), inverted, motion scene from {RUBY_MOTION_START:g} s, "
                  f"{RUBY_MOTION_SECONDS / 0.04:.0f} frames", {}, False),
-                (f"same, dynamics.max_turn {RUBY_COARSE_TURN:g} (default {rs.dynamics.max_turn:g})",
-                 dict(max_turn=RUBY_COARSE_TURN), False),
-                (f"same, max_turn {RUBY_COARSE_TURN:g}, every sweep (dynamics.stall_rounds 0)",
-                 dict(max_turn=RUBY_COARSE_TURN, stall_rounds=0), False),
+                (f"same, the defaults before 2026-12-07 (dynamics.{before})", RUBY_BEFORE, False),
+                (f"same, every sweep (dynamics.stall_rounds 0, max_sweeps {RUBY_BEFORE['max_sweeps']})",
+                 dict(stall_rounds=0, max_sweeps=RUBY_BEFORE["max_sweeps"]), False),
                 (f"the defaults, the start's curvatures perturbed by {RUBY_NUDGE:g} 1/m", {}, True),
-                (f"reference at the default max_turn {rs.dynamics.max_turn:g}: every sweep, "
-                 f"{RUBY_REFERENCE_SWEEPS} per step", dict(stall_rounds=0, max_sweeps=RUBY_REFERENCE_SWEEPS), False),
-                (f"reference: max_turn {RUBY_COARSE_TURN:g}, every sweep, {RUBY_REFERENCE_SWEEPS} per step",
-                 dict(max_turn=RUBY_COARSE_TURN, stall_rounds=0, max_sweeps=RUBY_REFERENCE_SWEEPS), False)):
+                (f"reference at max_turn {RUBY_BEFORE['max_turn']:g}: every sweep, {RUBY_REFERENCE_SWEEPS} per step",
+                 dict(RUBY_TIGHT, max_turn=RUBY_BEFORE["max_turn"], max_sweeps=RUBY_REFERENCE_SWEEPS), False),
+                (f"reference: max_turn {RUBY_TIGHT['max_turn']:g}, every sweep, {RUBY_REFERENCE_SWEEPS} per step",
+                 dict(RUBY_TIGHT, max_sweeps=RUBY_REFERENCE_SWEEPS), False)):
             log(f"speed: ruby short, motion scene, {label}")
             sim = ruby.simulation(**changes)
             if nudge:
@@ -407,14 +425,23 @@ def speed() -> list[dict]:
         default, nudged, fine_reference, reference = moving[0], moving[3], moving[4], moving[5]
         default["spread"] = [
             ("the defaults, and the same from the perturbed start", default, nudged),
-            (f"the reference at max_turn {RUBY_COARSE_TURN:g}, and at the default {rs.dynamics.max_turn:g}",
+            (f"the reference at max_turn {RUBY_TIGHT['max_turn']:g}, and at {RUBY_BEFORE['max_turn']:g}",
              reference, fine_reference),
-            (f"the defaults, and the reference at the same max_turn {rs.dynamics.max_turn:g}", default, fine_reference)]
+            (f"the defaults, and the reference at max_turn {RUBY_BEFORE['max_turn']:g}", default, fine_reference)]
         default["spread"] = [(label, _strand_deviation(rscene.helices, a["q"], b["q"]))
                              for label, a, b in default["spread"]]
-        label = f"the defaults, motion scene from its start, {RUBY_START_SECONDS / 0.04:.0f} frames"
-        log(f"speed: ruby short, {label}")
-        points.append(_speed_row(label, ruby.simulation(), RUBY_START_SECONDS, turning, True, rmat))
+        # from the scene's start, as a user's run starts: the defaults, the defaults before, and the reference
+        frames = f"{RUBY_START_SECONDS / 0.04:.0f} frames"
+        started = []
+        for label, changes in ((f"the defaults, motion scene from its start, {frames}", {}),
+                               (f"same, the defaults before 2026-12-07 (dynamics.{before})", RUBY_BEFORE),
+                               (f"reference from the start: max_turn {RUBY_TIGHT['max_turn']:g}, every sweep, "
+                                f"{RUBY_REFERENCE_SWEEPS} per step", dict(RUBY_TIGHT, max_sweeps=RUBY_REFERENCE_SWEEPS))):
+            log(f"speed: ruby short, {label}")
+            points.append(_speed_row(label, ruby.simulation(**changes), RUBY_START_SECONDS, turning, True, rmat))
+            started.append(points[-1])
+        for p in started[:-1]:
+            p["deviation"] = _strand_deviation(rscene.helices, p["q"], started[-1]["q"])
     return points
 
 
@@ -567,7 +594,7 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
               f"{RUBY_MOTION_START:g} s, where the head turns fastest (the simulation starts there from the "
               "inverted model at rest on the body, so the hair is jerked into the turn), and over "
               f"{RUBY_START_SECONDS / 0.04:.0f} frames from the scene's start, as a user's run starts, where the head "
-              "starts turning (its row has no reference: one would take minutes a frame). Each run starts after one "
+              "starts turning. Each run starts after one "
               "warm-up step; `moved` is the largest displacement of any strand point at the end. The small case is "
               "a settled groom, whose strands rest stably without stiffening; many of a drawn groom's need it "
               "(docs/dynamics.md). The speed rows run at the defaults, where strands at rest "
@@ -584,7 +611,8 @@ def render(v: dict, mt: dict, points: list[dict]) -> str:
                      "sweeps per step", "extra substeps", "s per simulated s", "s per 1/25 s frame",
                      "from the reference (mm): median / 90% / largest"], rows), "",
               "The last column: for each strand, the largest distance between a point at the end of the run and "
-              "the same point at the end of the reference run (the row `reference: max_turn ...`), then the median, 90th percentile "
+              "the same point at the end of the reference run from the same start (the rows `reference: max_turn ...` and "
+              "`reference from the start: ...`), then the median, 90th percentile "
               "and largest over the strands. Dense moving hair-hair contact solved contact by contact rarely "
               "meets the tolerance: each step runs until its residual stops halving (`dynamics.stall_rounds`: "
               f"{counted(DynamicsSettings().stall_rounds, 'round')} that did not halve it) or all its sweeps are spent.", ""]

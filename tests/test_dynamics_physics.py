@@ -789,8 +789,8 @@ def _block(x0, x1, top):
 def test_a_push_near_a_root_is_slowed_so_that_no_element_turns_past_max_turn(monkeypatch):
     """A strand found 0.5 mm inside a block under the second half of its root element: pushed out at
     ``push_speed`` (50 mm/s, 0.5 mm in the step), the root element bends about ``2 d l / s^2`` = 0.15 rad
-    in one step, three times ``max_turn``, and would bend as far in a halved step (the push is the gap over
-    the step taken). The push is kept to ``_PUSH_TURN max_turn s`` per step (2.9 mm/s at s = 11.4 mm):
+    in one step, three times ``max_turn`` (0.05 here), and would bend as far in a halved step (the push is the
+    gap over the step taken). The push is kept to ``_PUSH_TURN max_turn s`` per step (2.9 mm/s at s = 11.4 mm):
     the contact's normal velocity after the step is that, measured with its own rows, and no element
     turns past ``max_turn``."""
     from hairinv.contacts.rows import contact_rows
@@ -802,7 +802,7 @@ def test_a_push_near_a_root_is_slowed_so_that_no_element_turns_past_max_turn(mon
     inside = 0.5e-3
     body = _block(0.5 * l0, l0, inside)
     settings = Settings()
-    dynamics = dataclasses.replace(settings.dynamics, max_substeps=0)
+    dynamics = dataclasses.replace(settings.dynamics, max_substeps=0, max_turn=0.05)
     contacts = dataclasses.replace(settings.contacts, hair_hair=False)
     aside = helices.omega.copy()
     aside[0, 0] = 150.0  # the root element bent sideways, clear of the block, for the first step

@@ -133,6 +133,44 @@ def test_a_sleeping_strand_wakes_when_a_falling_strand_hits_it():
     assert np.max(np.linalg.norm(_points(helices, sleepy.q) - _points(helices, awake.q), axis=2)) < 1e-8
 
 
+def test_a_strand_falling_onto_another_faster_than_the_contact_distance_a_step_lands_on_it(monkeypatch):
+    """B falls onto A at up to 0.8 m/s, 8 mm a step, eight times ``hair_distance``, in whole steps (no halving:
+    ``max_turn`` 10 rad): the pair is searched as far as B's own motion over the step reaches, so B lands on A
+    and rests there, above it where they cross. With the strands' own motion left out of the search (the
+    detection of the step's start alone), B passes through A to the floor."""
+    from hairinv.dynamics.tracking import ContactTracker
+
+    def crossing(make, limit_own: bool):
+        if limit_own:
+            monkeypatch.setattr(ContactTracker, "own_sweep", lambda self, state, h: np.zeros(len(self.own)))
+        helices, mat, sim_of = make
+        sim = sim_of(0.0)
+        sim.settings = dataclasses.replace(sim.settings, max_turn=10.0)
+        above, farthest = [], 0.0
+        pb_last = _points(helices, sim.q, per=33)[1]
+        for _ in range(40):
+            sim.step(Motion.still(mat.gravity))
+            pa, pb = _points(helices, sim.q, per=33)
+            farthest = max(farthest, float(np.linalg.norm(pb - pb_last, axis=1).max()))
+            pb_last = pb
+            # where B crosses A's line (z = 0), its height above A's point at the same x
+            k = int(np.argmin(np.abs(pb[:, 2])))
+            j = int(np.argmin(np.abs(pa[:, 0] - pb[k, 0])))
+            above.append(pb[k, 1] - pa[j, 1])
+        monkeypatch.undo()
+        return np.array(above), sim, farthest
+
+    made = _two_strands_on_a_floor(above=3e-3)
+    above, sim, farthest = crossing(made, limit_own=False)
+    assert farthest > 5 * Settings().contacts.hair_distance  # B's points move that far in a step
+    hair = sim.tracker.pair[:, 1] >= 0
+    assert np.all(above > 0.0)  # B never passes below A where they cross
+    assert np.abs(sim.tracker.impulse[hair]).max(initial=0.0) > 0.0  # and rests on it, pressing on it
+    assert above[-1] < 2e-3  # (down on A: the two radii apart, not held up in the air)
+    through, _, _ = crossing(_two_strands_on_a_floor(above=3e-3), limit_own=True)
+    assert through[-1] < 0.0  # without the sweep: through A
+
+
 def test_a_sleeping_strand_wakes_when_the_motion_changes():
     """Asleep under a still body; the body starts to turn: every strand wakes in that step, and follows
     the run without sleeping."""

@@ -668,7 +668,8 @@ class Simulation:
         clock.lap("matrices")
         free(np.flatnonzero(~sleepers.asleep))
         clock.lap("free motion")
-        tracker.own = tracker.own_sweep(state, h) if body is not None and model.contact_settings.body else \
+        rules = model.contact_settings
+        tracker.own = tracker.own_sweep(state, h) if (body is not None and rules.body) or rules.hair_hair else \
             np.zeros(helices.n_strands)
         found = tracker.detect(state)
         if sleepers.any():

@@ -202,6 +202,7 @@ class ContactTracker:
         self.body = model.body
         self.margin = (0.0, 0.0)
         self.own = np.zeros(helices.n_strands)
+        self.ahead = None
         self.parked = None  # the sleeping strands' remembered contacts (see park)
 
     # ------------------------------------------------------------------ the step being taken
@@ -226,9 +227,11 @@ class ContactTracker:
         and the remembered contacts are measured again where they are (see :meth:`persist`).
 
         A strand whose own motion over the step (see :meth:`own_sweep`) reaches that far is detected
-        again too, and body contacts are searched as far as that motion goes: a strand swinging into the
+        again too, and its contacts are searched as far as that motion goes: a strand swinging into the
         body faster than the contact distance a step (hair down a back when the character stops short)
-        meets it instead of passing into it.
+        meets it instead of passing into it, and a strand falling onto another meets it instead of passing
+        through it (a pair is searched as far as the two strands' own motions together reach,
+        :meth:`_hair_strands`).
 
         The strands are detected one by one: only those that may have moved by that much since their own
         last detection are detected again (the body does not move in its frame), and the others keep theirs.
@@ -274,6 +277,10 @@ class ContactTracker:
                                    narrow=self._narrow_pays())
         if own and rules.layer is False:  # (contacts the hair layer rule declares lie beyond the distance)
             found = self._within_sweep(found)
+        if own and rules.hair_hair:  # the pairs with a strand that moves that far, searched as far as it goes
+            hair = found.strand[:, 1] >= 0
+            swept = self._swept(state.current(model), found.subset(hair), swings, rules.hair_distance)
+            found = joined(found.subset(~hair), swept.subset(self._closest(swept)))
         self.stale = np.zeros(found.n_contacts, dtype=np.bool_)
         self.redetected = S
         self.last_found, self.q_detected = found, q.copy()
@@ -332,26 +339,79 @@ class ContactTracker:
 
     def _hair_strands(self, h: Helices, last: Contacts, redone: np.ndarray) -> tuple[Contacts, np.ndarray]:
         """Hair-hair contacts of ``h`` (the strands as they are), the pairs with a strand in ``redone`` (S,) bool
-        detected afresh and those of two other strands kept from ``last`` (the last detection's hair-hair
-        contacts), each element keeping its ``max_hair_per_element`` closest; and which are kept ones."""
+        detected afresh (as far as their strands move, :meth:`_swept`) and those of two other strands kept from
+        ``last`` (the last detection's hair-hair contacts), each element keeping its ``max_hair_per_element``
+        closest; and which are kept ones."""
         rules = dataclasses.replace(self.detect_settings, body=False)
         fresh, _ = detect_contacts(h, None, rules, refine_iterations=_MOVING_REFINE, narrow=self._narrow_pays(),
                                    touching=redone)
+        fresh = self._swept(h, fresh, redone, rules.hair_distance)
         kept = last.subset(~(redone[last.strand[:, 0]] | redone[last.strand[:, 1]]))
         both = joined(kept, fresh)
-        cap = int(rules.max_hair_per_element)
-        if cap > 0 and both.n_contacts:
-            elements = self.elements_of(both)
-            gap = np.concatenate([kept.gap if kept.gap is not None else np.zeros(kept.n_contacts), fresh.gap])
-            closest = np.zeros(both.n_contacts, dtype=np.bool_)
+        order = self._closest(both, np.concatenate([kept.gap if kept.gap is not None else np.zeros(kept.n_contacts),
+                                                    fresh.gap]))
+        return both.subset(order), order < kept.n_contacts
+
+    def _closest(self, pairs: Contacts, gap: np.ndarray | None = None) -> np.ndarray:
+        """The hair-hair ``pairs`` each element keeps (its ``max_hair_per_element`` closest by ``gap``, default
+        theirs), in the order :func:`~hairinv.contacts.detect.detect_contacts` gives hair-hair contacts."""
+        cap = int(self.detect_settings.max_hair_per_element)
+        if cap > 0 and pairs.n_contacts:
+            elements = self.elements_of(pairs)
+            gap = pairs.gap if gap is None else gap
+            closest = np.zeros(pairs.n_contacts, dtype=np.bool_)
             _closest_per_element(elements[:, 0], elements[:, 1], np.argsort(gap, kind="stable"), cap,
                                  np.zeros(self.model.helices.n_elements, dtype=np.int64), closest)
         else:
-            closest = np.ones(both.n_contacts, dtype=np.bool_)
-        # as detect_contacts orders hair-hair contacts
+            closest = np.ones(pairs.n_contacts, dtype=np.bool_)
         order = np.flatnonzero(closest)
-        order = order[np.lexsort((both.s[order, 1], both.s[order, 0], both.strand[order, 1], both.strand[order, 0]))]
-        return both.subset(order), order < kept.n_contacts
+        return order[np.lexsort((pairs.s[order, 1], pairs.s[order, 0], pairs.strand[order, 1],
+                                 pairs.strand[order, 0]))]
+
+    def _swept(self, h: Helices, fresh: Contacts, redone: np.ndarray, distance: float) -> Contacts:
+        """``fresh`` (hair-hair pairs found within ``distance`` plus the step's margin, their strands among
+        ``redone``) with the pairs of a strand that moves fast searched again as far as their strands move.
+
+        Two strands can pass through each other between two detections only if together they move farther
+        than the contact distance over the step (:meth:`own_sweep`), so one of them more than half of it.
+        Each pair with such a strand is searched as far as its two strands' motions reach, and kept where
+        their points, carried in a straight line by the velocities the step starts with, come within the
+        contact distance (:meth:`_come_within`): strands that move together (a wisp swinging) are not asked
+        to keep apart. The fast strands are searched in groups that move within a factor of two of each
+        other, each pair with its faster strand, to twice that strand's motion, rather than every pair to
+        twice the fastest's."""
+        reach = distance + self.margin[1]
+        own = self.own
+        fast = redone & (own > 0.5 * reach)
+        if not fast.any():
+            return fresh
+        rules = dataclasses.replace(self.detect_settings, body=False)
+        tier = np.zeros(len(own), dtype=np.int64)
+        tier[fast] = 1 + np.floor(np.log2(own[fast] / (0.5 * reach))).astype(np.int64)
+        out = fresh.subset(~(fast[fresh.strand[:, 0]] | fast[fresh.strand[:, 1]]))
+        for level in np.unique(tier[fast]):
+            members = tier == level
+            swept, _ = detect_contacts(h, None, dataclasses.replace(rules, hair_distance=reach + 2 * own[members].max()),
+                                       refine_iterations=_MOVING_REFINE, narrow=self._narrow_pays(), touching=members)
+            a, b = swept.strand[:, 0], swept.strand[:, 1]
+            mine = np.flatnonzero((np.maximum(tier[a], tier[b]) == level) & (swept.gap < reach + own[a] + own[b]))
+            out = joined(out, swept.subset(mine[self._come_within(h, swept.subset(mine), reach)]))
+        return out
+
+    def _come_within(self, h: Helices, pairs: Contacts, reach: float) -> np.ndarray:
+        """Which hair ``pairs`` come within ``reach`` over the step, their two points moved as the strands'
+        velocities at the step's start carry them (:meth:`own_sweep`), in a straight line: two strands that move
+        together (a wisp swinging) are not asked to keep apart."""
+        near = pairs.gap < reach
+        if self.ahead is None or near.all():
+            return near
+        strand, s = pairs.strand, pairs.s
+        now = points_on(h, h.omega, strand[:, 0], s[:, 0]) - points_on(h, h.omega, strand[:, 1], s[:, 1])
+        then = points_on(h, self.ahead, strand[:, 0], s[:, 0]) - points_on(h, self.ahead, strand[:, 1], s[:, 1])
+        closing = then - now
+        t = np.clip(-np.einsum("ij,ij->i", now, closing) / np.maximum(np.einsum("ij,ij->i", closing, closing),
+                                                                         1e-300), 0.0, 1.0)
+        return near | (np.linalg.norm(now + t[:, None] * closing, axis=1) < reach)
 
     def own_sweep(self, state: RodState, h: float) -> np.ndarray:
         """(S,) m: how far each strand's own motion carries its points in its frame over the step, at the velocity
@@ -365,13 +425,15 @@ class ContactTracker:
         from the next step on.)"""
         hel = self.model.helices
         own = np.zeros(hel.n_strands)
+        self.ahead = None
         if not hel.n_elements or not np.isfinite(self.detect_distance):
             return own
         reach = 0.25 * self.detect_distance
         cheap = self.model.swing(state.v, h)
         if cheap.max() < reach:
             return own
-        _strand_moves(hel.root, hel.frame0, hel.offsets, state.q, state.q + h * state.v, hel.length, own)
+        self.ahead = state.q + h * state.v  # (the shape the step's start velocity leads to: _come_within)
+        _strand_moves(hel.root, hel.frame0, hel.offsets, state.q, self.ahead, hel.length, own)
         own = np.minimum(own, cheap)
         own[own < reach] = 0.0
         return own
@@ -481,7 +543,8 @@ class ContactTracker:
         point[redo] = xa
         body = strand[redo, 1] < 0
         limit = np.where(body, contact_settings.body_distance + self.margin[0] + self.own[strand[redo, 0]],
-                         contact_settings.hair_distance + self.margin[1])
+                         contact_settings.hair_distance + self.margin[1] + self.own[strand[redo, 0]]
+                         + self.own[np.maximum(strand[redo, 1], 0)])
         if body.any():
             if self.body is None:
                 gap[redo[body]] = np.inf
