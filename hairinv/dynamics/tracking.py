@@ -279,7 +279,7 @@ class ContactTracker:
             found = self._within_sweep(found)
         if own and rules.hair_hair:  # the pairs with a strand that moves that far, searched as far as it goes
             hair = found.strand[:, 1] >= 0
-            swept = self._swept(state.current(model), found.subset(hair), swings, rules.hair_distance)
+            swept = self._swept(state.current(model), found.subset(hair), swings, self.detect_settings.hair_distance)
             found = joined(found.subset(~hair), swept.subset(self._closest(swept)))
         self.stale = np.zeros(found.n_contacts, dtype=np.bool_)
         self.redetected = S
@@ -391,7 +391,8 @@ class ContactTracker:
         out = fresh.subset(~(fast[fresh.strand[:, 0]] | fast[fresh.strand[:, 1]]))
         for level in np.unique(tier[fast]):
             members = tier == level
-            swept, _ = detect_contacts(h, None, dataclasses.replace(rules, hair_distance=reach + 2 * own[members].max()),
+            farthest = reach + 2 * own[members].max()
+            swept, _ = detect_contacts(h, None, dataclasses.replace(rules, hair_distance=farthest),
                                        refine_iterations=_MOVING_REFINE, narrow=self._narrow_pays(), touching=members)
             a, b = swept.strand[:, 0], swept.strand[:, 1]
             mine = np.flatnonzero((np.maximum(tier[a], tier[b]) == level) & (swept.gap < reach + own[a] + own[b]))
