@@ -77,6 +77,8 @@ RUBY_TIGHT = dict(max_turn=0.1, stall_rounds=0)  # the tight reference: the defa
 # RUBY_REFERENCE_SWEEPS of them)
 RUBY_BEFORE = dict(max_turn=0.05, max_sweeps=200)  # the defaults before 2026-12-07: steps halved at half the turn,
 # four times the sweeps
+BEFORE_LABEL = ("same, the defaults before 2026-12-07 (dynamics."
+                + ", ".join(f"{k} {v:g}" for k, v in RUBY_BEFORE.items()) + ")")
 RUBY_REFERENCE_SWEEPS = smoke(1000, 20)  # per step, every one of them: the reference the moving rows are measured against
 RUBY_NUDGE = 1e-9  # 1/m: the curvatures' perturbation (times a standard normal each) of the run that shows how far
 # apart two runs drift that differ only by round-off-sized changes
@@ -372,8 +374,7 @@ def speed() -> list[dict]:
         points.append(_speed_row(label, sim, seconds, motion_at, False, mat))
     # the motion scene at the defaults before 2026-12-07, and a reference with a quarter of the step, every sweep
     motion_rows = [points[-1]]
-    for label, changes in ((f"same, the defaults before 2026-12-07 (dynamics."
-                            f"{', '.join(f'{k} {v:g}' for k, v in RUBY_BEFORE.items())})", RUBY_BEFORE),
+    for label, changes in ((BEFORE_LABEL, RUBY_BEFORE),
                            (f"reference: time_step {SPEED_REFERENCE_STEP:g}, tolerance 1e-08, every sweep",
                             dict(time_step=SPEED_REFERENCE_STEP, tolerance=1e-8, max_sweeps=1000, stall_rounds=0))):
         log(f"speed: settled straight, motion scene, {label}")
@@ -400,12 +401,11 @@ def speed() -> list[dict]:
         # defaults before), and the reference: every sweep, RUBY_REFERENCE_SWEEPS of them. Each moving row is
         # measured against the reference. Two more runs show how far apart runs drift that should agree: the
         # default from a start perturbed by round-off-sized curvatures, and the reference at the earlier max_turn
-        before = ", ".join(f"{k} {v:g}" for k, v in RUBY_BEFORE.items())
         moving = []
         for label, changes, nudge in (
                 (f"ruby short (as drawn), inverted, motion scene from {RUBY_MOTION_START:g} s, "
                  f"{RUBY_MOTION_SECONDS / 0.04:.0f} frames", {}, False),
-                (f"same, the defaults before 2026-12-07 (dynamics.{before})", RUBY_BEFORE, False),
+                (BEFORE_LABEL, RUBY_BEFORE, False),
                 (f"same, every sweep (dynamics.stall_rounds 0, max_sweeps {RUBY_BEFORE['max_sweeps']})",
                  dict(stall_rounds=0, max_sweeps=RUBY_BEFORE["max_sweeps"]), False),
                 (f"the defaults, the start's curvatures perturbed by {RUBY_NUDGE:g} 1/m", {}, True),
@@ -434,7 +434,7 @@ def speed() -> list[dict]:
         frames = f"{RUBY_START_SECONDS / 0.04:.0f} frames"
         started = []
         for label, changes in ((f"the defaults, motion scene from its start, {frames}", {}),
-                               (f"same, the defaults before 2026-12-07 (dynamics.{before})", RUBY_BEFORE),
+                               (BEFORE_LABEL, RUBY_BEFORE),
                                (f"reference from the start: max_turn {RUBY_TIGHT['max_turn']:g}, every sweep, "
                                 f"{RUBY_REFERENCE_SWEEPS} per step", dict(RUBY_TIGHT, max_sweeps=RUBY_REFERENCE_SWEEPS))):
             log(f"speed: ruby short, {label}")

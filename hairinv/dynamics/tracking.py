@@ -272,14 +272,15 @@ class ContactTracker:
             # strands' own
             rules = dataclasses.replace(rules, body_distance=rules.body_distance + self.margin[0] + own,
                                         hair_distance=rules.hair_distance + self.margin[1])
-        found, _ = detect_contacts(state.current(model), self.body, rules, up=model.up,
+        current = state.current(model)  # (placed by their frames under a deforming body: built once)
+        found, _ = detect_contacts(current, self.body, rules, up=model.up,
                                    refine_iterations=REFINE_ITERATIONS if first else _MOVING_REFINE,
                                    narrow=self._narrow_pays())
         if own and rules.layer is False:  # (contacts the hair layer rule declares lie beyond the distance)
             found = self._within_sweep(found)
         if own and rules.hair_hair:  # the pairs with a strand that moves that far, searched as far as it goes
             hair = found.strand[:, 1] >= 0
-            swept = self._swept(state.current(model), found.subset(hair), swings, self.detect_settings.hair_distance)
+            swept = self._swept(current, found.subset(hair), swings, self.detect_settings.hair_distance)
             found = joined(found.subset(~hair), swept.subset(self._closest(swept)))
         self.stale = np.zeros(found.n_contacts, dtype=np.bool_)
         self.redetected = S
