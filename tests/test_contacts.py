@@ -943,6 +943,49 @@ def test_hair_pairs_touching_given_strands_are_those_of_the_whole_search(seed):
     with pytest.raises(ValueError, match="wisp"):
         detect_contacts(h, plane(), SETTINGS, up=np.array([0.0, 1.0, 0.0]), touching=touching)
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_hair_pairs_searched_farther_per_strand_are_those_within_the_sum_of_their_strands_reaches(seed):
+    """``farther``: a pair of strands a, b is declared within ``hair_distance + farther[a] + farther[b]``.
+    Without the cap, the contacts are those of one search of every pair to the farthest reach, filtered pair by
+    pair; with the cap, those the greedy keeps of them, closest first (its definition); with one value for all,
+    those of a search at that reach (no per-strand code)."""
+    h = dense_head(seed, guides=6, follow=6)
+    rng = np.random.default_rng(seed)
+    hd = SETTINGS.hair_distance
+    farther = np.where(rng.random(h.n_strands) < 0.3, rng.uniform(0.5, 3.0, h.n_strands) * hd, 0.0)
+    touching = farther > 0
+    for cap in (0, 2):
+        settings = dataclasses.replace(SETTINGS, layer=False, wisp=False, max_hair_per_element=cap)
+        some, _ = detect_contacts(h, plane(), settings, touching=touching, farther=farther)
+        wide = dataclasses.replace(settings, max_hair_per_element=0, hair_distance=hd + 2 * farther.max())
+        every, _ = detect_contacts(h, plane(), wide, touching=touching)
+        hair = some.strand[:, 1] >= 0
+        assert np.array_equal(some.subset(~hair).s, every.subset(every.strand[:, 1] < 0).s)  # body as before
+        pairs = every.strand[:, 1] >= 0
+        within = pairs & (every.gap < hd + farther[every.strand[:, 0]] + farther[np.maximum(every.strand[:, 1], 0)])
+        expected = every.subset(within)
+        assert 10 < expected.n_contacts < np.count_nonzero(pairs)
+        if cap:  # the greedy, closest first, while both elements hold fewer than the cap
+            held, keep = np.zeros(h.n_elements, int), np.zeros(expected.n_contacts, bool)
+            for k in np.argsort(expected.gap, kind="stable"):
+                a, b = expected.element[k]
+                if held[a] < cap and held[b] < cap:
+                    held[a] += 1
+                    held[b] += 1
+                    keep[k] = True
+            assert not keep.all()
+            expected = expected.subset(keep)
+        for name in ("strand", "element", "s", "gap", "point"):
+            np.testing.assert_allclose(getattr(some.subset(hair), name), getattr(expected, name), rtol=0, atol=1e-12)
+        same = np.full(h.n_strands, 0.7 * hd)
+        one, _ = detect_contacts(h, plane(), settings, farther=same)
+        at, _ = detect_contacts(h, plane(), dataclasses.replace(settings, hair_distance=hd + 2 * 0.7 * hd))
+        for name in ("strand", "element", "s", "gap", "point"):
+            np.testing.assert_allclose(getattr(one, name), getattr(at, name), rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="wisp"):
+        detect_contacts(h, plane(), SETTINGS, up=np.array([0.0, 1.0, 0.0]), farther=farther)
+
+
 @pytest.mark.parametrize("cap", [1, 8, 40])
 def test_a_simulation_searches_narrowly_first_where_half_the_elements_held_the_cap(cap):
     """A simulation's detection (``ContactTracker.detect``) takes the narrow first search where at least half

@@ -270,7 +270,7 @@ def _cap_greedy(ea, eb, sa, sb, dist, refined, known, pending, low, cap, within,
             refined[p] = True
             a = ea[p]
             b = eb[p]
-            if (dist[p] < within and not (sa[p] == length[a] and is_last[a] == 0)
+            if (dist[p] < 0.5 * (within[a] + within[b]) and not (sa[p] == length[a] and is_last[a] == 0)
                     and not (sb[p] == length[b] and is_last[b] == 0)
                     and not (s0[a] + sa[p] < root_clearance and s0[b] + sb[p] < root_clearance)):
                 if n == key.shape[0]:
@@ -305,7 +305,8 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
     the order is that of the distances. When its turn comes, a pair one of whose elements already holds
     ``cap`` contacts cannot be kept whatever its distance (counts only grow) and is left unmeasured; the
     others are refined (``sa``, ``sb``, ``dist``, ``refined`` updated in place) and are candidates as
-    ``keep`` would have marked them: closer than ``within``, neither point an element's end that starts
+    ``keep`` would have marked them: closer than ``within`` (float, or per element: a pair's is the mean of
+    its two elements' values, as :func:`_found_pairs` searches them), neither point an element's end that starts
     the next, not both within ``root_clearance`` of the roots. The refinements are made ahead, a window of
     ``_CAP_WINDOW`` pending pairs at a time on the worker threads, for the pairs whose elements are not full
     yet; the greedy itself is sequential.
@@ -313,6 +314,7 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
     Returns ``(dropped, unmeasured)``: candidates not kept, and pairs left unmeasured.
     """
     count = np.zeros(elements, dtype=np.int64)
+    within = _per_element(within, elements)
     key = np.empty(1024)
     item = np.empty(1024, dtype=np.int64)
     state = np.zeros(5, dtype=np.int64)
@@ -338,7 +340,12 @@ def _cap_pairs(ea, eb, sa, sb, dist, refined, known, pending, low, cap, elements
     return int(state[3]), int(state[4])
 
 
-def _keep_closest(pairs: "_Pairs", keep, cap: int, within: float, s0, length, is_last, root_clearance, xs, Fs,
+def _per_element(value, elements: int) -> np.ndarray:
+    """``value`` (a float, or per element) as an (elements,) float64 array."""
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=np.float64), (elements,)))
+
+
+def _keep_closest(pairs: "_Pairs", keep, cap: int, within, s0, length, is_last, root_clearance, xs, Fs,
                   omega) -> tuple[np.ndarray, int, int]:
     """:func:`_cap_pairs` over the candidates ``keep`` (refined pairs) and the pairs not refined yet (refined in
     place where measured). Returns ``(kept, dropped, unmeasured)``, ``kept`` a mask over the pairs."""
@@ -356,7 +363,8 @@ def _keep_closest(pairs: "_Pairs", keep, cap: int, within: float, s0, length, is
 def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=None,
                     up: np.ndarray | None = None,
                     refine_iterations: int = REFINE_ITERATIONS, narrow: bool = True,
-                    touching: np.ndarray | None = None) -> tuple[Contacts, DetectReport]:
+                    touching: np.ndarray | None = None,
+                    farther: np.ndarray | None = None) -> tuple[Contacts, DetectReport]:
     """Declare hair-body and hair-hair contacts of fitted strands.
 
     Parameters
@@ -390,6 +398,10 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         Only the hair-hair pairs with at least one strand among these are searched and declared (the
         per-element cap counts only those); body contacts are unaffected. The wisp rule needs every pair, so
         it must be off. None: every pair.
+    farther : (S,) float64, optional
+        m, per strand: a hair-hair pair of strands ``a`` and ``b`` is searched and declared within
+        ``hair_distance + farther[a] + farther[b]`` (how far the two may move towards each other, in a
+        simulation's step). As ``touching``, without the wisp rule; ``narrow`` does not apply. None: zeros.
 
     Returns
     -------
@@ -473,11 +485,15 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
     wisp_radius = np.zeros(0)
     if settings.hair_hair and elements:
         wisp = settings.wisp and up is not None and settings.hair_max_distance > settings.hair_distance
-        if touching is not None and wisp:
-            raise ValueError("hair pairs touching given strands are searched without the wisp rule")
+        if (touching is not None or farther is not None) and wisp:
+            raise ValueError("hair pairs touching given strands or searched farther are searched without the wisp rule")
+        # per element, where pairs are searched farther: a pair's reach is the mean of its two elements' values
+        reach_of = (float(settings.hair_distance) if farther is None else
+                    float(settings.hair_distance) + 2.0 * np.asarray(farther, dtype=np.float64)[strand_of])
         pairs, keep, dense, settled = _hair_candidates(
             samples, xs, Fs, omega, length, strand_of, is_last, s0, count, settings, wisp, narrow=narrow,
-            touching=None if touching is None else np.ascontiguousarray(np.asarray(touching, dtype=bool)[strand_of]))
+            touching=None if touching is None else np.ascontiguousarray(np.asarray(touching, dtype=bool)[strand_of]),
+            near=reach_of)
         ea, eb, sa, sb, dist = pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist
         wisp_radius = np.full(count, float(settings.hair_distance))
         by_wisp = np.zeros(len(ea), dtype=bool)
@@ -509,7 +525,7 @@ def detect_contacts(helices: Helices, body, settings: ContactSettings, progress=
         keep &= ~near_roots
         cap = int(settings.max_hair_per_element)
         if cap > 0:
-            capped, dropped, unmeasured = _keep_closest(pairs, keep, cap, float(settings.hair_distance), s0, length,
+            capped, dropped, unmeasured = _keep_closest(pairs, keep, cap, reach_of, s0, length,
                                                         is_last, float(settings.root_clearance), xs, Fs, omega)
             left = ([f"{counted(dropped, 'farther contact was', 'farther contacts were')} not declared"]
                     if dropped else []) + (
@@ -768,8 +784,11 @@ def _near_both_roots(ea, eb, sa, sb, s0, root_clearance: float) -> np.ndarray:
     return (s0[ea] + sa < root_clearance) & (s0[eb] + sb < root_clearance)
 
 
-def _kept(ea, eb, sa, sb, dist, within: float, length, is_last) -> np.ndarray:
-    """The pairs closer than ``within`` whose closest points are not an element's end that starts the next."""
+def _kept(ea, eb, sa, sb, dist, within, length, is_last) -> np.ndarray:
+    """The pairs closer than ``within`` (float, or per element: a pair's is the mean of its two elements'
+    values) whose closest points are not an element's end that starts the next."""
+    if np.ndim(within):
+        within = 0.5 * (within[ea] + within[eb])
     keep = dist < within
     keep &= ~((sa == length[ea]) & (is_last[ea] == 0))
     keep &= ~((sb == length[eb]) & (is_last[eb] == 0))
@@ -778,8 +797,8 @@ def _kept(ea, eb, sa, sb, dist, within: float, length, is_last) -> np.ndarray:
 
 def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, count: int, settings: ContactSettings,
                      wisp: bool, two_pass: bool = True, lazy: bool = True, narrow: bool = True,
-                     touching: np.ndarray | None = None) -> tuple[_Pairs, np.ndarray, np.ndarray | None,
-                                                                  np.ndarray | None]:
+                     touching: np.ndarray | None = None, near=None) -> tuple[_Pairs, np.ndarray, np.ndarray | None,
+                                                                                  np.ndarray | None]:
     """The element pairs the hair-hair rules choose from, within ``hair_distance``, and with the wisp rule
     within ``hair_max_distance`` wherever a wisp may be that wide.
 
@@ -807,6 +826,10 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
 
     ``touching`` (E,) bool, without the wisp rule: only the pairs with an element among these.
 
+    ``near`` (float, or (E,) per element without the wisp rule: a pair's is the mean of its two elements'), the
+    reach instead of ``hair_distance``; per element, ``narrow`` does not apply (its first search to a fraction of
+    the reach holds the closest pairs of an element only where every pair's reach is the same).
+
     ``narrow`` (with ``lazy``): the search within ``hair_distance`` is made first to ``NARROW`` times it,
     and an element that then holds the cap (:func:`_held_within`) is searched no farther. The pairs left out
     could not be kept, so the contacts and wisp radii are the same; ``settled`` marks the elements left out
@@ -814,12 +837,13 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     ``root_clearance`` of its root, the note on pairs near both roots counts only those closer than the first
     search's reach (all of which it found).
     """
-    near = float(settings.hair_distance)
+    near = float(settings.hair_distance) if near is None else near
+    narrow = narrow and not np.ndim(near)
     cap = int(settings.max_hair_per_element)
     lazy = lazy and cap > 0 and (two_pass or not wisp)
     rc = float(settings.root_clearance)
 
-    def kept(pairs: _Pairs, within: float) -> np.ndarray:
+    def kept(pairs: _Pairs, within) -> np.ndarray:
         return pairs.refined & _kept(pairs.ea, pairs.eb, pairs.sa, pairs.sb, pairs.dist, within, length, is_last)
 
     def search(reach, within, wide=None, on_demand=False, among=None) -> _Pairs:
@@ -890,7 +914,7 @@ def _hair_candidates(samples, xs, Fs, omega, length, strand_of, is_last, s0, cou
     return merged, kept(merged, far), dense, settled
 
 
-def _held_within(pairs: _Pairs, within: float, cap: int, s0, length, is_last, root_clearance, xs, Fs,
+def _held_within(pairs: _Pairs, within, cap: int, s0, length, is_last, root_clearance, xs, Fs,
                  omega) -> np.ndarray:
     """Per element, the contacts the greedy cap keeps when only pairs closer than ``within`` are candidates.
 
