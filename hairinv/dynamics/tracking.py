@@ -273,15 +273,22 @@ class ContactTracker:
             rules = dataclasses.replace(rules, body_distance=rules.body_distance + self.margin[0] + own,
                                         hair_distance=rules.hair_distance + self.margin[1])
         current = state.current(model)  # (placed by their frames under a deforming body: built once)
+        # the pairs with a strand that moves that far, searched as far as it goes (see _swept): in the same
+        # search, but for the first detection's wisp rule, which takes no per-strand reach
+        reach = self.detect_settings.hair_distance + self.margin[1]
+        swept = rules.hair_hair and bool(np.any(self.own > 0.5 * reach))
+        farther = self.own if swept and not rules.wisp else None
         found, _ = detect_contacts(current, self.body, rules, up=model.up,
                                    refine_iterations=REFINE_ITERATIONS if first else _MOVING_REFINE,
-                                   narrow=self._narrow_pays())
+                                   narrow=self._narrow_pays(), farther=farther)
         if own and rules.layer is False:  # (contacts the hair layer rule declares lie beyond the distance)
             found = self._within_sweep(found)
-        if own and rules.hair_hair:  # the pairs with a strand that moves that far, searched as far as it goes
+        if swept:
             hair = found.strand[:, 1] >= 0
-            swept = self._swept(current, found.subset(hair), swings, self.detect_settings.hair_distance)
-            found = joined(found.subset(~hair), swept.subset(self._closest(swept)))
+            pairs = found.subset(hair)
+            pairs = (pairs.subset(self._come_within(current, pairs, reach)) if farther is not None else
+                     self._swept(current, pairs, swings, self.detect_settings.hair_distance))
+            found = joined(found.subset(~hair), pairs.subset(self._closest(pairs)))
         self.stale = np.zeros(found.n_contacts, dtype=np.bool_)
         self.redetected = S
         self.last_found, self.q_detected = found, q.copy()
@@ -344,9 +351,13 @@ class ContactTracker:
         ``last`` (the last detection's hair-hair contacts), each element keeping its ``max_hair_per_element``
         closest; and which are kept ones."""
         rules = dataclasses.replace(self.detect_settings, body=False)
+        reach = rules.hair_distance + self.margin[1]
+        # as far as their strands move, in the same search where one of them moves fast (see _swept)
+        farther = self.own if np.any(redone & (self.own > 0.5 * reach)) else None
         fresh, _ = detect_contacts(h, None, rules, refine_iterations=_MOVING_REFINE, narrow=self._narrow_pays(),
-                                   touching=redone)
-        fresh = self._swept(h, fresh, redone, rules.hair_distance)
+                                   touching=redone, farther=farther)
+        if farther is not None:
+            fresh = fresh.subset(self._come_within(h, fresh, reach))
         kept = last.subset(~(redone[last.strand[:, 0]] | redone[last.strand[:, 1]]))
         both = joined(kept, fresh)
         order = self._closest(both, np.concatenate([kept.gap if kept.gap is not None else np.zeros(kept.n_contacts),
