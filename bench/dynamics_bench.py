@@ -75,10 +75,14 @@ RUBY_MOTION_SECONDS = smoke(0.08, 0.01)  # two frames
 RUBY_START_SECONDS = smoke(0.2, 0.01)  # five frames from the scene's start, where the head starts turning
 RUBY_TIGHT = dict(max_turn=0.1, stall_rounds=0)  # the tight reference: the default max_turn, every sweep (and
 # RUBY_REFERENCE_SWEEPS of them)
-RUBY_BEFORE = dict(max_turn=0.05, max_sweeps=200)  # the defaults before 2026-12-07: steps halved at half the turn,
-# four times the sweeps
+RUBY_BEFORE = dict(max_turn=0.05, max_sweeps=200, stall_rounds=3)  # the defaults before 2026-12-07: steps halved
+# at half the turn, a solve stopped after three stalled rounds
 BEFORE_LABEL = ("same, the defaults before 2026-12-07 (dynamics."
                 + ", ".join(f"{k} {v:g}" for k, v in RUBY_BEFORE.items()) + ")")
+RUBY_CAPPED = dict(max_sweeps=50, stall_rounds=3)  # the defaults of 2026-12-07 (max_turn 0.1 as now): the sweeps
+# capped, a solve stopped after three stalled rounds
+CAPPED_LABEL = ("same, the defaults of 2026-12-07 (dynamics."
+                + ", ".join(f"{k} {v:g}" for k, v in RUBY_CAPPED.items()) + ")")
 RUBY_REFERENCE_SWEEPS = smoke(1000, 20)  # per step, every one of them: the reference the moving rows are measured against
 RUBY_NUDGE = 1e-9  # 1/m: the curvatures' perturbation (times a standard normal each) of the run that shows how far
 # apart two runs drift that differ only by round-off-sized changes
@@ -396,8 +400,9 @@ def speed() -> list[dict]:
         points.append(_speed_row("same, one frame, nothing sleeps (dynamics.sleep_speed 0)", sim, RUBY_SECONDS,
                                  lambda t: Motion.still(rmat.gravity), True, rmat))
         turning = _moving(rmat, rscene.helices.root)
-        # the defaults; the defaults before 2026-12-07 (half the turn before a step is halved, four times the
-        # sweeps); the defaults with every sweep (no early stop of a stalled contact solve, the sweeps of the
+        # the defaults; the defaults before 2026-12-07 (half the turn before a step is halved, three stalled
+        # rounds before a solve stops); those of 2026-12-07 (50 sweeps at most, three stalled rounds); the defaults
+        # with every sweep (no early stop of a stalled contact solve, the sweeps of the
         # defaults before), and the reference: every sweep, RUBY_REFERENCE_SWEEPS of them. Each moving row is
         # measured against the reference. Two more runs show how far apart runs drift that should agree: the
         # default from a start perturbed by round-off-sized curvatures, and the reference at the earlier max_turn
@@ -406,6 +411,7 @@ def speed() -> list[dict]:
                 (f"ruby short (as drawn), inverted, motion scene from {RUBY_MOTION_START:g} s, "
                  f"{RUBY_MOTION_SECONDS / 0.04:.0f} frames", {}, False),
                 (BEFORE_LABEL, RUBY_BEFORE, False),
+                (CAPPED_LABEL, RUBY_CAPPED, False),
                 (f"same, every sweep (dynamics.stall_rounds 0, max_sweeps {RUBY_BEFORE['max_sweeps']})",
                  dict(stall_rounds=0, max_sweeps=RUBY_BEFORE["max_sweeps"]), False),
                 (f"the defaults, the start's curvatures perturbed by {RUBY_NUDGE:g} 1/m", {}, True),
@@ -422,7 +428,7 @@ def speed() -> list[dict]:
             moving.append(points[-1])
         for p in moving[:-1]:
             p["deviation"] = _strand_deviation(rscene.helices, p["q"], moving[-1]["q"])
-        default, nudged, fine_reference, reference = moving[0], moving[3], moving[4], moving[5]
+        default, nudged, fine_reference, reference = moving[0], moving[4], moving[5], moving[6]
         default["spread"] = [
             ("the defaults, and the same from the perturbed start", default, nudged),
             (f"the reference at max_turn {RUBY_TIGHT['max_turn']:g}, and at {RUBY_BEFORE['max_turn']:g}",
@@ -435,6 +441,7 @@ def speed() -> list[dict]:
         started = []
         for label, changes in ((f"the defaults, motion scene from its start, {frames}", {}),
                                (BEFORE_LABEL, RUBY_BEFORE),
+                               (CAPPED_LABEL, RUBY_CAPPED),
                                (f"reference from the start: max_turn {RUBY_TIGHT['max_turn']:g}, every sweep, "
                                 f"{RUBY_REFERENCE_SWEEPS} per step", dict(RUBY_TIGHT, max_sweeps=RUBY_REFERENCE_SWEEPS))):
             log(f"speed: ruby short, {label}")

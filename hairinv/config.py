@@ -290,20 +290,21 @@ class DynamicsSettings:
     tolerance: float = 1e-6
     """Contact solve stops when every contact's velocity error (the natural-map residual times the
     contact's own Delassus scale) is below this fraction of g h, the speed gravity adds in one step."""
-    max_sweeps: int = 40
-    """Largest number of Gauss-Seidel sweeps per step (warm started from the previous step). Dense moving
-    hair-hair contact converges slowly whatever the count (a step of ruby short moving, its convex problem with
-    the friction shift frozen: the error in the mass norm 0.32 of the warm start's after 40 sweeps, 0.24 after 80,
-    0.15 after 320), so more sweeps buy little: ruby short moving from 0.5 s ends as close to a 1,000-sweep
-    reference with 40 as with 50 (median 0.13 and 0.11 mm, 90th percentile 0.60 and 0.58) in 0.8 of the time,
-    and with 30 twice as far at the 90th percentile (docs/dynamics.md)."""
-    stall_rounds: int = 3
+    max_sweeps: int = 200
+    """Largest number of Gauss-Seidel sweeps per step (warm started from the previous step). A solve that
+    converges takes what it needs (32 guides landing from a jump: 60-130 sweeps a step); one that stalls stops
+    on ``stall_rounds`` first. Capped at 40 instead, the landing's truncated solves threw 4x the reference's
+    kinetic energy into the hair (one strand whipped 701 mm from its rest place, against 458 for a run at a
+    quarter of the step with every sweep; docs/dynamics.md)."""
+    stall_rounds: int = 1
     """A step's contact solve stops early, keeping its best iterate, once this many rounds in a row (a
     round: one convex problem of the Coulomb fixed point, at most a tenth of ``max_sweeps``) have not
-    halved its residual; 0 never stops early. Dense moving hair-hair contact rarely meets the tolerance.
-    One round (the draft preset) is faster where the hair is jerked into motion, but from the start of a
-    motion its looser solves let errors grow into cascades of halved steps: ruby short from the start of
-    the ``motion`` scene took 62 s a frame at 1 against 10 s at 3 (docs/dynamics.md)."""
+    halved its residual; 0 never stops early. Dense moving hair-hair contact rarely meets the tolerance
+    and stalls: ruby short moving stops after 45-65 sweeps a step at 1 (5.0 s a frame from 0.5 s into the
+    ``motion`` scene, 0.13 / 0.67 mm from a 1,000-sweep reference; with a cap of 40 sweeps instead 3.7-4.0 s,
+    0.13 / 0.60 mm), with no halved step from the scene's start (4.2 s a frame). At ``max_turn`` 0.05 one
+    stalled round let ruby short cascade into halved steps from the start (62 s a frame against 10 at 3;
+    docs/dynamics.md)."""
     quadrature: int = 4
     """Gauss-Legendre points per element for the mass matrix and the inertial forces."""
     inertia_radius: float = 5e-3
