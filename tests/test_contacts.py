@@ -986,6 +986,27 @@ def test_hair_pairs_searched_farther_per_strand_are_those_within_the_sum_of_thei
         detect_contacts(h, plane(), SETTINGS, up=np.array([0.0, 1.0, 0.0]), farther=farther)
 
 
+def test_a_strand_searched_thousands_of_times_farther_than_the_others_coarsens_the_grid():
+    """One strand's pairs searched 0.5 m farther (a strand whipped through a step), the others' at 1 mm: its boxes
+    would enter millions of cells of a grid sized for the others' (``CELL_ENTRIES``). The grid is coarsened
+    instead, and the pairs are those of a search of every pair to that reach, filtered pair by pair."""
+    h = dense_head(2, guides=6, follow=6)
+    hd = SETTINGS.hair_distance
+    farther = np.zeros(h.n_strands)
+    farther[3] = 0.5
+    settings = dataclasses.replace(SETTINGS, layer=False, wisp=False, max_hair_per_element=0)
+    some, _ = detect_contacts(h, plane(), settings, farther=farther)
+    every, _ = detect_contacts(h, plane(), dataclasses.replace(settings, hair_distance=hd + 1.0))
+    pairs = every.strand[:, 1] >= 0
+    expected = every.subset(pairs & (every.gap < hd + farther[every.strand[:, 0]]
+                                     + farther[np.maximum(every.strand[:, 1], 0)]))
+    partners = set(expected.strand[np.any(expected.strand == 3, axis=1)].ravel().tolist()) - {3}
+    assert partners == set(range(h.n_strands)) - {3}  # strand 3 meets every other strand within 0.5 m
+    hair = some.strand[:, 1] >= 0
+    for name in ("strand", "element", "s", "gap"):
+        np.testing.assert_allclose(getattr(some.subset(hair), name), getattr(expected, name), rtol=0, atol=1e-12)
+
+
 @pytest.mark.parametrize("cap", [1, 8, 40])
 def test_a_simulation_searches_narrowly_first_where_half_the_elements_held_the_cap(cap):
     """A simulation's detection (``ContactTracker.detect``) takes the narrow first search where at least half

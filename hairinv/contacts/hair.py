@@ -32,6 +32,10 @@ __all__ = ["segment_closest", "hair_pairs", "refine_pairs", "pair_points", "elem
 # Grid cell over the median inflated segment box (Teschner et al. suggest about one box). CPU s of the pair
 # search on 20,000 synthetic strands x 10 elements for 0.5/0.75/1/1.5/2/3: 3.2/2.1/1.9/2.0/2.3/3.0.
 CELL_FACTOR = 1.0
+# Grid cells a segment's box enters, on average, beyond which the grid is coarsened (by 2 at a time): boxes of
+# one size enter 1-8 each; a search with a per-element reach sizes its cells for the median box, and a few
+# boxes thousands of times wider (a strand whipped 0.2 m in a step) would enter millions each.
+CELL_ENTRIES = 27
 # Gauss-Newton steps of the refinement; it converges in 2-4 from the polyline solution.
 REFINE_STEPS = 12
 # The refinement stops when a step moves the arc lengths by less than this fraction of the elements' lengths
@@ -445,18 +449,20 @@ def hair_pairs(samples: np.ndarray, omega: np.ndarray, length: np.ndarray, stran
     cell = max(CELL_FACTOR * float(np.median(np.max(hi - lo, axis=1))), float(np.min(hair_distance)))
     # key = (i, j, k) packed with just the bits the grid needs, and the segment index below it: one plain
     # sort of int64 instead of an argsort (measured 5x faster, gathers included, on 6.6 million entries).
-    # A grid too fine to pack (strands metres apart) is coarsened: slower, never wrong.
+    # A grid too fine to pack (strands metres apart), or whose boxes would enter more than CELL_ENTRIES cells
+    # each on average (a few boxes far wider than the median), is coarsened: slower, never wrong.
     seg_bits = max(1, int(segments - 1).bit_length())
+    cells = np.empty(segments, np.int64)
     while True:
         inv_cell = 1.0 / cell
         dims = np.floor(extent * inv_cell).astype(np.int64) + 1  # as _cell computes the largest index
         bits = [max(1, int(d - 1).bit_length()) for d in dims]
         if sum(bits) + seg_bits <= 63:
-            break
+            _count_cells(lo, hi, origin, inv_cell, cells)
+            if int(cells.sum()) <= CELL_ENTRIES * segments:
+                break
         cell *= 2.0
     shift_j, shift_i = bits[2], bits[1] + bits[2]
-    cells = np.empty(segments, np.int64)
-    _count_cells(lo, hi, origin, inv_cell, cells)
     starts = np.concatenate([[0], np.cumsum(cells)]).astype(np.int64)
     packed = np.empty(starts[-1], np.int64)
     _fill_cells(lo, hi, origin, inv_cell, shift_i, shift_j, seg_bits, starts, packed)
