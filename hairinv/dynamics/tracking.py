@@ -276,7 +276,7 @@ class ContactTracker:
         # the pairs with a strand that moves that far, searched as far as it goes (see _swept): in the same
         # search, but for the first detection's wisp rule, which takes no per-strand reach
         reach = self.detect_settings.hair_distance + self.margin[1]
-        swept = rules.hair_hair and bool(np.any(self.own > 0.5 * reach))
+        swept = rules.hair_hair and bool(np.any(self._fast(reach)))
         farther = self.own if swept and not rules.wisp else None
         found, _ = detect_contacts(current, self.body, rules, up=model.up,
                                    refine_iterations=REFINE_ITERATIONS if first else _MOVING_REFINE,
@@ -353,7 +353,7 @@ class ContactTracker:
         rules = dataclasses.replace(self.detect_settings, body=False)
         reach = rules.hair_distance + self.margin[1]
         # as far as their strands move, in the same search where one of them moves fast (see _swept)
-        farther = self.own if np.any(redone & (self.own > 0.5 * reach)) else None
+        farther = self.own if np.any(redone & self._fast(reach)) else None
         fresh, _ = detect_contacts(h, None, rules, refine_iterations=_MOVING_REFINE, narrow=self._narrow_pays(),
                                    touching=redone, farther=farther)
         if farther is not None:
@@ -397,13 +397,18 @@ class ContactTracker:
         searched in groups moving within a factor of two of each other, each to twice its fastest's motion."""
         reach = distance + self.margin[1]
         own = self.own
-        fast = redone & (own > 0.5 * reach)
+        fast = redone & self._fast(reach)
         if not fast.any():
             return fresh
         rules = dataclasses.replace(self.detect_settings, body=False, hair_distance=reach)
         swept, _ = detect_contacts(h, None, rules, refine_iterations=_MOVING_REFINE, touching=fast, farther=own)
         out = fresh.subset(~(fast[fresh.strand[:, 0]] | fast[fresh.strand[:, 1]]))
         return joined(out, swept.subset(self._come_within(h, swept, reach)))
+
+    def _fast(self, reach: float) -> np.ndarray:
+        """(S,) bool: the strands whose own motion over the step (:meth:`own_sweep`) exceeds half the contact
+        distance ``reach``: with another, they could pass through each other between two detections."""
+        return self.own > 0.5 * reach
 
     def _come_within(self, h: Helices, pairs: Contacts, reach: float) -> np.ndarray:
         """Which hair ``pairs`` come within ``reach`` over the step, their two points moved as the strands'
