@@ -139,15 +139,29 @@ def test_a_strand_falling_onto_another_faster_than_the_contact_distance_a_step_l
     """B falls onto A at up to 0.8 m/s, 8 mm a step, eight times ``hair_distance``, in whole steps (no halving:
     ``max_turn`` 10 rad): the pair is searched as far as B's own motion over the step reaches, so B lands on A
     and rests there, above it where they cross. With the strands' own motion left out of the search (the
-    detection of the step's start alone), B passes through A to the floor."""
+    detection of the step's start alone), B passes through A to the floor. The same where the fast pairs take a
+    second search (``ContactTracker._swept``: a whole detection under the wisp rule, which takes no per-strand
+    reach)."""
+    from hairinv.dynamics import tracking
     from hairinv.dynamics.tracking import ContactTracker
 
-    def crossing(make, limit_own: bool):
+    def crossing(make, limit_own: bool, second_search: bool = False):
         if limit_own:
             monkeypatch.setattr(ContactTracker, "own_sweep", lambda self, state, h: np.zeros(len(self.own)))
         helices, mat, sim_of = make
         sim = sim_of(0.0)
         sim.settings = dataclasses.replace(sim.settings, max_turn=10.0)
+        searched = []
+        if second_search:  # every detection whole, under rules with the wisp rule
+            monkeypatch.setattr(tracking, "_PARTIAL_SHARE", 0.0)
+            sim.tracker.detect_settings = dataclasses.replace(sim.tracker.detect_settings, wisp=True)
+            swept = ContactTracker._swept
+
+            def counted(self, h, fresh, redone, distance):
+                out = swept(self, h, fresh, redone, distance)
+                searched.append(out.n_contacts > fresh.n_contacts)
+                return out
+            monkeypatch.setattr(ContactTracker, "_swept", counted)
         above, farthest = [], 0.0
         pb_last = _points(helices, sim.q, per=33)[1]
         for _ in range(40):
@@ -160,6 +174,8 @@ def test_a_strand_falling_onto_another_faster_than_the_contact_distance_a_step_l
             j = int(np.argmin(np.abs(pa[:, 0] - pb[k, 0])))
             above.append(pb[k, 1] - pa[j, 1])
         monkeypatch.undo()
+        if second_search:
+            assert any(searched)  # the second search found pairs the first had not
         return np.array(above), sim, farthest
 
     made = _two_strands_on_a_floor(above=3e-3)
@@ -171,6 +187,8 @@ def test_a_strand_falling_onto_another_faster_than_the_contact_distance_a_step_l
     assert above[-1] < 2e-3  # (down on A: the two radii apart, not held up in the air)
     through, _, _ = crossing(_two_strands_on_a_floor(above=3e-3), limit_own=True)
     assert through[-1] < 0.0  # without the sweep: through A
+    above, sim, _ = crossing(_two_strands_on_a_floor(above=3e-3), limit_own=False, second_search=True)
+    assert np.all(above > 0.0) and above[-1] < 2e-3
 
 
 def test_a_sleeping_strand_wakes_when_the_motion_changes():
