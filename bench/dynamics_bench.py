@@ -75,14 +75,19 @@ RUBY_MOTION_SECONDS = smoke(0.08, 0.01)  # two frames
 RUBY_START_SECONDS = smoke(0.2, 0.01)  # five frames from the scene's start, where the head starts turning
 RUBY_TIGHT = dict(max_turn=0.1, stall_rounds=0)  # the tight reference: the default max_turn, every sweep (and
 # RUBY_REFERENCE_SWEEPS of them)
+
+
+def _defaults_label(when: str, changes: dict) -> str:
+    """A row's label for earlier defaults: ``when`` they held, and the settings that differ from today's."""
+    return f"same, the defaults {when} (dynamics." + ", ".join(f"{k} {v:g}" for k, v in changes.items()) + ")"
+
+
 RUBY_BEFORE = dict(max_turn=0.05, max_sweeps=200, stall_rounds=3)  # the defaults before 2026-12-07: steps halved
 # at half the turn, a solve stopped after three stalled rounds
-BEFORE_LABEL = ("same, the defaults before 2026-12-07 (dynamics."
-                + ", ".join(f"{k} {v:g}" for k, v in RUBY_BEFORE.items()) + ")")
+BEFORE_LABEL = _defaults_label("before 2026-12-07", RUBY_BEFORE)
 RUBY_CAPPED = dict(max_sweeps=50, stall_rounds=3)  # the defaults of 2026-12-07 (max_turn 0.1 as now): the sweeps
 # capped, a solve stopped after three stalled rounds
-CAPPED_LABEL = ("same, the defaults of 2026-12-07 (dynamics."
-                + ", ".join(f"{k} {v:g}" for k, v in RUBY_CAPPED.items()) + ")")
+CAPPED_LABEL = _defaults_label("of 2026-12-07", RUBY_CAPPED)
 RUBY_REFERENCE_SWEEPS = smoke(1000, 20)  # per step, every one of them: the reference the moving rows are measured against
 RUBY_NUDGE = 1e-9  # 1/m: the curvatures' perturbation (times a standard normal each) of the run that shows how far
 # apart two runs drift that differ only by round-off-sized changes

@@ -157,8 +157,8 @@ def test_a_strand_falling_onto_another_faster_than_the_contact_distance_a_step_l
             sim.tracker.detect_settings = dataclasses.replace(sim.tracker.detect_settings, wisp=True)
             swept = ContactTracker._swept
 
-            def counted(self, h, fresh, redone, distance):
-                out = swept(self, h, fresh, redone, distance)
+            def counted(self, h, fresh, redone, reach):
+                out = swept(self, h, fresh, redone, reach)
                 searched.append(out.n_contacts > fresh.n_contacts)
                 return out
             monkeypatch.setattr(ContactTracker, "_swept", counted)

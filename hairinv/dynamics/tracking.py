@@ -287,7 +287,7 @@ class ContactTracker:
             hair = found.strand[:, 1] >= 0
             pairs = found.subset(hair)
             pairs = (pairs.subset(self._come_within(current, pairs, reach)) if farther is not None else
-                     self._swept(current, pairs, swings, self.detect_settings.hair_distance))
+                     self._swept(current, pairs, swings, reach))
             found = joined(found.subset(~hair), pairs.subset(self._closest(pairs)))
         self.stale = np.zeros(found.n_contacts, dtype=np.bool_)
         self.redetected = S
@@ -380,9 +380,10 @@ class ContactTracker:
         return order[np.lexsort((pairs.s[order, 1], pairs.s[order, 0], pairs.strand[order, 1],
                                  pairs.strand[order, 0]))]
 
-    def _swept(self, h: Helices, fresh: Contacts, redone: np.ndarray, distance: float) -> Contacts:
-        """``fresh`` (hair-hair pairs found within ``distance`` plus the step's margin, their strands among
-        ``redone``) with the pairs of a strand that moves fast searched again as far as their strands move.
+    def _swept(self, h: Helices, fresh: Contacts, redone: np.ndarray, reach: float) -> Contacts:
+        """``fresh`` (hair-hair pairs found within the contact distance ``reach``, the step's margin included,
+        their strands among ``redone``) with the pairs of a strand that moves fast searched again as far as
+        their strands move.
 
         Two strands can pass through each other between two detections only if together they move farther
         than the contact distance over the step (:meth:`own_sweep`), so one of them more than half of it.
@@ -395,13 +396,11 @@ class ContactTracker:
         per-strand reach. On ruby short from the start of the ``motion`` scene a step's detection took
         0.33-0.44 s in one search, 0.49-0.52 s with this second one, and 0.8-0.9 s when the fast strands were
         searched in groups moving within a factor of two of each other, each to twice its fastest's motion."""
-        reach = distance + self.margin[1]
-        own = self.own
         fast = redone & self._fast(reach)
         if not fast.any():
             return fresh
         rules = dataclasses.replace(self.detect_settings, body=False, hair_distance=reach)
-        swept, _ = detect_contacts(h, None, rules, refine_iterations=_MOVING_REFINE, touching=fast, farther=own)
+        swept, _ = detect_contacts(h, None, rules, refine_iterations=_MOVING_REFINE, touching=fast, farther=self.own)
         out = fresh.subset(~(fast[fresh.strand[:, 0]] | fast[fresh.strand[:, 1]]))
         return joined(out, swept.subset(self._come_within(h, swept, reach)))
 
